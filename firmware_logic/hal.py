@@ -1,0 +1,68 @@
+"""The narrow hardware abstraction a robot body offers the firmware.
+
+A body (the simulator's, a Khepera II driven over RS-232, a GoGo Board, a
+MicroPython board's pins) implements these methods; the FSM calls nothing
+else. All values are small ints: positions are Q8 patches
+(firmware_logic/fixedpoint.py), headings whole degrees, 0 = north.
+
+Sensing (answered from the world as it stood at the start of the tick):
+    x(), y()                 -> own position, Q8
+    probe(heading)           -> NOTHING / OBJECT / CLAIMED / ROBOT / WALL for
+                                the patch one patch ahead along `heading`
+    field_ahead(heading)     -> potential-field strength one patch ahead
+    field_here()             -> field strength at the own patch
+    uphill()                 -> heading (multiple of 45) to the strongest
+                                neighbouring patch if stronger than here, else -1
+    holding()                -> 1 if the last claim succeeded and is held
+Acting (at most one of forward / claim / carry per tick):
+    forward(heading, step)   -> move `step` (Q8) along `heading`
+    claim(heading)           -> grip the segment one patch ahead
+    carry(dx, dy)            -> move with the object by whole patches
+    beacon(on)               -> field source on (1) or off (0)
+Messages (firmware_logic/messages.py):
+    send(kind, a0, a1, a2, a3, a4, a5)
+    recv(buf)                -> kind of the next message (0: none), fields in buf
+"""
+
+
+class Hal:
+    """Base class documenting the interface; bodies override every method."""
+
+    def x(self):
+        raise NotImplementedError
+
+    def y(self):
+        raise NotImplementedError
+
+    def probe(self, heading):
+        raise NotImplementedError
+
+    def field_ahead(self, heading):
+        raise NotImplementedError
+
+    def field_here(self):
+        raise NotImplementedError
+
+    def uphill(self):
+        raise NotImplementedError
+
+    def holding(self):
+        raise NotImplementedError
+
+    def forward(self, heading, step):
+        raise NotImplementedError
+
+    def claim(self, heading):
+        raise NotImplementedError
+
+    def carry(self, dx, dy):
+        raise NotImplementedError
+
+    def beacon(self, on):
+        raise NotImplementedError
+
+    def send(self, kind, a0, a1, a2, a3, a4, a5):
+        raise NotImplementedError
+
+    def recv(self, buf):
+        raise NotImplementedError

@@ -1,0 +1,244 @@
+"""The robot behaviour of the thesis (Appendix A) as a finite-state machine.
+
+One call to `Robot.step(hal)` is one control tick. The robot senses and acts
+only through `hal` (see firmware_logic/hal.py), owns its heading, its RNG and
+its report bookkeeping, and never allocates in the step path, so it runs
+unchanged on CPython and on a MicroPython board.
+
+Tick rule (docs/tick-semantics.md): every sensing call of a tick happens
+before the tick's single movement request (`forward`, `claim` or `carry`),
+so a world can answer all robots from the state at the start of the tick.
+The thesis's go-loop order (RandomHead, FindObject, FindField) becomes
+FindObject, FindField/FollowField, RandomHead within one tick; over ticks the
+sequence of decisions is the thesis's.
+"""
+
+from firmware_logic import fixedpoint as fx
+from firmware_logic import messages as msg
+from firmware_logic.rng import Rng
+
+# states
+SEARCH = 0   # wandering, no field sensed (foundObject=false, foundField=false)
+FIELD = 1    # inside a potential field: uphill, then fieldDefiance random steps
+GRASP = 2    # claimed a segment; waiting for the grip to be confirmed
+HOLD = 3     # holding the object: stationary, beacon on, touch reported
+CARRY = 4    # centralised phase: moving with the object on the host's command
+HALT = 5     # mission over or halted by the host
+
+STATE_NAMES = ("search", "field", "grasp", "hold", "carry", "halt")
+
+# probe results
+NOTHING = 0
+OBJECT = 1   # a free (yellow) segment of the object
+CLAIMED = 2  # a segment another robot holds (blue)
+ROBOT = 3
+WALL = 4
+
+# movement models (the thesis's movementModel values)
+FIREFLY = 1
+ANT = 2
+
+# report retransmission, in ticks: first retry after RETX_FIRST, doubling
+RETX_FIRST = 4
+RETX_MAX = 64
+HEARTBEAT_EVERY = 64
+
+
+class Robot:
+    def __init__(self, node, seed, model, vision_span, field_defiance, power):
+        self.node = node
+        self.model = model
+        self.span = vision_span
+        self.defiance = field_defiance
+        self.power = power            # hundredths of a unit (rPower * 100)
+        self.step_len = fx.ONE if model == FIREFLY else fx.QUARTER
+        self.rng = Rng(seed, node)
+        self.heading = self.rng.below(360)
+        self.state = SEARCH
+        self.resume = SEARCH          # where to go back to if a grasp fails
+        self.phase = 0                # position in the in-field cycle
+        self.first = 0                # found the object from outside any field
+        self.claim_heading = 0
+        self.ticks = 0
+        # touch report and its retransmission
+        self.seq = 0
+        self.pending = 0
+        self.retx_timer = 0
+        self.retx_every = RETX_FIRST
+        self.rx = 0
+        self.ry = 0
+        self.sx = 0
+        self.sy = 0
+        self.hello_acked = 0
+        # centralised phase
+        self.last_step = 0            # last transport step received
+        self.done_step = 0            # last transport step executed
+        self.cdx = 0
+        self.cdy = 0
+        self.carry_due = 0
+        self.rxbuf = [0, 0, 0, 0, 0, 0]
+
+    # -- the tick ---------------------------------------------------------
+
+    def step(self, hal):
+        self.ticks += 1
+        k = hal.recv(self.rxbuf)
+        while k:
+            self._on_message(hal, k)
+            k = hal.recv(self.rxbuf)
+        s = self.state
+        if s == SEARCH:
+            self._search(hal)
+        elif s == FIELD:
+            self._field(hal)
+        elif s == GRASP:
+            self._grasp(hal)
+        elif s == CARRY:
+            self._carry(hal)
+        self._housekeeping(hal)
+
+    def _search(self, hal):
+        # FindObject, then FindField, then RandomHead (one move at most)
+        if self._find_object(hal):
+            return
+        if hal.field_ahead(self.heading) > 0:
+            self.state = FIELD
+            self._follow_field(hal)
+            self.phase = 1 if self.defiance > 0 else 0
+            return
+        self._random_head(hal)
+
+    def _field(self, hal):
+        # cycle: [FindObject + FollowField], then fieldDefiance x RandomHead
+        if self.phase == 0:
+            if self._find_object(hal):
+                return
+            self._follow_field(hal)
+            if self.defiance > 0:
+                self.phase = 1
+            return
+        self._random_head(hal)
+        self.phase += 1
+        if self.phase > self.defiance:
+            self.phase = 0
+
+    def _grasp(self, hal):
+        if not hal.holding():
+            # another robot took the segment in the same tick
+            self.state = self.resume
+            self.phase = 0
+            return
+        self.state = HOLD
+        hal.beacon(1)
+        x = hal.x()
+        y = hal.y()
+        self.rx = fx.patch(x)
+        self.ry = fx.patch(y)
+        self.sx = fx.patch(x + fx.dx(self.claim_heading, fx.ONE))
+        self.sy = fx.patch(y + fx.dy(self.claim_heading, fx.ONE))
+        self.seq += 1
+        if self.seq > 255:
+            self.seq = 1
+        self.pending = 1
+        self.retx_every = RETX_FIRST
+        self._send_touch(hal)
+
+    def _carry(self, hal):
+        # Report the pose first: it reflects every step executed in earlier
+        # ticks, which is what `done_step` says, so the host never plans
+        # from a pose that is about to change.
+        hal.send(msg.HEARTBEAT, CARRY, hal.x(), hal.y(), self.heading,
+                 self.done_step, 0)
+        if self.carry_due:
+            self.carry_due = 0
+            hal.carry(self.cdx, self.cdy)
+            self.done_step = self.last_step
+
+    # -- thesis procedures -------------------------------------------------
+
+    def _find_object(self, hal):
+        if self.model == FIREFLY:
+            h = 0
+            while h < 360:
+                if self._look_for_object(hal, h):
+                    return 1
+                self.heading = self.rng.below(360)
+                h += 90
+            return 0
+        self._turn()
+        return self._look_for_object(hal, self.heading)
+
+    def _look_for_object(self, hal, h):
+        if hal.probe(h) != OBJECT:
+            return 0
+        hal.claim(h)
+        self.heading = h
+        self.claim_heading = h
+        self.resume = self.state
+        if self.state == SEARCH:
+            self.first = 1
+        self.state = GRASP
+        return 1
+
+    def _turn(self):
+        if self.rng.below(100) % 2 == 0:
+            self.heading = (self.heading + self.rng.below(self.span)) % 360
+        else:
+            self.heading = (self.heading - self.rng.below(self.span)) % 360
+
+    def _random_head(self, hal):
+        if self.model == FIREFLY:
+            self.heading = self.rng.below(360)
+        self._head_carefully(hal)
+
+    def _head_carefully(self, hal):
+        if hal.probe(self.heading) != NOTHING:
+            self.heading = self.rng.below(360)
+            return
+        hal.forward(self.heading, self.step_len)
+
+    def _follow_field(self, hal):
+        u = hal.uphill()
+        if u >= 0:
+            self.heading = u
+        self._head_carefully(hal)
+
+    # -- messages ------------------------------------------------------------
+
+    def _on_message(self, hal, kind):
+        b = self.rxbuf
+        if kind == msg.ACK:
+            if b[0] == 0:
+                self.hello_acked = 1
+            elif self.pending and b[0] == self.seq:
+                self.pending = 0
+        elif kind == msg.TRANSPORT:
+            if self.state == HOLD or self.state == CARRY:
+                if b[0] != self.last_step:
+                    self.state = CARRY
+                    self.last_step = b[0]
+                    self.cdx = b[1]
+                    self.cdy = b[2]
+                    self.carry_due = 1
+        elif kind == msg.HALT:
+            if self.state != HALT:
+                self.state = HALT
+                hal.beacon(0)
+
+    def _send_touch(self, hal):
+        hal.send(msg.TOUCH, self.seq, self.rx, self.ry, self.sx, self.sy, self.power)
+        self.retx_timer = self.retx_every
+
+    def _housekeeping(self, hal):
+        if not self.hello_acked and (self.ticks % RETX_FIRST) == 1:
+            hal.send(msg.HELLO, self.model, self.power, msg.FIRMWARE_VERSION, 0, 0, 0)
+        if self.pending:
+            self.retx_timer -= 1
+            if self.retx_timer <= 0:
+                self.retx_every = self.retx_every * 2
+                if self.retx_every > RETX_MAX:
+                    self.retx_every = RETX_MAX
+                self._send_touch(hal)
+        if self.state != CARRY and (self.ticks % HEARTBEAT_EVERY) == 0:
+            hal.send(msg.HEARTBEAT, self.state, hal.x(), hal.y(), self.heading,
+                     self.done_step, 0)

@@ -1,0 +1,249 @@
+"""The per-robot reference tick engine.
+
+Tick semantics (docs/tick-semantics.md):
+  1. every robot, in node order, reads its inbox and steps its FSM against
+     the world as it stood at the start of the tick; actions are intents;
+  2. intents are applied in a fixed order: claims (lowest node wins a
+     segment), beacons (Signal), the carried group, then moves in node order
+     (a robot may not enter a patch that held a robot at the tick's start,
+     holds the object, is off the arena, or that a lower node entered this
+     tick; moving within its own patch is always allowed);
+  3. messages robots sent travel over the link to the host coordinator,
+     whose commands reach the robots' inboxes before the next tick.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Callable, Protocol
+
+from firmware_logic import fixedpoint as fx
+from firmware_logic import perception
+from firmware_logic.coordinator import Coordinator
+from firmware_logic.robot import Robot
+from sim_backend.body import SimBody
+from sim_backend.scenario import Scenario
+from sim_backend.world import BLUE, FREE, YELLOW, World
+
+log = logging.getLogger(__name__)
+
+
+class Link(Protocol):
+    """How messages travel between the robots and the host coordinator."""
+
+    def robot_send(self, node: int, kind: int, fields: tuple) -> None: ...
+    def robot_recv(self, node: int) -> tuple[int, tuple] | None: ...
+    def host_recv(self) -> list[tuple[int, int, tuple]]: ...
+    def host_send(self, node: int, kind: int, fields: tuple) -> None: ...
+
+
+class InprocLink:
+    """In-process link: lists, delivered at the tick boundary."""
+
+    def __init__(self, nodes: list[int]) -> None:
+        self.up: list[tuple[int, int, tuple]] = []
+        self.down: dict[int, deque] = {n: deque() for n in nodes}
+
+    def robot_send(self, node: int, kind: int, fields: tuple) -> None:
+        self.up.append((node, kind, tuple(fields)))
+
+    def robot_recv(self, node: int) -> tuple[int, tuple] | None:
+        q = self.down[node]
+        return q.popleft() if q else None
+
+    def host_recv(self) -> list[tuple[int, int, tuple]]:
+        out, self.up = self.up, []
+        return out
+
+    def host_send(self, node: int, kind: int, fields: tuple) -> None:
+        targets = self.down.values() if node == 0 else (self.down[node],)
+        for q in targets:
+            q.append((kind, tuple(fields)))
+
+    def close(self) -> None:
+        pass
+
+
+@dataclass
+class RunResult:
+    scenario: Scenario
+    seed: int
+    ticks: int
+    world: World
+    coordinator: Coordinator
+    robots: list[Robot]
+    trajectories: list[tuple[list[int], list[int]]] = field(default_factory=list)
+
+    @property
+    def delivered(self) -> bool:
+        return self.coordinator.delivered_tick >= 0
+
+    def true_cells(self) -> list[tuple[int, int]]:
+        return list(self.world.object_cells)
+
+    def perceived_cells(self) -> set[tuple[int, int]]:
+        return perception.outline_cells(self.coordinator.segments_now())
+
+    def shape_iou(self) -> float:
+        inter, union = perception.iou_counts(self.perceived_cells(), self.true_cells())
+        return round(inter / union, 6) if union else 0.0
+
+    def summary(self) -> dict:
+        c = self.coordinator
+        return {
+            "scenario": self.scenario.name,
+            "seed": self.seed,
+            "robots": self.scenario.agents,
+            "movementModel": self.scenario.movementModel,
+            "object": self.scenario.object,
+            "ticks": self.ticks,
+            "found_tick": c.found_tick if c.found_tick >= 0 else None,
+            "converged_tick": c.converged_tick if c.converged_tick >= 0 else None,
+            "home_tick": c.delivered_tick if c.delivered_tick >= 0 else None,
+            "touches": [[t.rx, t.ry] for t in c.touches],
+            "segments": [[t.sx, t.sy] for t in c.touches],
+            "power": c.power / 100,
+            "shape_iou": self.shape_iou(),
+            "leader": c.leader or None,
+            "delivered": self.delivered,
+        }
+
+
+class Engine:
+    """Runs one scenario with one seed; `step()` advances one tick."""
+
+    def __init__(self, sc: Scenario, seed: int, link: Link | None = None,
+                 record_trajectories: bool = False) -> None:
+        self.sc = sc
+        self.seed = seed
+        self.world = World(sc, seed)
+        nodes = list(range(1, sc.agents + 1))
+        self.link = link if link is not None else InprocLink(nodes)
+        self.robots = [Robot(n, seed, sc.model, sc.robotVisionSpan, sc.fieldDefiance,
+                             sc.power_centi) for n in nodes]
+        self.bodies = [SimBody(self.world, i, n, self.link) for i, n in enumerate(nodes)]
+        self.coordinator = Coordinator(sc.weight_centi, sc.homeX, sc.homeY)
+        self.tick = 0
+        self.beacons: dict[int, tuple[int, int]] = {}   # node -> field source patch
+        self.record = record_trajectories
+        self.trajectories: list[tuple[list[int], list[int]]] = []
+
+    # -- one tick --------------------------------------------------------------
+
+    def step(self) -> None:
+        self.tick += 1
+        for robot, body in zip(self.robots, self.bodies):
+            body.reset_intents()
+            robot.step(body)
+        self._apply()
+        self.exchange()
+        if self.record:
+            self.trajectories.append((list(self.world.xs), list(self.world.ys)))
+
+    def exchange(self) -> None:
+        c = self.coordinator
+        for node, kind, fields in self.link.host_recv():
+            c.on_message(node, kind, fields, self.tick)
+        for node, kind, fields in c.tick(self.tick):
+            self.link.host_send(node, kind, fields)
+
+    def _apply(self) -> None:
+        w = self.world
+        # claims: lowest node first wins a segment
+        for b in self.bodies:
+            k = b.claim_cell
+            if k >= 0 and w.obj[k] == YELLOW:
+                w.obj[k] = BLUE
+                w.owner[k] = b.node
+                b.held = k
+        # beacons: Signal on, and (our addition) its field removed when off
+        for b in self.bodies:
+            if b.beacon_set == 1 and b.node not in self.beacons:
+                src = (fx.patch(w.xs[b.i]), fx.patch(w.ys[b.i]))
+                self.beacons[b.node] = src
+                w.signal(*src)
+            elif b.beacon_set == 0 and b.node in self.beacons:
+                w.signal(*self.beacons.pop(b.node), sign=-1)
+        entered = self._carry_group()
+        # moves
+        for b in self.bodies:
+            if b.move is None:
+                continue
+            h, step = b.move
+            i = b.i
+            ox, oy = w.xs[i], w.ys[i]
+            nx, ny = ox + fx.dx(h, step), oy + fx.dy(h, step)
+            op = (fx.patch(ox), fx.patch(oy))
+            np_ = (fx.patch(nx), fx.patch(ny))
+            if np_ != op:
+                if not w.inside(*np_):
+                    continue
+                k = w.idx(*np_)
+                if w.obj[k] != FREE or w.occ[k] > 0 or k in entered:
+                    continue
+                entered.add(k)
+            w.xs[i], w.ys[i] = nx, ny
+        w.recount()
+
+    def _carry_group(self) -> set[int]:
+        """Move the object with its holders when all of them ask for the same
+        step; return the patches the group entered."""
+        w = self.world
+        holders = [b for b in self.bodies if b.held >= 0]
+        if not holders:
+            return set()
+        intents = {b.carry_intent for b in holders}
+        if len(intents) != 1 or None in intents:
+            return set()
+        ddx, ddy = intents.pop()
+        for b in holders:
+            b.carry_intent = None          # consumed, moved or blocked
+        hold_idx = {w.idx(fx.patch(w.xs[b.i]), fx.patch(w.ys[b.i])) for b in holders}
+        cells = list(w.object_cells)
+        robots_at = [(fx.patch(w.xs[b.i]), fx.patch(w.ys[b.i])) for b in holders]
+        for x, y in cells + robots_at:
+            nx, ny = x + ddx, y + ddy
+            if not w.inside(nx, ny):
+                return set()
+            k = w.idx(nx, ny)
+            if w.occ[k] > 0 and k not in hold_idx:
+                return set()                # a robot not holding is in the way
+        old = [(w.obj[w.idx(x, y)], w.owner[w.idx(x, y)]) for x, y in cells]
+        for x, y in cells:
+            w.obj[w.idx(x, y)] = FREE
+            w.owner[w.idx(x, y)] = 0
+        w.object_cells = [(x + ddx, y + ddy) for x, y in cells]
+        for (x, y), (o, own) in zip(w.object_cells, old):
+            w.obj[w.idx(x, y)] = o
+            w.owner[w.idx(x, y)] = own
+        entered = set()
+        for b in holders:
+            w.xs[b.i] += ddx * fx.ONE
+            w.ys[b.i] += ddy * fx.ONE
+            b.held = w.idx(*self._shift(b.held, ddx, ddy))
+            entered.add(w.idx(fx.patch(w.xs[b.i]), fx.patch(w.ys[b.i])))
+        entered.update(w.idx(x, y) for x, y in w.object_cells)
+        return entered
+
+    def _shift(self, k: int, ddx: int, ddy: int) -> tuple[int, int]:
+        w = self.world
+        return (k % w.n - w.w + ddx, k // w.n - w.w + ddy)
+
+    # -- a whole run -------------------------------------------------------------------
+
+    def finished(self) -> bool:
+        return self.coordinator.delivered_tick >= 0 or self.tick >= self.sc.maxTicks
+
+    def run(self, progress: Callable[[int], None] | None = None) -> RunResult:
+        while not self.finished():
+            self.step()
+            if progress is not None:
+                progress(self.tick)
+        return RunResult(self.sc, self.seed, self.tick, self.world, self.coordinator,
+                         self.robots, self.trajectories)
+
+
+def run(sc: Scenario, seed: int, **kw) -> RunResult:
+    return Engine(sc, seed, **kw).run()

@@ -1,0 +1,9 @@
+"""The one error root of sim_backend."""
+
+
+class SimError(Exception):
+    """Base of every error sim_backend raises on purpose."""
+
+
+class ScenarioError(SimError, ValueError):
+    """A scenario is malformed: names the key and what would be right."""

@@ -1,0 +1,199 @@
+"""Scenarios: the thesis's parameters by their thesis names, loaded from TOML.
+
+A scenario file is flat TOML; every key is optional and defaults to the
+thesis's set-up (docs/scenarios.md). Unknown keys and out-of-range values
+raise ScenarioError naming the key and the allowed range.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import tomllib
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from sim_backend import objects
+from sim_backend.errors import ScenarioError
+
+MODELS = {"firefly": 1, "ant": 2}
+
+
+@dataclass(frozen=True)
+class Scenario:
+    name: str = "default"
+    description: str = ""
+    agents: int = 20
+    movementModel: str = "firefly"
+    robotVisionSpan: int = 45
+    fieldDefiance: int = 2
+    sigRadius: int = 5
+    rPower: float = 1.0
+    objectWeight: float = 5.0
+    object: str = "bar"
+    worldSize: int = 18          # patches run from -worldSize to +worldSize
+    homeX: int = -15
+    homeY: int = -15
+    objectX: int | None = None   # None: `random 10`, as CreateWorld draws it
+    objectY: int | None = None
+    maxTicks: int = 20000
+
+    @property
+    def model(self) -> int:
+        return MODELS[self.movementModel]
+
+    @property
+    def power_centi(self) -> int:
+        return round(self.rPower * 100)
+
+    @property
+    def weight_centi(self) -> int:
+        return round(self.objectWeight * 100)
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+    def replace(self, **changes: Any) -> "Scenario":
+        return validate({**self.to_dict(), **changes})
+
+
+# key -> (kind, low, high); None bounds are unchecked
+RANGES: dict[str, tuple[type, Any, Any]] = {
+    "agents": (int, 1, 127),
+    "robotVisionSpan": (int, 0, 360),
+    "fieldDefiance": (int, 0, 50),
+    "sigRadius": (int, 0, 30),
+    "rPower": (float, 0.01, 655.0),
+    "objectWeight": (float, 0.01, 10000.0),
+    "worldSize": (int, 10, 60),
+    "homeX": (int, -60, 60),
+    "homeY": (int, -60, 60),
+    "objectX": (int, -60, 60),
+    "objectY": (int, -60, 60),
+    "maxTicks": (int, 1, 10_000_000),
+}
+FIELDS = {f.name for f in dataclasses.fields(Scenario)}
+
+
+def _object_name(value: Any) -> str:
+    if isinstance(value, bool):
+        raise ScenarioError(f"object: expected 1-4 or one of {sorted(objects.SHAPES)}, got {value!r}")
+    if isinstance(value, int) and value in objects.THESIS_NUMBERS:
+        return objects.THESIS_NUMBERS[value]
+    if isinstance(value, str):
+        for name in objects.SHAPES:
+            if name.lower() == value.lower():
+                return name
+    raise ScenarioError(
+        f"object: expected 1-4 or one of {', '.join(sorted(objects.SHAPES))}, got {value!r}")
+
+
+def _model_name(value: Any) -> str:
+    if value in (1, 2) and not isinstance(value, bool):
+        return "firefly" if value == 1 else "ant"
+    if isinstance(value, str) and value.lower() in MODELS:
+        return value.lower()
+    raise ScenarioError(f"movementModel: expected 'firefly' (1) or 'ant' (2), got {value!r}")
+
+
+def validate(raw: dict[str, Any], source: str = "scenario") -> Scenario:
+    unknown = sorted(set(raw) - FIELDS)
+    if unknown:
+        raise ScenarioError(
+            f"{source}: unknown key {unknown[0]!r}; known keys: {', '.join(sorted(FIELDS))}")
+    values: dict[str, Any] = {}
+    for key, value in raw.items():
+        if key == "object":
+            values[key] = _object_name(value)
+        elif key == "movementModel":
+            values[key] = _model_name(value)
+        elif key in ("name", "description"):
+            values[key] = str(value)
+        elif key in ("objectX", "objectY") and value is None:
+            values[key] = None
+        else:
+            kind, lo, hi = RANGES[key]
+            ok_type = isinstance(value, (int, float)) and not isinstance(value, bool)
+            if kind is int and ok_type and float(value).is_integer():
+                value = int(value)
+            if not ok_type or (kind is int and not isinstance(value, int)):
+                raise ScenarioError(f"{key}: expected {kind.__name__} in {lo}..{hi}, got {value!r}")
+            if value < lo or value > hi:
+                raise ScenarioError(f"{key}: {value!r} is outside the allowed range {lo}..{hi}")
+            values[key] = kind(value)
+    sc = Scenario(**values)
+    _check_consistency(sc)
+    return sc
+
+
+def _check_consistency(sc: Scenario) -> None:
+    w = sc.worldSize
+    offs = objects.offsets(sc.object)
+    xs = [x for x, _ in offs]
+    ys = [y for _, y in offs]
+    # the anchor range: fixed, or CreateWorld's `random 10`
+    ax = (sc.objectX, sc.objectX) if sc.objectX is not None else (0, 9)
+    ay = (sc.objectY, sc.objectY) if sc.objectY is not None else (0, 9)
+    # one free patch all round, so a robot can stand beside every edge
+    lo_x, hi_x = ax[0] + min(xs), ax[1] + max(xs)
+    lo_y, hi_y = ay[0] + min(ys), ay[1] + max(ys)
+    if lo_x < -w + 1 or hi_x > w - 1 or lo_y < -w + 1 or hi_y > w - 1:
+        raise ScenarioError(
+            f"object: {sc.object!r} at anchor x {ax[0]}..{ax[1]}, y {ay[0]}..{ay[1]} spans "
+            f"x {lo_x}..{hi_x}, y {lo_y}..{hi_y}, which does not fit the arena "
+            f"{-w + 1}..{w - 1} (worldSize={w}); enlarge worldSize or move objectX/objectY")
+    if abs(sc.homeX) > w - 1 or abs(sc.homeY) > w - 1:
+        raise ScenarioError(f"homeX/homeY: ({sc.homeX}, {sc.homeY}) must lie within "
+                            f"{-w + 1}..{w - 1} (worldSize={w})")
+    cells = set(objects.offsets(sc.object))
+    for x, y in cells:
+        for ox in range(ax[0], ax[1] + 1):
+            for oy in range(ay[0], ay[1] + 1):
+                if (x + ox - sc.homeX) ** 2 + (y + oy - sc.homeY) ** 2 < 16:
+                    raise ScenarioError("object: may be placed within 4 patches of home; "
+                                        "move objectX/objectY or homeX/homeY")
+    reach = objects.touchable(sc.object)
+    needed = -(-sc.weight_centi // sc.power_centi)
+    if needed > sc.agents:
+        raise ScenarioError(
+            f"objectWeight: {sc.objectWeight} needs {needed} robots of rPower {sc.rPower}, "
+            f"but agents is {sc.agents}; allowed objectWeight <= agents * rPower = "
+            f"{sc.agents * sc.rPower:g}")
+    if needed > reach:
+        raise ScenarioError(
+            f"objectWeight: {sc.objectWeight} needs {needed} robots holding, but {sc.object!r} "
+            f"has only {reach} reachable segments; allowed objectWeight <= {reach * sc.rPower:g}")
+    free = (2 * w - 1) ** 2 - len(cells)
+    if sc.agents > free // 4:
+        raise ScenarioError(f"agents: {sc.agents} robots crowd a {2 * w + 1}-patch arena; "
+                            f"allowed 1..{free // 4} for worldSize={w}")
+
+
+def builtin_names() -> list[str]:
+    folder = resources.files("sim_backend") / "scenarios"
+    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml"))
+
+
+def load(spec: str | Path | None = None) -> Scenario:
+    """A scenario by built-in name or by path to a TOML file."""
+    if spec is None:
+        spec = "default"
+    path = Path(spec)
+    if str(spec) in builtin_names():
+        text = (resources.files("sim_backend") / "scenarios" / f"{spec}.toml").read_text()
+        source = f"scenario {spec!r}"
+    elif path.suffix == ".toml" or path.exists():
+        try:
+            text = path.read_text()
+        except OSError as err:
+            raise ScenarioError(f"scenario file {str(path)!r}: {err.strerror}") from err
+        source = str(path)
+    else:
+        raise ScenarioError(f"scenario: {str(spec)!r} is neither a built-in "
+                            f"({', '.join(builtin_names())}) nor a .toml file")
+    try:
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        raise ScenarioError(f"{source}: not valid TOML: {err}") from err
+    return validate(raw, source)

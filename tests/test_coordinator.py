@@ -1,0 +1,98 @@
+"""The host coordinator: touches, power, leader, transport, arrival."""
+
+from firmware_logic import messages as msg
+from firmware_logic.coordinator import Coordinator
+
+
+def hello(c, node, power=100, tick=1):
+    c.on_message(node, msg.HELLO, (1, power, 1), tick)
+
+
+def touch(c, node, seq, seg, tick, power=100, robot=None):
+    rx, ry = robot if robot else (seg[0], seg[1] - 1)
+    c.on_message(node, msg.TOUCH, (seq, rx, ry, seg[0], seg[1], power), tick)
+
+
+def test_hello_is_acknowledged_and_unannounced_touches_are_rejected():
+    c = Coordinator(300)
+    touch(c, 4, 1, (5, 5), 2)
+    assert c.touches == [] and c.rejected == {"touch from unannounced node": 1}
+    hello(c, 4)
+    assert c.tick(3) == [(4, msg.ACK, (0,))]
+
+
+def test_duplicates_are_acknowledged_but_counted_once():
+    c = Coordinator(300)
+    hello(c, 2)
+    c.tick(1)
+    touch(c, 2, 1, (5, 5), 10)
+    touch(c, 2, 1, (5, 5), 11)
+    assert c.power == 100 and len(c.touches) == 1 and c.duplicates == 1
+    assert c.tick(11) == [(2, msg.ACK, (1,)), (2, msg.ACK, (1,))]
+
+
+def test_journal_is_written_before_the_ack():
+    order = []
+    c = Coordinator(300, journal=lambda t: order.append(("journal", t.node, t.seq)))
+    hello(c, 2)
+    c.tick(1)
+    touch(c, 2, 1, (5, 5), 10)
+    order += [("sent",) + cmd[:2] for cmd in c.tick(10)]
+    assert order == [("journal", 2, 1), ("sent", 2, msg.ACK)]
+
+
+def test_leader_is_first_finder_and_transport_commands_only_holders():
+    c = Coordinator(200)
+    for n in (1, 2, 3):
+        hello(c, n)
+    c.tick(1)
+    touch(c, 3, 1, (5, 5), 10)
+    assert c.tick(10)[0] == (3, msg.ACK, (1,)) and c.converged_tick == -1
+    touch(c, 1, 1, (6, 5), 12)
+    cmds = c.tick(12)
+    assert c.leader == 3 and c.found_tick == 10 and c.converged_tick == 12
+    transports = [cmd for cmd in cmds if cmd[1] == msg.TRANSPORT]
+    assert sorted(cmd[0] for cmd in transports) == [1, 3]          # not robot 2
+    assert transports[0][2] == (1, -1, -1)                          # toward (-15, -15)
+
+
+def test_transport_advances_on_leader_progress_and_detects_home():
+    c = Coordinator(100)
+    hello(c, 1)
+    touch(c, 1, 1, (-9, -9), 5, robot=(-10, -9))
+    c.tick(5)
+    pose = [-10, -9]
+    for t in range(6, 60):
+        step = c.step
+        # the leader reports the pose after executing the current step
+        pose = [pose[0] + c.dx, pose[1] + c.dy]
+        c.on_message(1, msg.HEARTBEAT, (4, pose[0] * 256, pose[1] * 256, 0, step), t)
+        c.tick(t)
+        if c.delivered_tick >= 0:
+            break
+    assert c.delivered_tick > 0
+    assert (c.moved_x, c.moved_y) == (pose[0] + 10, pose[1] + 9)
+    # the holder ended within 4 patches of home (the thesis's wayHome < 4)
+    assert (pose[0] + 15) ** 2 + (pose[1] + 15) ** 2 < 16
+    assert (pose[0] - c.dx + 15) ** 2 + (pose[1] - c.dy + 15) ** 2 >= 16
+
+
+def test_blocked_step_tries_the_next_direction():
+    c = Coordinator(100)
+    hello(c, 1)
+    touch(c, 1, 1, (0, 0), 5, robot=(0, -1))
+    c.tick(5)
+    first = (c.dx, c.dy)
+    c.on_message(1, msg.HEARTBEAT, (4, 0, -256, 0, c.step), 6)     # did not move
+    c.tick(6)
+    assert (c.dx, c.dy) != first and c.blocked == 1
+
+
+def test_restore_readopts_journalled_touches_without_double_counting():
+    a = Coordinator(300)
+    hello(a, 1)
+    touch(a, 1, 1, (5, 5), 10)
+    b = Coordinator(300)
+    b.restore(a.touches)
+    b.restore(a.touches)
+    assert b.power == 100 and len(b.touches) == 1 and b.leader == 1
