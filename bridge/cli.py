@@ -10,10 +10,18 @@ import sys
 
 from bridge.errors import BridgeError, UsageError
 
+# one module per command; each has register(subparsers). A module not yet
+# present is skipped, so capabilities can land one at a time.
 COMMANDS = [
     "bridge.commands.run",
     "bridge.commands.scenarios",
     "bridge.firmware.cli",
+    "bridge.commands.dbc",
+    "bridge.commands.host",
+    "bridge.commands.robots",
+    "bridge.commands.replay",
+    "bridge.commands.deploy",
+    "bridge.commands.sweep",
 ]
 
 
