@@ -1,0 +1,257 @@
+"""Serial framing of messages: COBS with a CRC-16, one zero byte between frames.
+
+Runs on the robot (MicroPython) and on the host, so it is written in the
+firmware subset (docs/subset.md) and allocates nothing per byte or frame.
+
+A frame, before stuffing:
+
+    kind (1 byte) | node (1 byte) | payload (messages.pack, 0..8 bytes) | crc16 (2 bytes, big endian)
+
+The CRC is CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF) over kind, node
+and payload. The frame is COBS-encoded (no zero byte inside) and followed by
+a single 0x00 delimiter. A receiver that starts mid-stream, or that sees a
+corrupted byte, loses at most the frame in progress: it drops everything up
+to the next 0x00 and starts again (resynchronisation).
+
+Bad frames are counted by fault in `Decoder.errors`, indexed by the ERR_*
+codes below (ERR_NAMES gives their names).
+"""
+
+from firmware_logic import messages as msg
+
+MAX_PAYLOAD = 8
+MAX_RAW = 2 + MAX_PAYLOAD + 2            # kind, node, payload, crc
+MAX_ENCODED = MAX_RAW + 2                # COBS adds one byte per 254, plus the delimiter
+MIN_RAW = 4
+
+ERR_CRC = 0        # checksum mismatch
+ERR_COBS = 1       # a COBS code points past the end of the frame
+ERR_SHORT = 2      # fewer bytes than kind + node + crc
+ERR_LONG = 3       # more bytes than the largest frame before a delimiter
+ERR_KIND = 4       # unknown message kind
+ERR_LENGTH = 5     # payload length does not match the kind's DLC
+ERR_NAMES = ("crc", "cobs", "short", "overflow", "kind", "length")
+
+SUBSET_SETUP = ("Decoder.error_counts",)
+
+
+def crc16(data, n):
+    """CRC-16/CCITT-FALSE of data[0:n]."""
+    crc = 0xFFFF
+    i = 0
+    while i < n:
+        crc ^= data[i] << 8
+        b = 0
+        while b < 8:
+            if crc & 0x8000:
+                crc = ((crc << 1) ^ 0x1021) & 0xFFFF
+            else:
+                crc = (crc << 1) & 0xFFFF
+            b += 1
+        i += 1
+    return crc
+
+
+def cobs_encode(src, n, out):
+    """COBS-encode src[0:n] into out; return the encoded length (no delimiter)."""
+    code_pos = 0
+    code = 1
+    o = 1
+    i = 0
+    while i < n:
+        b = src[i]
+        if b == 0:
+            out[code_pos] = code
+            code_pos = o
+            o += 1
+            code = 1
+        else:
+            out[o] = b
+            o += 1
+            code += 1
+            if code == 0xFF and i + 1 < n:
+                out[code_pos] = code
+                code_pos = o
+                o += 1
+                code = 1
+        i += 1
+    out[code_pos] = code
+    return o
+
+
+def cobs_decode(src, n, out):
+    """Decode COBS src[0:n] into out; return the length, or -1 if malformed."""
+    i = 0
+    o = 0
+    while i < n:
+        code = src[i]
+        if code == 0 or i + code > n + 1:
+            return -1
+        i += 1
+        j = 1
+        while j < code:
+            if i >= n:
+                return -1
+            out[o] = src[i]
+            o += 1
+            i += 1
+            j += 1
+        if code < 0xFF and i < n:
+            out[o] = 0
+            o += 1
+    return o
+
+
+class Encoder:
+    """Builds frames into one preallocated buffer."""
+
+    def __init__(self):
+        self.raw = bytearray(MAX_RAW)
+        self.out = bytearray(MAX_ENCODED)
+        self.args = [0, 0, 0, 0, 0, 0]
+
+    def frame(self, kind, node, a0, a1, a2, a3, a4, a5):
+        """Frame one message; return the byte count written to `self.out`
+        (delimiter included). Raises messages.SchemaError on a bad field."""
+        a = self.args
+        a[0] = a0
+        a[1] = a1
+        a[2] = a2
+        a[3] = a3
+        a[4] = a4
+        a[5] = a5
+        raw = self.raw
+        raw[0] = kind
+        raw[1] = node
+        # pack writes from offset 0: stage in self.out, then copy to raw[2:]
+        n = msg.pack(kind, a, self.out)
+        i = 0
+        while i < n:
+            raw[2 + i] = self.out[i]
+            i += 1
+        return self.frame_raw(n + 2)
+
+    def frame_raw(self, n):
+        """Frame self.raw[0:n] (kind, node, payload) as it is; return the length."""
+        raw = self.raw
+        c = crc16(raw, n)
+        raw[n] = c >> 8
+        raw[n + 1] = c & 0xFF
+        m = cobs_encode(raw, n + 2, self.out)
+        self.out[m] = 0
+        return m + 1
+
+
+class Decoder:
+    """Feed bytes one at a time; `feed` returns 1 when a valid frame is ready.
+
+    After a 1, `kind`, `node`, `count` (payload length) and `payload`
+    (bytearray, first `count` bytes valid) describe the frame, and
+    `fields` holds the unpacked fields (`nfields` of them).
+    """
+
+    def __init__(self):
+        self.buf = bytearray(MAX_ENCODED)
+        self.raw = bytearray(MAX_ENCODED)
+        self.payload = bytearray(MAX_PAYLOAD)
+        self.fields = [0, 0, 0, 0, 0, 0]
+        self.nfields = 0
+        self.n = 0
+        self.dropping = 0
+        self.kind = 0
+        self.node = 0
+        self.count = 0
+        self.frames = 0
+        self.errors = [0, 0, 0, 0, 0, 0]
+
+    def reset(self):
+        """Forget any partial frame (e.g. after the port was reopened)."""
+        self.n = 0
+        self.dropping = 0
+
+    def feed(self, b):
+        if b == 0:
+            n = self.n
+            self.n = 0
+            if self.dropping:
+                self.dropping = 0
+                return 0
+            if n == 0:
+                return 0          # idle delimiters are fine
+            return self._finish(n)
+        if self.dropping:
+            return 0
+        if self.n >= MAX_ENCODED:
+            self.errors[ERR_LONG] += 1
+            self.dropping = 1
+            self.n = 0
+            return 0
+        self.buf[self.n] = b
+        self.n += 1
+        return 0
+
+    def _finish(self, n):
+        raw = self.raw
+        m = cobs_decode(self.buf, n, raw)
+        if m < 0:
+            self.errors[ERR_COBS] += 1
+            return 0
+        if m < MIN_RAW:
+            self.errors[ERR_SHORT] += 1
+            return 0
+        if m > MAX_RAW:
+            self.errors[ERR_LONG] += 1
+            return 0
+        c = crc16(raw, m - 2)
+        if raw[m - 2] != (c >> 8) or raw[m - 1] != (c & 0xFF):
+            self.errors[ERR_CRC] += 1
+            return 0
+        kind = raw[0]
+        if kind not in msg.SCHEMA:
+            self.errors[ERR_KIND] += 1
+            return 0
+        count = m - 4
+        if count != msg.dlc(kind):
+            self.errors[ERR_LENGTH] += 1
+            return 0
+        p = self.payload
+        i = 0
+        while i < count:
+            p[i] = raw[2 + i]
+            i += 1
+        self.kind = kind
+        self.node = raw[1]
+        self.count = count
+        self.nfields = self._unpack(kind, count)
+        self.frames += 1
+        return 1
+
+    def _unpack(self, kind, count):
+        # messages.unpack needs len(data) == dlc; decode here without slicing
+        out = self.fields
+        p = self.payload
+        pos = 0
+        i = 0
+        for f in msg.fields(kind):
+            size = f[1]
+            v = 0
+            j = 0
+            while j < size:
+                v |= p[pos + j] << (8 * j)
+                j += 1
+            if f[2] and v >= 1 << (size * 8 - 1):
+                v -= 1 << (size * 8)
+            out[i] = v
+            pos += size
+            i += 1
+        return i
+
+    def error_counts(self):
+        """{fault name: count} of the faults seen so far (host side)."""
+        d = {}
+        i = 0
+        while i < len(ERR_NAMES):
+            if self.errors[i]:
+                d[ERR_NAMES[i]] = self.errors[i]
+            i += 1
+        return d
