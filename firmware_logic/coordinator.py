@@ -12,6 +12,8 @@ Time is the caller's tick counter; nothing here reads a clock.
 from firmware_logic import messages as msg
 
 RESEND_AFTER = 4   # ticks without progress before a command is sent again
+# host-side logic: portable, but allowed to allocate
+SUBSET_SETUP = ("Touch", "Coordinator")
 STEPS = ((-1, -1), (-1, 0), (0, -1), (1, -1), (-1, 1), (1, 0), (0, 1), (1, 1))
 
 
@@ -138,7 +140,10 @@ class Coordinator:
 
     def segments_now(self):
         """Touched segments where they are now (they move with the object)."""
-        return [(t.sx + self.moved_x, t.sy + self.moved_y) for t in self.touches]
+        out = []
+        for t in self.touches:
+            out.append((t.sx + self.moved_x, t.sy + self.moved_y))
+        return out
 
     def tick(self, tick):
         """Advance the centralised phase; return and clear the commands to send."""

@@ -4,6 +4,9 @@ Pure integer geometry on patch coordinates, so the host processes of every
 link reuse it unchanged and it could run on a board as well.
 """
 
+# host-side helpers: portable, but allowed to allocate
+SUBSET_SETUP = ("convex_hull", "inside_hull", "outline_cells", "iou_counts")
+
 
 def convex_hull(points):
     """Convex hull (counter-clockwise, no repeated point) of integer points."""
@@ -59,8 +62,11 @@ def outline_cells(segments):
     hull = convex_hull(segs)
     if len(hull) < 3:
         return segs
-    xs = [p[0] for p in hull]
-    ys = [p[1] for p in hull]
+    xs = []
+    ys = []
+    for p in hull:
+        xs.append(p[0])
+        ys.append(p[1])
     cells = set(segs)
     for x in range(min(xs), max(xs) + 1):
         for y in range(min(ys), max(ys) + 1):

@@ -12,6 +12,7 @@ A2 = 32730
 MASK15 = 0x7FFF
 M1 = A1 * 32768 - 1
 M2 = A2 * 32768 - 1
+SUBSET_SETUP = ("seed_state",)   # start-up only; returns a tuple
 
 
 def seed_state(seed, node):

@@ -1,0 +1,105 @@
+"""`touchswarm firmware check`: the subset check plus the MicroPython conformance run.
+
+Registered by bridge/cli.py (COMMANDS); can also be run alone as
+`python -m bridge.firmware.cli check`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+
+def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # type: ignore[type-arg]
+    p = sub.add_parser(
+        "firmware", help="check the robot firmware (subset rules, MicroPython conformance)",
+        description="Tools for the robot firmware in firmware_logic/.")
+    fsub = p.add_subparsers(dest="firmware_command", metavar="SUBCOMMAND")
+    c = fsub.add_parser(
+        "check", help="subset check, mpy-cross compile, CPython/MicroPython traces, heap",
+        description="Check firmware_logic/*.py against the MicroPython subset rules "
+                    "(docs/subset.md), compile it with mpy-cross, run the same seeded "
+                    "scripted robot under CPython and MicroPython for both movement "
+                    "models and compare the traces, and measure heap bytes per step. "
+                    "Exit status 0 only if everything passes.")
+    c.add_argument("--json", action="store_true", help="print one JSON object")
+    c.add_argument("--seed", type=int, default=12345, help="run seed (default: %(default)s)")
+    c.add_argument("--node", type=int, default=3, help="robot node id (default: %(default)s)")
+    c.add_argument("--ticks", type=int, default=2000,
+                   help="ticks per conformance run (default: %(default)s)")
+    c.set_defaults(func=cmd_check)
+    p.set_defaults(func=lambda args: _help(p))
+    return p
+
+
+def _help(p: argparse.ArgumentParser) -> int:
+    p.print_help()
+    return 2
+
+
+def cmd_check(args: argparse.Namespace) -> int:
+    from bridge.firmware.conformance import RunParams, run_conformance
+    from bridge.firmware.subset_check import check_package
+
+    violations = check_package()
+    params = RunParams(node=args.node, seed=args.seed, ticks=args.ticks)
+    rep = run_conformance(params=params, heap_steps=args.ticks)
+    ok = not violations and rep.ok
+
+    if getattr(args, "json", False):
+        out = rep.as_dict()
+        out["subset_violations"] = [v.as_dict() for v in violations]
+        out["conformance_ok"] = rep.ok
+        out["ok"] = ok
+        print(json.dumps(out, indent=2, default=str))
+        return 0 if ok else 1
+
+    for v in violations:
+        print(v)
+    print("subset check: %d violation%s" % (len(violations), "" if len(violations) == 1 else "s"))
+    if rep.mpy_cross_version:
+        print("mpy-cross: %s" % rep.mpy_cross_version)
+    if rep.micropython_version:
+        print("micropython %s loads mpy v%s" % (rep.micropython_version, rep.mpy_version_port))
+    if rep.mpy_sizes:
+        print(".mpy sizes (bytes):")
+        width = max(len(m) for m in rep.mpy_sizes)
+        for mod, size in rep.mpy_sizes.items():
+            print("  %-*s %6d" % (width, mod, size))
+        print("  %-*s %6d" % (width, "total", rep.mpy_total))
+        print("loaded from: %s" % ("the .mpy files" if rep.loaded_from == "mpy"
+                                   else "the .py sources (the .mpy files did not load)"))
+    for m in rep.models:
+        if m.identical:
+            trace = "traces identical (%d actions, %d trace lines)" % (m.actions, m.trace_lines)
+        elif m.divergence is not None:
+            trace = "traces DIVERGE at %s" % m.divergence
+        else:
+            trace = "no trace"
+        print("%s: %s" % (m.model, trace))
+        print("  states visited: %s" % (" ".join(m.states_visited) or "-"))
+        if m.heap_steps:
+            print("  heap: %d bytes over %d steps = %.2f bytes/step; under heap_lock: %s"
+                  % (m.heap_bytes, m.heap_steps, m.heap_per_step,
+                     "no allocation" if m.heap_locked_ok
+                     else "MemoryError at step %d" % m.heap_locked_failed_step))
+    for e in rep.errors:
+        print("error: %s" % e, file=sys.stderr)
+    print("firmware check: %s" % ("PASS" if ok else "FAIL"))
+    return 0 if ok else 1
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="touchswarm")
+    sub = p.add_subparsers(dest="command")
+    register(sub)
+    args = p.parse_args(argv)
+    if not getattr(args, "func", None):
+        p.print_help()
+        return 2
+    return int(args.func(args))
+
+
+if __name__ == "__main__":
+    sys.exit(main())
