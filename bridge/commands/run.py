@@ -51,8 +51,12 @@ def register(sub) -> None:
     p.add_argument("--out", type=Path, metavar="DIR",
                    help="write world.png and the thesis-style CSV records here")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
-    p.add_argument("--link", choices=["inproc"], default="inproc",
-                   help="how robots reach the host coordinator (default: %(default)s)")
+    p.add_argument("--link", choices=["inproc", "can"], default="inproc",
+                   help="how robots reach the host coordinator: in-process lists, or CAN "
+                        "frames over a python-can virtual channel (default: %(default)s)")
+    p.add_argument("--record", type=Path, metavar="FILE",
+                   help="record all traffic, SENSOR and ACTION capture frames included, "
+                        "as a python-can log (.blf, .asc, .log by suffix) plus FILE.json")
     p.set_defaults(func=cmd_run)
 
 
@@ -60,7 +64,29 @@ def cmd_run(args: argparse.Namespace) -> int:
     from sim_backend.engine import Engine
 
     sc = scenario_from_args(args)
-    engine = Engine(sc, args.seed)
+    nodes = list(range(1, sc.agents + 1))
+    link = None
+    if args.link == "can":
+        from bridge.links.canlink import CanLink
+        link = CanLink(nodes)
+    recorder = None
+    try:
+        if args.record:
+            from bridge.record.recorder import Recorder, recording_engine
+            from sim_backend.engine import InprocLink
+            recorder = Recorder(args.record, sc, args.seed, link=args.link)
+            engine = recording_engine(sc, args.seed, link or InprocLink(nodes), recorder)
+        else:
+            engine = Engine(sc, args.seed, link=link)
+        return _run(args, sc, engine, recorder)
+    finally:
+        if recorder is not None:
+            recorder.close()
+        if link is not None:
+            link.close()
+
+
+def _run(args: argparse.Namespace, sc, engine, recorder) -> int:
     bar = None
     if sys.stderr.isatty() and not args.json:
         from tqdm import tqdm
@@ -69,6 +95,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     if bar is not None:
         bar.close()
     summary = result.summary()
+    if recorder is not None:
+        recorder.close(summary)
     if args.out:
         from sim_backend.records import write_records
         from sim_backend.render import render
@@ -80,6 +108,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         print(format_summary(summary))
         if args.out:
             print(f"records and world.png written to {args.out}/")
+        if args.record:
+            print(f"traffic recorded to {args.record} ({recorder.frames} frames)")
     return 0 if summary["delivered"] else 1
 
 

@@ -1,0 +1,37 @@
+"""`touchswarm replay FILE`: re-run the firmware and the coordinator on a recording."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+
+def register(sub) -> None:
+    p = sub.add_parser("replay", help="replay a recorded run against the firmware and host",
+                       description="Re-run every robot's firmware on its recorded sensor "
+                                   "stream and the coordinator on the recorded reports; report "
+                                   "each decision that differs. Exit 1 on any divergence.")
+    p.add_argument("file", type=Path, help="a recording made by `touchswarm run --record`")
+    p.add_argument("--realtime", action="store_true",
+                   help="pace by the recorded timestamps (default: as fast as possible)")
+    p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    p.set_defaults(func=cmd_replay)
+
+
+def cmd_replay(args: argparse.Namespace) -> int:
+    from bridge.record.replay import replay
+    s = replay(args.file, realtime=args.realtime)
+    if args.json:
+        print(json.dumps(s, sort_keys=True))
+    else:
+        for d in s["differences"]:
+            print(f"DIVERGED {d}")
+        if s["divergences"] > len(s["differences"]):
+            print(f"... and {s['divergences'] - len(s['differences'])} more")
+        print(f"{s['recording']}: {s['robots']} robots, {s['ticks']} ticks, {s['frames']} frames; "
+              f"{s['sensor_readings']} sensor readings, {s['actions']} actions, "
+              f"{s['robot_messages']} robot messages, {s['host_commands']} host commands "
+              f"replayed; {s['touches']} touches, delivered at tick {s['delivered_tick']}; "
+              f"{s['divergences']} divergences")
+    return 1 if s["divergences"] else 0

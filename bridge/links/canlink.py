@@ -1,0 +1,214 @@
+"""The simulated swarm on a CAN bus.
+
+`Gateway` is the robots' side: ONE python-can bus multiplexing every simulated
+robot (one bus per robot on a virtual channel would make each frame cost
+O(robots)). Robot sends are batched and put on the bus at the tick boundary;
+received host commands go to per-node inboxes (node 0 = every robot).
+
+`CanLink` is an engine Link (sim_backend.engine.Link) whose host side is a
+second bus on the same channel. It is deterministic: at the tick boundary the
+host reads exactly as many frames as the gateway put on the bus this tick, and
+the gateway reads exactly as many as the host sent, so a run over CAN equals
+the in-process run frame for frame (`touchswarm run --link can`).
+
+`Faults` sits between the robots and the bus and drops, duplicates and
+reorders frames within a window, from its own seeded RNG.
+"""
+
+from __future__ import annotations
+
+import itertools
+import os
+import random
+from collections import deque
+from typing import Any
+
+import can
+
+from bridge.links.canbus import converted
+from bridge.links.codec import BadFrames, Decoder, Message, encode
+from bridge.links.errors import LinkTimeoutError
+
+RECV_TIMEOUT = 2.0   # seconds a frame known to be on a virtual bus may take
+
+_serial = itertools.count(1)
+
+
+def private_channel(prefix: str = "touchswarm") -> str:
+    """A virtual channel name no other run in this process shares."""
+    return f"{prefix}-{os.getpid()}-{next(_serial)}"
+
+
+class Faults:
+    """Frame loss, duplication and reordering within a window, seeded."""
+
+    def __init__(self, seed: int = 0, loss: float = 0.0, dup: float = 0.0,
+                 window: int = 1) -> None:
+        if not (0 <= loss < 1 and 0 <= dup < 1 and window >= 1):
+            raise ValueError("expected 0 <= loss < 1, 0 <= dup < 1, window >= 1")
+        self.rng = random.Random(seed)
+        self.loss = loss
+        self.dup = dup
+        self.window = window
+        self.dropped = 0
+        self.duplicated = 0
+
+    def apply(self, frames: list[Any]) -> list[Any]:
+        out = []
+        for f in frames:
+            if self.rng.random() < self.loss:
+                self.dropped += 1
+                continue
+            out.append(f)
+            if self.rng.random() < self.dup:
+                self.duplicated += 1
+                out.append(f)
+        if self.window > 1:
+            for i in range(0, len(out), self.window):
+                chunk = out[i:i + self.window]
+                self.rng.shuffle(chunk)
+                out[i:i + self.window] = chunk
+        return out
+
+
+class Gateway:
+    """Every simulated robot on one bus (the robots' side of a link)."""
+
+    def __init__(self, bus: can.BusABC, nodes: list[int], faults: Faults | None = None,
+                 bad: BadFrames | None = None) -> None:
+        self.bus = bus
+        self.nodes = list(nodes)
+        self.faults = faults
+        self.decoder = Decoder("robot", bad or BadFrames("gateway"))
+        self.up: list[can.Message] = []
+        self.inbox: dict[int, deque] = {n: deque() for n in nodes}
+        self.sent = 0
+        self.received = 0
+
+    def robot_send(self, node: int, kind: int, fields: tuple) -> None:
+        self.up.append(encode(node, kind, fields))
+
+    def robot_recv(self, node: int) -> tuple[int, tuple] | None:
+        q = self.inbox[node]
+        return q.popleft() if q else None
+
+    def flush(self) -> int:
+        """Put this tick's robot frames on the bus; return how many went."""
+        frames, self.up = self.up, []
+        if self.faults is not None:
+            frames = self.faults.apply(frames)
+        with converted("gateway send"):
+            for f in frames:
+                self.bus.send(f)
+        self.sent += len(frames)
+        return len(frames)
+
+    def deliver(self, frame: can.Message) -> None:
+        m = self.decoder.decode(frame)
+        if m is None:
+            return
+        node, kind, fields = m
+        if node == 0:
+            for q in self.inbox.values():
+                q.append((kind, fields))
+        elif node in self.inbox:
+            q = self.inbox[node]
+            q.append((kind, fields))
+        self.received += 1
+
+    def drain(self, count: int | None = None, timeout: float = RECV_TIMEOUT) -> int:
+        """Read `count` frames (each within `timeout`), or, with None, every frame
+        already waiting; deliver them to the inboxes. Returns frames read."""
+        n = 0
+        with converted("gateway recv"):
+            while count is None or n < count:
+                frame = self.bus.recv(timeout if count is not None else 0.0)
+                if frame is None:
+                    if count is None:
+                        break
+                    raise LinkTimeoutError(f"gateway: {n} of {count} host frames arrived "
+                                           f"within {timeout} s")
+                n += 1
+                self.deliver(frame)
+        return n
+
+
+class CanLink:
+    """An engine Link over a python-can bus (default: a private virtual channel)."""
+
+    def __init__(self, nodes: list[int], channel: str | None = None,
+                 faults_up: Faults | None = None, faults_down: Faults | None = None) -> None:
+        from bridge.links import open_bus
+        self.channel = channel or private_channel()
+        self._closed = False
+        self.robot_bus = open_bus(f"virtual://{self.channel}")
+        try:
+            self.host_bus = open_bus(f"virtual://{self.channel}")
+        except Exception:
+            self.robot_bus.shutdown()
+            raise
+        self.gateway = Gateway(self.robot_bus, nodes, faults_up)
+        self.faults_down = faults_down
+        self.host_decoder = Decoder("host", BadFrames("host"))
+        self.down: list[can.Message] = []
+        self.frames_up = 0
+        self.frames_down = 0
+
+    # robots' side
+    def robot_send(self, node: int, kind: int, fields: tuple) -> None:
+        self.gateway.robot_send(node, kind, fields)
+
+    def robot_recv(self, node: int) -> tuple[int, tuple] | None:
+        if self.down:
+            self._flush_down()
+        return self.gateway.robot_recv(node)
+
+    def _flush_down(self) -> None:
+        frames, self.down = self.down, []
+        if self.faults_down is not None:
+            frames = self.faults_down.apply(frames)
+        with converted("host send"):
+            for f in frames:
+                self.host_bus.send(f)
+        self.frames_down += len(frames)
+        self.gateway.drain(len(frames))
+
+    # host's side
+    def host_recv(self) -> list[Message]:
+        n = self.gateway.flush()
+        self.frames_up += n
+        out: list[Message] = []
+        with converted("host recv"):
+            for i in range(n):
+                frame = self.host_bus.recv(RECV_TIMEOUT)
+                if frame is None:
+                    raise LinkTimeoutError(f"host: {i} of {n} robot frames arrived "
+                                           f"within {RECV_TIMEOUT} s")
+                m = self.host_decoder.decode(frame)
+                if m is not None:
+                    out.append(m)
+        return out
+
+    def host_send(self, node: int, kind: int, fields: tuple) -> None:
+        self.down.append(encode(node, kind, fields))
+
+    def bad_frames(self) -> dict[str, int]:
+        out = dict(self.host_decoder.bad.counts)
+        for k, v in self.gateway.decoder.bad.counts.items():
+            out[k] = out.get(k, 0) + v
+        return out
+
+    def close(self) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        if self.down:
+            self.down = []
+        self.host_bus.shutdown()
+        self.robot_bus.shutdown()
+
+    def __enter__(self) -> "CanLink":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

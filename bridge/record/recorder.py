@@ -1,0 +1,158 @@
+"""Recording a run: every message on the link plus each robot's sensor readings
+(SENSOR) and decisions (ACTION), as CAN frames in a python-can log file.
+
+File layout, per tick: for each robot in node order its SENSOR frames then its
+ACTION frames, then the robots' reports, then the host's commands. Frame
+timestamps are EPOCH + tick * TICK_SECONDS (+ 1 us per frame within a tick),
+so the files are reproducible and `--realtime` replay paces by them. A
+sidecar FILE.json keeps what the frames cannot: the scenario and the seed.
+
+Sensor query codes (SENSOR.query): 1 probe(arg=heading), 2 field_ahead(heading),
+3 field_here, 4 uphill, 5 holding, 6 recv (arg = kind received, 0 none; the
+fields are the host frame itself), 7 x, 8 y.
+Action codes (ACTION.action): 1 forward(a=heading, b=step), 2 claim(heading),
+3 carry(dx, dy), 4 beacon(on).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from pathlib import Path
+from typing import Any
+
+import can
+
+from bridge.links.codec import Message, encode
+from bridge.errors import UsageError
+from firmware_logic import messages as msg
+
+log = logging.getLogger(__name__)
+
+EPOCH = 1_700_000_000.0
+TICK_SECONDS = 0.01
+SUFFIXES = (".blf", ".asc", ".log", ".csv", ".trc")
+Q_RECV, Q_X, Q_Y = 6, 7, 8
+
+
+def meta_path(path: Path) -> Path:
+    return Path(str(path) + ".json")
+
+
+class RecordingLink:
+    """Wraps an engine Link and keeps this tick's messages in both directions."""
+
+    def __init__(self, inner: Any) -> None:
+        self.inner = inner
+        self.up: list[Message] = []
+        self.down: list[Message] = []
+
+    def robot_send(self, node: int, kind: int, fields: tuple) -> None:
+        self.up.append((node, kind, tuple(fields)))
+        self.inner.robot_send(node, kind, fields)
+
+    def robot_recv(self, node: int) -> tuple[int, tuple] | None:
+        return self.inner.robot_recv(node)
+
+    def host_recv(self) -> list[Message]:
+        return self.inner.host_recv()
+
+    def host_send(self, node: int, kind: int, fields: tuple) -> None:
+        self.down.append((node, kind, tuple(fields)))
+        self.inner.host_send(node, kind, fields)
+
+    def take(self) -> tuple[list[Message], list[Message]]:
+        up, down = self.up, self.down
+        self.up, self.down = [], []
+        return up, down
+
+    def close(self) -> None:
+        self.inner.close()
+
+
+def _taped(body: Any, method: str, query: int):
+    orig = getattr(body, method)
+
+    def wrapped() -> int:
+        v = orig()
+        if body.tape is not None:
+            body.tape.append((query, 0, v))
+        return v
+    return wrapped
+
+
+class Recorder:
+    """Writes one run, tick by tick, to a python-can log file (by suffix)."""
+
+    def __init__(self, path: Path, scenario: Any, seed: int, link: str = "inproc") -> None:
+        path = Path(path)
+        if not any(str(path).endswith(s) or str(path).endswith(s + ".gz") for s in SUFFIXES):
+            raise UsageError(f"--record {path}: unknown format; expected a file ending "
+                                f"in one of {', '.join(SUFFIXES)} (optionally + .gz)")
+        self.path = path
+        self.meta = {"scenario": scenario.to_dict(), "seed": seed, "link": link,
+                     "tick_seconds": TICK_SECONDS, "epoch": EPOCH, "format": 1}
+        self.writer = can.Logger(str(path))
+        self.frames = 0
+        self._closed = False
+
+    def attach(self, engine: Any) -> None:
+        """Start taping every body of an engine (before its first tick)."""
+        for b in engine.bodies:
+            b.tape = []
+            b.acts = []
+            b.x = _taped(b, "x", Q_X)
+            b.y = _taped(b, "y", Q_Y)
+
+    def write_tick(self, tick: int, bodies: list[Any], up: list[Message],
+                   down: list[Message]) -> None:
+        ts = EPOCH + tick * TICK_SECONDS
+        frames = []
+        t16 = tick & 0xFFFF
+        for b in bodies:
+            for i, (q, arg, v) in enumerate(b.tape):
+                if q == Q_RECV:
+                    arg, v = arg, 0
+                frames.append((b.node, msg.SENSOR, (t16, i & 0xFF, q, arg, v)))
+            for i, (a, x, y) in enumerate(b.acts):
+                frames.append((b.node, msg.ACTION, (t16, i & 0xFF, a, x, y)))
+            b.tape.clear()
+            b.acts.clear()
+        frames.extend(up)
+        frames.extend(down)
+        for j, (node, kind, fields) in enumerate(frames):
+            f = encode(node, kind, fields, timestamp=ts + j * 1e-6)
+            f.channel = 0
+            self.writer.on_message_received(f)
+        self.frames += len(frames)
+
+    def close(self, summary: dict | None = None) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        self.writer.stop()
+        meta = dict(self.meta, frames=self.frames)
+        if summary is not None:
+            meta["summary"] = summary
+        meta_path(self.path).write_text(json.dumps(meta, sort_keys=True, indent=1) + "\n")
+
+    def __enter__(self) -> "Recorder":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def recording_engine(sc: Any, seed: int, link: Any, recorder: Recorder):
+    """An Engine whose every tick is written by `recorder`."""
+    from sim_backend.engine import Engine
+
+    class RecordingEngine(Engine):
+        def step(self) -> None:
+            super().step()
+            up, down = self.link.take()
+            recorder.write_tick(self.tick, self.bodies, up, down)
+
+    eng = RecordingEngine(sc, seed, link=RecordingLink(link))
+    recorder.attach(eng)
+    return eng

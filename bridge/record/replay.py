@@ -1,0 +1,253 @@
+"""Replay a recording: every robot's firmware on its recorded sensor stream,
+the coordinator on the recorded reports; each decision that differs from the
+recording is reported.
+
+A robot's decisions are its actions (ACTION frames) and the messages it sent;
+the coordinator's are the commands it sent. A robot whose firmware asks for a
+different sensor reading than the recording holds has left the recorded path:
+that divergence is reported and the robot is not replayed further.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import time
+from collections import defaultdict, deque
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import can
+
+from bridge.errors import UsageError
+from bridge.links.codec import HOST_KINDS, BadFrames, Decoder, Message
+from bridge.record.recorder import Q_RECV, Q_X, Q_Y, meta_path
+from firmware_logic import messages as msg
+from firmware_logic.coordinator import Coordinator
+from firmware_logic.hal import Hal
+from firmware_logic.robot import Robot
+
+log = logging.getLogger(__name__)
+
+QUERY_NAMES = {1: "probe", 2: "field_ahead", 3: "field_here", 4: "uphill", 5: "holding",
+               Q_RECV: "recv", Q_X: "x", Q_Y: "y"}
+
+
+class Diverged(Exception):
+    pass
+
+
+@dataclass
+class Recording:
+    meta: dict
+    ticks: list[int] = field(default_factory=list)
+    stamps: dict[int, float] = field(default_factory=dict)
+    # node -> tick -> list
+    sensors: dict[int, dict[int, list[tuple]]] = field(default_factory=lambda: defaultdict(dict))
+    actions: dict[int, dict[int, list[tuple]]] = field(default_factory=lambda: defaultdict(dict))
+    up: dict[int, list[Message]] = field(default_factory=lambda: defaultdict(list))
+    down: dict[int, list[Message]] = field(default_factory=lambda: defaultdict(list))
+    frames: int = 0
+    bad: dict[str, int] = field(default_factory=dict)
+
+
+def load(path: Path) -> Recording:
+    path = Path(path)
+    if not path.exists():
+        raise UsageError(f"replay: no such recording {path}")
+    mp = meta_path(path)
+    if not mp.exists():
+        raise UsageError(f"replay: {path} has no sidecar {mp.name} (scenario and seed); "
+                         f"record with `touchswarm run --record {path.name}`")
+    rec = Recording(meta=json.loads(mp.read_text()))
+    dec = Decoder("host", BadFrames("replay"))
+    tick = 0
+    for frame in can.LogReader(str(path)):
+        if frame.is_error_frame:
+            continue
+        rec.frames += 1
+        m = dec.decode_capture(frame)
+        if m is None:
+            continue
+        node, kind, f = m
+        if kind in (msg.SENSOR, msg.ACTION):
+            t = tick + ((f[0] - tick) & 0xFFFF)   # 16-bit tick field, unwrapped
+            if t != tick:
+                tick = t
+                rec.ticks.append(t)
+                rec.stamps[t] = frame.timestamp
+            table = rec.sensors if kind == msg.SENSOR else rec.actions
+            table[node].setdefault(t, []).append(tuple(f[2:]))
+        elif kind in HOST_KINDS:
+            rec.down[tick].append((node, kind, tuple(f)))
+        else:
+            rec.up[tick].append((node, kind, tuple(f)))
+    rec.bad = dict(dec.bad.counts)
+    return rec
+
+
+class ReplayHal(Hal):
+    """Answers the firmware from one robot's recorded sensor stream."""
+
+    def __init__(self, node: int, inbox: deque) -> None:
+        self.node = node
+        self.inbox = inbox
+        self.tape: deque = deque()
+        self.acts: list[tuple] = []
+        self.sent: list[Message] = []
+
+    def _next(self, query: int, arg: int) -> int:
+        want = "%s(%d)" % (QUERY_NAMES[query], arg)
+        if not self.tape:
+            raise Diverged(f"firmware asked {want}, the recording has no more readings")
+        q, a, v = self.tape.popleft()
+        if q != query or (query != Q_RECV and a != arg):
+            raise Diverged(f"firmware asked {want}, the recording has "
+                           f"{QUERY_NAMES.get(q, q)}({a})")
+        return v if query != Q_RECV else a
+
+    def x(self) -> int:
+        return self._next(Q_X, 0)
+
+    def y(self) -> int:
+        return self._next(Q_Y, 0)
+
+    def probe(self, heading: int) -> int:
+        return self._next(1, heading)
+
+    def field_ahead(self, heading: int) -> int:
+        return self._next(2, heading)
+
+    def field_here(self) -> int:
+        return self._next(3, 0)
+
+    def uphill(self) -> int:
+        return self._next(4, 0)
+
+    def holding(self) -> int:
+        return self._next(5, 0)
+
+    def forward(self, heading: int, step: int) -> None:
+        self.acts.append((1, heading, step))
+
+    def claim(self, heading: int) -> None:
+        self.acts.append((2, heading, 0))
+
+    def carry(self, dx: int, dy: int) -> None:
+        self.acts.append((3, dx, dy))
+
+    def beacon(self, on: int) -> None:
+        self.acts.append((4, on, 0))
+
+    def send(self, kind: int, a0: int, a1: int, a2: int, a3: int, a4: int, a5: int) -> None:
+        n = len(msg.fields(kind))
+        self.sent.append((self.node, kind, (a0, a1, a2, a3, a4, a5)[:n]))
+
+    def recv(self, buf: list) -> int:
+        kind = self._next(Q_RECV, 0)
+        if kind == 0:
+            return 0
+        if not self.inbox:
+            raise Diverged(f"the recording says {msg.SCHEMA[kind][0]} was received, "
+                           f"but the host sent nothing more to robot {self.node}")
+        k, fields = self.inbox.popleft()
+        if k != kind:
+            raise Diverged(f"received {msg.SCHEMA[kind][0]} in the recording, "
+                           f"but the host's next frame for it is {msg.SCHEMA[k][0]}")
+        for j, v in enumerate(fields):
+            buf[j] = v
+        return kind
+
+
+def _fmt(m: Message) -> str:
+    node, kind, f = m
+    return "%s_%d%s" % (msg.SCHEMA[kind][0], node, tuple(f))
+
+
+def replay(path: Path, realtime: bool = False, limit: int = 50) -> dict:
+    """Replay a recording; return a summary with a list of divergences."""
+    from sim_backend.scenario import validate
+
+    rec = load(path)
+    sc = validate(dict(rec.meta["scenario"]), source=str(meta_path(Path(path))))
+    seed = int(rec.meta["seed"])
+    nodes = sorted(set(rec.sensors) | set(rec.actions))
+    robots = {n: Robot(n, seed, sc.model, sc.robotVisionSpan, sc.fieldDefiance,
+                       sc.power_centi) for n in nodes}
+    inbox = {n: deque() for n in nodes}
+    hals = {n: ReplayHal(n, inbox[n]) for n in nodes}
+    stopped: set[int] = set()
+    coord = Coordinator(sc.weight_centi, sc.homeX, sc.homeY)
+    coord_ok = True
+    divergences: list[str] = []
+    counts = {"sensor_readings": 0, "actions": 0, "robot_messages": 0, "host_commands": 0}
+
+    def diverge(text: str) -> None:
+        divergences.append(text)
+
+    start = time.monotonic()
+    t0 = rec.stamps[rec.ticks[0]] if rec.ticks else 0.0
+    for t in rec.ticks:
+        if realtime:
+            delay = (rec.stamps[t] - t0) - (time.monotonic() - start)
+            if delay > 0:
+                time.sleep(delay)
+        sent_up: dict[int, list[Message]] = defaultdict(list)
+        for m in rec.up.get(t, []):
+            sent_up[m[0]].append(m)
+        for n in nodes:
+            if n in stopped:
+                continue
+            hal = hals[n]
+            tape = rec.sensors[n].get(t, [])
+            counts["sensor_readings"] += len(tape)
+            hal.tape = deque(tape)
+            hal.acts = []
+            hal.sent = []
+            try:
+                robots[n].step(hal)
+                if hal.tape:
+                    raise Diverged(f"firmware left {len(hal.tape)} recorded readings unused")
+            except Diverged as err:
+                diverge(f"tick {t} robot {n}: {err}; robot not replayed further")
+                stopped.add(n)
+                continue
+            want_acts = rec.actions[n].get(t, [])
+            counts["actions"] += len(want_acts)
+            if hal.acts != want_acts:
+                diverge(f"tick {t} robot {n}: actions {hal.acts}, recorded {want_acts}")
+            want_sent = sent_up.get(n, [])
+            counts["robot_messages"] += len(want_sent)
+            if hal.sent != want_sent:
+                diverge(f"tick {t} robot {n}: sent {[_fmt(m) for m in hal.sent]}, "
+                        f"recorded {[_fmt(m) for m in want_sent]}")
+        # the host: the recorded reports in, its commands compared
+        recorded_down = rec.down.get(t, [])
+        counts["host_commands"] += len(recorded_down)
+        if coord_ok:
+            for node, kind, f in rec.up.get(t, []):
+                coord.on_message(node, kind, f, t)
+            out = [(node, kind, tuple(f)) for node, kind, f in coord.tick(t)]
+            if out != recorded_down:
+                diverge(f"tick {t} host: sent {[_fmt(m) for m in out]}, "
+                        f"recorded {[_fmt(m) for m in recorded_down]}")
+        # what the host sent reaches the robots' inboxes for the next tick
+        for node, kind, f in recorded_down:
+            for n in (nodes if node == 0 else [node]):
+                if n in inbox:
+                    inbox[n].append((kind, f))
+    return {
+        "recording": str(path),
+        "scenario": sc.name,
+        "seed": seed,
+        "robots": len(nodes),
+        "ticks": len(rec.ticks),
+        "frames": rec.frames,
+        **counts,
+        "touches": len(coord.touches),
+        "delivered_tick": coord.delivered_tick if coord.delivered_tick >= 0 else None,
+        "divergences": len(divergences),
+        "differences": divergences[:limit],
+        "bad_frames": rec.bad,
+    }
