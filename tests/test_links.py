@@ -97,3 +97,26 @@ def test_faults_are_seeded_and_bounded():
     assert a != sorted(a)
     with pytest.raises(ValueError):
         Faults(loss=1.0)
+
+
+def test_cli_rejects_bad_url(capsys):
+    assert main(["host", "--bus", "virtual://x?foo=1"]) == 2
+    assert "unknown option 'foo'" in capsys.readouterr().err
+    assert main(["robots", "--bus", "slcan:///dev/ttyACM0?speed=1"]) == 2
+    assert "expected slcan:///dev/ttyACM0" in capsys.readouterr().err
+
+
+def test_slcan_pty_face_speaks_slcan(tmp_path):
+    path = tmp_path / "ada"
+    with open_bus(f"slcan-pty://{path}") as robots:
+        assert path.is_symlink()
+        with open_bus(f"slcan://{path}?bitrate=500000&settle_ms=0") as host:
+            robots.recv(0.05)          # the adapter takes the host's C / S6 / O
+            assert robots.bitrate == 500000 and robots.is_open
+            robots.send(can.Message(arbitration_id=0x201, data=b"\x01\x02", is_extended_id=False))
+            m = host.recv(2.0)
+            assert (m.arbitration_id, bytes(m.data)) == (0x201, b"\x01\x02")
+            host.send(can.Message(arbitration_id=0x181, data=b"\x05", is_extended_id=False))
+            m = robots.recv(2.0)
+            assert (m.arbitration_id, bytes(m.data)) == (0x181, b"\x05")
+    assert not path.exists()

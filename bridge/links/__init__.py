@@ -32,7 +32,7 @@ REGISTRY: dict[str, str] = {
 EXPECTED = {
     "virtual": "virtual://CHANNEL",
     "socketcan": "socketcan://can0",
-    "slcan": "slcan:///dev/ttyACM0?bitrate=500000[&baud=115200]",
+    "slcan": "slcan:///dev/ttyACM0?bitrate=500000[&baud=115200][&settle_ms=2000]",
     "can": "can://INTERFACE/CHANNEL?bitrate=500000",
     "slcan-pty": "slcan-pty:///path/of/link?bitrate=500000 (serves an SLCAN face on a pty)",
 }
@@ -40,7 +40,7 @@ EXPECTED = {
 OPTIONS = {
     "virtual": (),
     "socketcan": (),
-    "slcan": ("bitrate", "baud"),
+    "slcan": ("bitrate", "baud", "settle_ms"),
     "can": ("bitrate",),
     "slcan-pty": ("bitrate",),
 }

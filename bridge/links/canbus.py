@@ -44,8 +44,13 @@ def open_socketcan(channel: str) -> can.BusABC:
     return _bus(f"socketcan://{channel}", interface="socketcan", channel=channel)
 
 
-def open_slcan(channel: str, bitrate: int | None = None, baud: int = 115200) -> can.BusABC:
+def open_slcan(channel: str, bitrate: int | None = None, baud: int = 115200,
+               settle_ms: int | None = None) -> can.BusABC:
+    """settle_ms: wait after opening the port (python-can's default, 2 s, lets an
+    Arduino-style board reset; a pty or a CANable needs 0)."""
     kw: dict[str, Any] = {"tty_baudrate": baud}
+    if settle_ms is not None:
+        kw["sleep_after_open"] = settle_ms / 1000.0
     if bitrate is not None:
         kw["bitrate"] = bitrate
     return _bus(f"slcan://{channel}", interface="slcan", channel=channel, **kw)

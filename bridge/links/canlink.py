@@ -75,10 +75,11 @@ class Gateway:
     """Every simulated robot on one bus (the robots' side of a link)."""
 
     def __init__(self, bus: can.BusABC, nodes: list[int], faults: Faults | None = None,
-                 bad: BadFrames | None = None) -> None:
+                 bad: BadFrames | None = None, faults_down: Faults | None = None) -> None:
         self.bus = bus
         self.nodes = list(nodes)
         self.faults = faults
+        self.faults_down = faults_down     # applied to what the gateway receives
         self.decoder = Decoder("robot", bad or BadFrames("gateway"))
         self.up: list[can.Message] = []
         self.inbox: dict[int, deque] = {n: deque() for n in nodes}
@@ -120,16 +121,25 @@ class Gateway:
         """Read `count` frames (each within `timeout`), or, with None, every frame
         already waiting; deliver them to the inboxes. Returns frames read."""
         n = 0
+        got = []
         with converted("gateway recv"):
             while count is None or n < count:
-                frame = self.bus.recv(timeout if count is not None else 0.0)
+                try:
+                    frame = self.bus.recv(timeout if count is not None else 0.0)
+                except (ValueError, IndexError):   # an adapter line that does not parse
+                    self.decoder.bad.add("malformed adapter line")
+                    continue
                 if frame is None:
                     if count is None:
                         break
                     raise LinkTimeoutError(f"gateway: {n} of {count} host frames arrived "
                                            f"within {timeout} s")
                 n += 1
-                self.deliver(frame)
+                got.append(frame)
+        if self.faults_down is not None:
+            got = self.faults_down.apply(got)
+        for frame in got:
+            self.deliver(frame)
         return n
 
 

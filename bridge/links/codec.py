@@ -107,7 +107,7 @@ class BadFrames:
         self.where = where
         self.counts: dict[str, int] = {}
 
-    def add(self, fault: str, frame: can.Message | None = None) -> None:
+    def add(self, fault: str, frame: object = None) -> None:
         n = self.counts.get(fault, 0)
         self.counts[fault] = n + 1
         if n == 0:
