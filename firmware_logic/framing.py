@@ -7,9 +7,13 @@ A frame, before stuffing:
 
     kind (1 byte) | node (1 byte) | payload (messages.pack, 0..8 bytes) | crc16 (2 bytes, big endian)
 
+on the wire: 0x00 | COBS(that) | 0x00   (at most 16 bytes)
+
 The CRC is CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF) over kind, node
 and payload. The frame is COBS-encoded (no zero byte inside) and followed by
-a single 0x00 delimiter. A receiver that starts mid-stream, or that sees a
+a 0x00 delimiter; the sender also puts a 0x00 before each frame, so junk
+left on the line before it (noise, a truncated frame) ends there and never
+costs the next frame. A receiver that starts mid-stream, or that sees a
 corrupted byte, loses at most the frame in progress: it drops everything up
 to the next 0x00 and starts again (resynchronisation).
 
@@ -21,7 +25,8 @@ from firmware_logic import messages as msg
 
 MAX_PAYLOAD = 8
 MAX_RAW = 2 + MAX_PAYLOAD + 2            # kind, node, payload, crc
-MAX_ENCODED = MAX_RAW + 2                # COBS adds one byte per 254, plus the delimiter
+MAX_ENCODED = MAX_RAW + 1                # COBS adds one byte per 254 (a frame < 254)
+MAX_FRAME = MAX_ENCODED + 2              # with the leading and trailing delimiters
 MIN_RAW = 4
 
 ERR_CRC = 0        # checksum mismatch
@@ -107,7 +112,8 @@ class Encoder:
 
     def __init__(self):
         self.raw = bytearray(MAX_RAW)
-        self.out = bytearray(MAX_ENCODED)
+        self.out = bytearray(MAX_FRAME)
+        self.stuffed = bytearray(MAX_ENCODED)
         self.args = [0, 0, 0, 0, 0, 0]
 
     def frame(self, kind, node, a0, a1, a2, a3, a4, a5):
@@ -137,9 +143,15 @@ class Encoder:
         c = crc16(raw, n)
         raw[n] = c >> 8
         raw[n + 1] = c & 0xFF
-        m = cobs_encode(raw, n + 2, self.out)
-        self.out[m] = 0
-        return m + 1
+        out = self.out
+        m = cobs_encode(raw, n + 2, self.stuffed)
+        out[0] = 0
+        i = 0
+        while i < m:
+            out[1 + i] = self.stuffed[i]
+            i += 1
+        out[m + 1] = 0
+        return m + 2
 
 
 class Decoder:

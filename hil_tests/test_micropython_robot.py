@@ -182,11 +182,12 @@ def test_micropython_robot_survives_garbage_truncation_and_a_vanishing_port(
     dev = micropython_device
     deploy_and_start(dev)
     m = Mission(dev)
-    state = {"n": 0, "gone": 0.0}
+    t0 = time.monotonic()
+    state = {"gone": 0.0, "vanished": 0, "next": {"host": 0.3, "child": 0.5, "cut": 0.7}}
     cut = {"left": 0}
 
     def truncate_some(data: bytes) -> bytes:
-        # while armed, drop the tail of what the robot sends (a truncated frame)
+        # when armed, drop the tail of one chunk the robot sends (a truncated frame)
         if cut["left"] > 0:
             cut["left"] -= 1
             return data[: max(1, len(data) // 2)]
@@ -195,23 +196,28 @@ def test_micropython_robot_survives_garbage_truncation_and_a_vanishing_port(
     dev.to_host_filter = truncate_some
 
     def faults(mm: Mission) -> None:
-        state["n"] += 1
-        n = state["n"]
-        if n % 7 == 0:
+        t = time.monotonic() - t0
+        nxt = state["next"]
+        if t > nxt["host"]:                  # line noise toward the host
             dev.inject_to_host(b"\x13\x37garbage\xff\x00\x05\x01")
-        if n % 11 == 0:
+            nxt["host"] = t + 0.3
+        if t > nxt["child"]:                 # line noise toward the robot
             dev.inject_to_child(b"\xde\xad\x00\x02\x03junk")
-        if n % 13 == 0:
-            cut["left"] = 2
-        if n == 40:
+            nxt["child"] = t + 0.5
+        if t > nxt["cut"]:                   # one truncated reply
+            cut["left"] = 1
+            nxt["cut"] = t + 0.7
+        if not state["vanished"] and t > 1.0:   # unplugged for half a second
             dev.vanish()
+            state["vanished"] = 1
             state["gone"] = time.monotonic()
         if state["gone"] and time.monotonic() - state["gone"] > 0.5:
             dev.come_back()
             state["gone"] = 0.0
 
     try:
-        m.run(lambda mm: acked(mm) and not state["gone"], limit_s=40, fault=faults)
+        m.run(lambda mm: acked(mm) and state["vanished"] and not state["gone"], limit_s=40,
+              fault=faults)
         dev.to_host_filter = None
         robot = m.halt_and_inspect()
     finally:

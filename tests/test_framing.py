@@ -71,8 +71,8 @@ def test_every_kind_roundtrips() -> None:
             node = rnd.randint(0, 127)
             f = field_values(kind, rnd)
             data = frame(kind, node, f)
-            assert len(data) <= framing.MAX_ENCODED
-            assert data[-1] == 0 and 0 not in data[:-1]
+            assert len(data) <= framing.MAX_FRAME
+            assert data[0] == 0 and data[-1] == 0 and 0 not in data[1:-1]
             assert feed(dec, data) == [(node, kind, f)]
     assert dec.error_counts() == {}
 
@@ -87,6 +87,14 @@ def test_resync_after_garbage_and_truncation() -> None:
     errs = dec.error_counts()
     assert sum(errs.values()) == 3
     assert errs.get("overflow") == 1
+
+
+def test_junk_without_a_delimiter_never_costs_the_next_frame() -> None:
+    # the sender's leading delimiter ends whatever was on the line before
+    dec = framing.Decoder()
+    good = frame(msg.ACK, 2, (9,))
+    for junk in (b"\x05\x01", b"\xff" * 40, good[:-3], b"\x02\x03junk"):
+        assert feed(dec, junk + good) == [(2, msg.ACK, (9,))]
 
 
 def test_every_single_byte_corruption_is_detected() -> None:

@@ -1,0 +1,70 @@
+"""SerialTransport on pyserial's loop:// and on a pty (bridge/serial/transport.py)."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from bridge.serial.errors import SerialOpenError
+from bridge.serial.pty import VirtualPort
+from bridge.serial.transport import SerialTransport, resolve_url
+from firmware_logic import messages as msg
+
+
+def test_url_forms() -> None:
+    assert resolve_url("/dev/ttyUSB0") == ("/dev/ttyUSB0", {})
+    assert resolve_url("loop://") == ("loop://", {})
+    assert resolve_url("serial:///dev/ttyUSB0?baud=57600") == ("/dev/ttyUSB0", {"baud": "57600"})
+    with pytest.raises(SerialOpenError, match=r"unknown option 'parity'.*serial:///dev/ttyUSB0\?baud="):
+        resolve_url("serial:///dev/ttyUSB0?parity=E")
+    with pytest.raises(SerialOpenError, match="not a number"):
+        resolve_url("serial:///dev/ttyUSB0?baud=fast")
+
+
+def test_missing_device_is_a_clear_error() -> None:
+    with pytest.raises(SerialOpenError, match=r"cannot open serial port '/nonexistent/tty'"):
+        SerialTransport("/nonexistent/tty")
+
+
+def test_loopback_roundtrip_and_garbage() -> None:
+    with SerialTransport("loop://", 115200, timeout=0.01) as t:
+        t.send(5, msg.TOUCH, (1, 2, 3, 4, 5, 100))
+        t._ser.write(b"\x01\x02garbage")          # type: ignore[union-attr]
+        t.send(5, msg.HELLO, (1, 100, 1))
+        got = t.poll(0.2)
+        assert got == [(5, msg.TOUCH, (1, 2, 3, 4, 5, 100)), (5, msg.HELLO, (1, 100, 1))]
+        assert t.nodes == {5}
+        t._ser.write(b"\x00\x05\x01\x02\x00")     # type: ignore[union-attr]
+        assert t.poll(0.05) == []
+        assert t.bad_frames() == {"cobs": 2}   # the garbage earlier, and this frame
+    t.close()   # idempotent
+
+
+def test_poll_returns_within_its_timeout_on_a_silent_port() -> None:
+    with SerialTransport("loop://", timeout=0.02) as t:
+        start = time.monotonic()
+        assert t.poll(0.1) == []
+        assert time.monotonic() - start < 0.5
+
+
+def test_port_that_disappears_and_comes_back() -> None:
+    with VirtualPort() as vp, SerialTransport(vp.path, timeout=0.02, reopen_every=0.02) as t:
+        enc = t.encode(3, msg.ACK, (7,))
+        vp.write(enc)
+        assert t.poll(0.5) == [(3, msg.ACK, (7,))]
+        vp.vanish()
+        assert t.poll(0.1) == []                  # no hang, no exception
+        t.send(3, msg.ACK, (1,))                  # dropped and counted
+        assert t.bad_frames()["disconnect"] == 1
+        vp.come_back()
+        deadline = time.monotonic() + 3
+        got: list = []
+        while not got and time.monotonic() < deadline:
+            vp.write(enc)
+            got = t.poll(0.05)
+        assert got and got[0] == (3, msg.ACK, (7,))
+        assert t.connected
+        t.send(3, msg.HALT, (0,))
+        time.sleep(0.05)
+        assert vp.read() == t.encode(3, msg.HALT, (0,))
