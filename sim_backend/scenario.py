@@ -58,15 +58,18 @@ class Scenario:
         return validate({**self.to_dict(), **changes})
 
 
-# key -> (kind, low, high); None bounds are unchecked
+# key -> (kind, low, high); None bounds are unchecked. The simulator takes
+# swarms far beyond one CAN bus (nodes 1..127, messages.MAX_NODE) and arenas
+# beyond the links' 1-byte patch fields; links that carry real frames must
+# check a scenario against their own limits.
 RANGES: dict[str, tuple[type, Any, Any]] = {
-    "agents": (int, 1, 127),
+    "agents": (int, 1, 20000),
     "robotVisionSpan": (int, 0, 360),
     "fieldDefiance": (int, 0, 50),
     "sigRadius": (int, 0, 30),
     "rPower": (float, 0.01, 655.0),
     "objectWeight": (float, 0.01, 10000.0),
-    "worldSize": (int, 10, 60),
+    "worldSize": (int, 10, 400),
     "homeX": (int, -60, 60),
     "homeY": (int, -60, 60),
     "objectX": (int, -60, 60),

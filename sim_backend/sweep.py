@@ -1,0 +1,209 @@
+"""Parameter sweeps (the thesis's BehaviourSpace): points x seeds, in batches.
+
+A point is a dict of scenario overrides; every point runs every seed. Runs
+are cut into chunks; each chunk is one call of `run_chunk`, which steps its
+runs together in the vectorised engine (or one by one in the reference
+engine), so any concurrent.futures executor can spread the chunks: local
+processes, a dask.distributed cluster (`executor_from_spec("dask://HOST:PORT")`)
+or none (in this process). Rows come back in point, seed order whatever the
+executor, so the CSV is the same everywhere.
+"""
+
+from __future__ import annotations
+
+import csv
+import itertools
+import os
+from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Iterable, Sequence
+
+from sim_backend.errors import ScenarioError
+from sim_backend.scenario import FIELDS, Scenario, validate
+
+ENGINES = ("vector", "reference")
+MEASURES = ["ticks", "found_tick", "converged_tick", "home_tick", "n_touches", "power",
+            "shape_iou", "leader", "delivered", "segments"]
+SCENARIO_KEYS = [k for k in Scenario.__dataclass_fields__ if k not in ("name", "description")]
+
+
+@dataclass(frozen=True)
+class Point:
+    """One grid point: an experiment label and scenario overrides."""
+    experiment: str
+    params: tuple[tuple[str, Any], ...]
+
+    def as_dict(self) -> dict[str, Any]:
+        return dict(self.params)
+
+
+def grid_points(grid: dict[str, Sequence[Any]], experiment: str = "grid") -> list[Point]:
+    """The cartesian product of a grid {key: [values]}, in the grid's key order."""
+    for key in grid:
+        if key not in FIELDS:
+            raise ScenarioError(f"--grid {key}: unknown scenario key; known keys: "
+                                f"{', '.join(sorted(FIELDS))}")
+    keys = list(grid)
+    return [Point(experiment, tuple(zip(keys, combo)))
+            for combo in itertools.product(*(grid[k] for k in keys))]
+
+
+def thesis_points() -> list[Point]:
+    """Every experiment of the thesis's chapter 5, both movement models.
+
+    graph1 fieldDefiance, graph2 sigRadius, graph3 rPower (graph 4, robots
+    required = ceil(objectWeight / rPower) of a population of 20, is the same
+    data read the other way, as the thesis says); figures 22-24: the shape N
+    touching robots extract (objectWeight = N, rPower 1) from a swarm of
+    max(20, N), for the bar, L, '+' (cross, DrawObject 3) and X objects.
+    """
+    pts: list[Point] = []
+    models = ("firefly", "ant")
+    for m in models:
+        for v in (0, 1, 2, 4, 6, 8, 10):
+            pts.append(Point("graph1", (("movementModel", m), ("fieldDefiance", v))))
+    for m in models:
+        for v in (1, 2, 3, 5, 7, 9):
+            pts.append(Point("graph2", (("movementModel", m), ("sigRadius", v))))
+    for m in models:
+        for v in (0.5, 0.75, 1.0, 1.25, 1.5, 2.0, 2.5, 5.0):
+            pts.append(Point("graph3", (("movementModel", m), ("rPower", v))))
+    for obj in ("bar", "L", "cross", "X"):
+        for n in (4, 6, 8, 10, 12):
+            pts.append(Point("shapes", (("object", obj), ("agents", max(20, n)),
+                                        ("objectWeight", float(n)))))
+    return pts
+
+
+THESIS_SEEDS = 150
+THESIS_MAX_TICKS = 5000
+THESIS_UNTIL = "converged"
+
+
+def _scenario(base: dict[str, Any], params: dict[str, Any]) -> Scenario:
+    return validate({**base, **params}, "sweep point " + ", ".join(
+        f"{k}={v}" for k, v in params.items()))
+
+
+def run_chunk(jobs: Sequence[tuple[dict, dict, int]], engine: str = "vector",
+              until: str = "delivered") -> list[dict]:
+    """Run (base scenario dict, point params, seed) jobs; return one summary each.
+
+    A plain top-level function, so every executor can ship it.
+    """
+    scs = [_scenario(b, p) for b, p, _ in jobs]
+    seeds = [s for _, _, s in jobs]
+    if engine == "vector":
+        from sim_backend.vector_engine import run_batch
+        return run_batch(scs, seeds, until=until)
+    if engine != "reference":
+        raise ValueError(f"engine: expected one of {ENGINES}, got {engine!r}")
+    from sim_backend.engine import Engine, RunResult
+    out = []
+    for sc, seed in zip(scs, seeds):
+        e = Engine(sc, seed)
+        if until == "delivered":
+            out.append(e.run().summary())
+            continue
+        while not (e.coordinator.converged_tick >= 0 or e.tick >= sc.maxTicks):
+            e.step()
+        out.append(RunResult(sc, seed, e.tick, e.world, e.coordinator, e.robots).summary())
+    return out
+
+
+def executor_from_spec(spec: str | None):
+    """(executor, closer) for "processes[:N]", "inline" or "dask://HOST:PORT"."""
+    if spec is None or spec == "processes" or spec.startswith("processes:"):
+        n = int(spec.split(":", 1)[1]) if spec and ":" in spec else (os.cpu_count() or 1)
+        ex = ProcessPoolExecutor(max_workers=n)
+        return ex, ex.shutdown
+    if spec == "inline":
+        return None, (lambda: None)
+    if spec.startswith("dask://") or spec.startswith("tcp://"):
+        from distributed import Client
+        address = "tcp://" + spec.split("://", 1)[1]
+        client = Client(address)
+        return client.get_executor(), client.close
+    raise ValueError(f"executor: expected processes[:N], inline or dask://HOST:PORT, got {spec!r}")
+
+
+def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None = None,
+          engine: str = "vector", executor: Executor | None = None, until: str = "delivered",
+          chunk_size: int = 256, overrides: dict[str, Any] | None = None,
+          progress: Callable[[int], None] | None = None) -> list[dict]:
+    """Run every point with every seed; return tidy rows in point, seed order.
+
+    executor: any concurrent.futures.Executor (None: run in this process).
+    overrides: scenario keys applied to every point (e.g. maxTicks).
+    progress: called with the number of runs just finished.
+    """
+    if engine not in ENGINES:
+        raise ValueError(f"engine: expected one of {ENGINES}, got {engine!r}")
+    seeds = list(seeds)
+    base_d = (base or Scenario()).to_dict()
+    base_d.update(overrides or {})
+    jobs: list[tuple[dict, dict, int]] = []
+    meta: list[tuple[Point, Scenario, int]] = []
+    for pt in points:
+        sc = _scenario(base_d, pt.as_dict())        # validate every point up front
+        for s in seeds:
+            jobs.append((base_d, pt.as_dict(), s))
+            meta.append((pt, sc, s))
+    chunks = [jobs[i:i + chunk_size] for i in range(0, len(jobs), chunk_size)]
+    results: list[list[dict] | None] = [None] * len(chunks)
+    if executor is None:
+        for i, ch in enumerate(chunks):
+            results[i] = run_chunk(ch, engine, until)
+            if progress is not None:
+                progress(len(ch))
+    else:
+        futs: dict[Future, int] = {executor.submit(run_chunk, ch, engine, until): i
+                                   for i, ch in enumerate(chunks)}
+        for f in as_completed(futs):
+            i = futs[f]
+            results[i] = f.result()
+            if progress is not None:
+                progress(len(chunks[i]))
+    sums = [s for r in results for s in r]  # type: ignore[union-attr]
+    return [make_row(pt, sc, s, summ, until) for (pt, sc, s), summ in zip(meta, sums)]
+
+
+def make_row(pt: Point, sc: Scenario, seed: int, s: dict, until: str) -> dict:
+    row: dict[str, Any] = {"experiment": pt.experiment,
+                           "point": ";".join(f"{k}={v}" for k, v in pt.params)}
+    for k in SCENARIO_KEYS:
+        row[k] = getattr(sc, k)
+    row["required"] = -(-sc.weight_centi // sc.power_centi)
+    row["seed"] = seed
+    row["until"] = until
+    row["ticks"] = s["ticks"]
+    row["found_tick"] = s["found_tick"]
+    row["converged_tick"] = s["converged_tick"]
+    row["home_tick"] = s["home_tick"]
+    row["n_touches"] = len(s["touches"])
+    row["power"] = s["power"]
+    row["shape_iou"] = s["shape_iou"]
+    row["leader"] = s["leader"]
+    row["delivered"] = s["delivered"]
+    row["segments"] = " ".join(f"{x}:{y}" for x, y in s["segments"])
+    return row
+
+
+def write_csv(rows: Sequence[dict], path: Path) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("w", newline="") as f:
+        if not rows:
+            return path
+        wr = csv.DictWriter(f, fieldnames=list(rows[0]), lineterminator="\n")
+        wr.writeheader()
+        for r in rows:
+            wr.writerow({k: ("" if v is None else v) for k, v in r.items()})
+    return path
+
+
+def read_csv(path: Path) -> list[dict]:
+    with path.open(newline="") as f:
+        return list(csv.DictReader(f))
+
+
