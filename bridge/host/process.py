@@ -71,18 +71,21 @@ class HostProcess:
 
     def handle(self, messages: list[Message]) -> None:
         c = self.coord
+        nodes = c.nodes
+        on_message = c.on_message
+        tick = self.tick
+        self.messages += len(messages)
         for node, kind, f in messages:
-            self.messages += 1
             if kind == msg.HELLO:
                 if node not in c.nodes:
                     if self.journal is not None:
                         self.journal.add_node(node, f[0], f[1])
                     self._event(f"tick {self.tick}: robot {node} announced "
                                 f"(model {f[0]}, power {f[1]})")
-            elif node not in c.nodes:
+            elif node not in nodes:
                 self.bad.add(UNANNOUNCED, "%s from node %d" % (msg.SCHEMA[kind][0], node))
                 continue
-            c.on_message(node, kind, f, self.tick)
+            on_message(node, kind, f, tick)
 
     # -- ticks --------------------------------------------------------------------------
 

@@ -32,16 +32,28 @@ class CanTransport:
     def poll(self, timeout: float) -> list[Message]:
         out: list[Message] = []
         frame = self._recv(max(timeout, 0.0))
+        if frame is None:
+            return out
         decode = self.decoder.decode
+        recv = self.bus.recv
+        append = out.append
         n = 0
-        while frame is not None:
-            n += 1
-            m = decode(frame)
-            if m is not None:
-                out.append(m)
-            if n >= BATCH:
-                break
-            frame = self._recv(0.0)
+        # the hot loop calls python-can directly; errors are converted below
+        try:
+            while frame is not None:
+                n += 1
+                m = decode(frame)
+                if m is not None:
+                    append(m)
+                if n >= BATCH:
+                    break
+                frame = recv(0.0)
+        except (ValueError, IndexError):
+            self.decoder.bad.add(MALFORMED)
+        except can.CanError:
+            self.frames_in += n
+            with converted("host recv"):
+                raise
         self.frames_in += n
         return out
 
