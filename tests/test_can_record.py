@@ -91,3 +91,16 @@ def test_cantools_decodes_a_recording(tmp_path):
                          input=f.read_text(), capture_output=True, text=True, check=True).stdout
     assert "SENSOR_1(" in out and "HELLO_8(" in out and "ACK_1(" in out
     assert "query: 6" in out and "model: 1" in out and "Unknown" not in out
+
+
+def test_python_can_tools_open_a_recording(tmp_path):
+    f = tmp_path / "run.blf"
+    main(["run", *SMALL, "--set", "maxTicks=40", "--record", str(f), "--json"])
+    conv = tmp_path / "conv.asc"
+    subprocess.run([sys.executable, "-m", "can.logconvert", str(f), str(conv)], check=True,
+                   capture_output=True)
+    Path(str(conv) + ".json").write_text(Path(str(f) + ".json").read_text())
+    assert replay(conv)["divergences"] == 0
+    assert replay(conv)["frames"] == replay(f)["frames"]
+    subprocess.run([sys.executable, "-m", "can.player", "-i", "virtual", "-c", "player-test",
+                    "--ignore-timestamps", str(f)], check=True, capture_output=True, timeout=60)

@@ -122,8 +122,9 @@ class Decoder:
     """Validating frame decoder for one side of the bus.
 
     side "host" accepts robot reports; "robot" accepts host commands. Capture
-    frames (SENSOR, ACTION) are ignored silently by both; anything else that is
-    not for this side is counted as a bad frame.
+    frames (SENSOR, ACTION) are ignored silently by both, and so are other
+    robots' reports on the robots' side (normal on a shared bus); a host
+    command seen by the host is counted as a bad frame (wrong direction).
     """
 
     def __init__(self, side: str, bad: BadFrames | None = None) -> None:
@@ -169,7 +170,7 @@ class Decoder:
             bad.add(UNKNOWN_ID, frame)
             return None
         node, kind, st, dlc = entry
-        if kind in CAPTURE_KINDS:
+        if kind in CAPTURE_KINDS or (self.side == "robot" and kind in ROBOT_KINDS):
             return None
         if kind not in self.accept:
             bad.add(WRONG_DIRECTION, frame)
