@@ -1,0 +1,227 @@
+"""A Khepera II in remote-control mode, on a pty, backed by the sim world.
+
+Written from the protocol description (docs/serial.md, protocols.md) on its
+own: it shares no code with bridge/serial/khepera.py, so a bug in one shows
+up against the other.
+
+Serial: 8 data bits, 2 stop bits (11 bits a byte on the wire), replies
+delayed by (request + reply bytes) x 11 / baud. A host at another baud
+rate gets garbage, as from a real UART. Commands: B, D, E, G, H, L, N, O
+(others answer `Command not found`; a wrong argument count answers
+`z,Protocol error`, as KiKS does).
+
+The body: one robot of a sim World (index `index`), pose kept in mm and
+degrees (0 = north, clockwise) and mirrored into the world's Q8 position.
+Wheels move by the set speeds (pulses per 10 ms) in wall-clock time.
+Proximity sensor k reads high (about 1000) when the patch one patch away
+in its direction is object, wall or robot, else a low noise level; ambient
+sensor k reads `dark - field x light_step` of the patch in its direction
+(lower is brighter). LED 0 is the beacon: on adds the robot's field to the
+world (Signal), off removes it.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+from firmware_logic import fixedpoint as fx
+from sim_backend.emulators.ptyport import Emulator
+from sim_backend.world import FREE
+
+BANNER = b"\r\nKhepera II BIOS rev 5.01\r\nSerial Communication Protocol\r\n"
+PULSE_MM = 1.0 / 12.0
+WHEEL_BASE_MM = 53.0
+# sensor bearings relative to the robot's heading, clockwise degrees
+# (0 left side ... 5 right side, 6 rear right, 7 rear left)
+SENSOR_BEARINGS = (-90, -45, -10, 10, 45, 90, 170, -170)
+
+
+class KheperaEmulator(Emulator):
+    bits_per_byte = 11
+
+    def __init__(self, world=None, index: int = 0, baud: int = 38400,
+                 patch_mm: float = 50.0, heading: float = 0.0, path: str | None = None,
+                 dark: int = 450, light_step: int = 40) -> None:
+        super().__init__(baud, path)
+        self.world = world
+        self.index = index
+        self.patch_mm = patch_mm
+        self.dark = dark
+        self.light_step = light_step
+        if world is not None:
+            self.x_mm = world.xs[index] * patch_mm / 256.0
+            self.y_mm = world.ys[index] * patch_mm / 256.0
+        else:
+            self.x_mm = self.y_mm = 0.0
+        self.theta = heading
+        self.pos = [0.0, 0.0]           # encoder counters (float, reported as int)
+        self.speed = [0, 0]
+        self.leds = [0, 0]
+        self.beacon_src: tuple[int, int] | None = None
+        self._t = time.monotonic()
+        self._line = b""
+        self.commands = 0
+        # faults for tests
+        self.garbage_next = b""         # sent before the next reply
+        self.truncate_next = 0          # cut the next reply to this many bytes
+        self.mute_next = 0              # do not answer the next N requests
+        self.reply(BANNER)
+
+    # -- physics ---------------------------------------------------------------
+
+    def _integrate(self) -> None:
+        now = time.monotonic()
+        dt = now - self._t
+        self._t = now
+        if dt <= 0 or self.speed == [0, 0]:
+            return
+        dl = self.speed[0] * dt / 0.01
+        dr = self.speed[1] * dt / 0.01
+        self.pos[0] += dl
+        self.pos[1] += dr
+        dlm, drm = dl * PULSE_MM, dr * PULSE_MM
+        d = (dlm + drm) / 2
+        th = math.radians(self.theta + math.degrees((dlm - drm) / WHEEL_BASE_MM) / 2)
+        nx = self.x_mm + d * math.sin(th)
+        ny = self.y_mm + d * math.cos(th)
+        self.theta = (self.theta + math.degrees((dlm - drm) / WHEEL_BASE_MM)) % 360
+        if self.world is not None and self._blocked(nx, ny):
+            return                     # pushed against something: wheels slip
+        self.x_mm, self.y_mm = nx, ny
+        if self.world is not None:
+            w = self.world
+            w.xs[self.index] = int(round(nx * 256 / self.patch_mm))
+            w.ys[self.index] = int(round(ny * 256 / self.patch_mm))
+            w.recount()
+
+    def _patch(self, x_mm: float, y_mm: float) -> tuple[int, int]:
+        # the world's own rounding (Q8 -> patch), so occupancy agrees with it
+        return (fx.patch(int(round(x_mm * 256 / self.patch_mm))),
+                fx.patch(int(round(y_mm * 256 / self.patch_mm))))
+
+    def _blocked(self, x_mm: float, y_mm: float) -> bool:
+        w = self.world
+        p = self._patch(x_mm, y_mm)
+        here = self._patch(self.x_mm, self.y_mm)
+        if p == here:
+            return False
+        if not w.inside(*p):
+            return True
+        k = w.idx(*p)
+        return w.obj[k] != FREE or w.occ[k] > 0
+
+    def _look(self, bearing: float) -> tuple[int, int]:
+        th = math.radians(self.theta + bearing)
+        return self._patch(self.x_mm + self.patch_mm * math.sin(th),
+                           self.y_mm + self.patch_mm * math.cos(th))
+
+    def proximity(self) -> list[int]:
+        out = []
+        for k, b in enumerate(SENSOR_BEARINGS):
+            v = 8 + (k * 3) % 7
+            if self.world is not None:
+                w = self.world
+                p = self._look(b)
+                if not w.inside(*p):
+                    v = 1000
+                else:
+                    i = w.idx(*p)
+                    here = self._patch(self.x_mm, self.y_mm)
+                    if w.obj[i] != FREE or (w.occ[i] > 0 and p != here):
+                        v = 1000 + k
+            out.append(min(v, 1023))
+        return out
+
+    def ambient(self) -> list[int]:
+        out = []
+        for b in SENSOR_BEARINGS:
+            f = 0
+            if self.world is not None:
+                p = self._look(b)
+                if self.world.inside(*p):
+                    f = self.world.field[self.world.idx(*p)]
+            out.append(max(0, min(1023, self.dark - f * self.light_step)))
+        return out
+
+    # -- protocol ----------------------------------------------------------------
+
+    def on_bytes(self, data: bytes) -> None:
+        for c in data:
+            if c in (10, 13):
+                line, self._line = self._line, b""
+                if line:
+                    self._command(line)
+            else:
+                self._line += bytes([c])
+                if len(self._line) > 64:
+                    self._line = b""       # no command is that long
+
+    def _send(self, text: str, request_len: int) -> None:
+        out = self.garbage_next + text.encode("ascii") + b"\r\n"
+        self.garbage_next = b""
+        if self.truncate_next:
+            out = out[: self.truncate_next]
+            self.truncate_next = 0
+        self.reply(out, request_len)
+
+    def _command(self, line: bytes) -> None:
+        self.commands += 1
+        if self.mute_next:
+            self.mute_next -= 1
+            return
+        try:
+            text = line.decode("ascii")
+        except UnicodeDecodeError:
+            self._send("Command not found", len(line) + 1)
+            return
+        parts = text.strip().split(",")
+        cmd = parts[0]
+        try:
+            args = [int(a) for a in parts[1:]]
+        except ValueError:
+            self._send("z,Protocol error", len(line) + 1)
+            return
+        need = {"B": 0, "D": 2, "E": 0, "G": 2, "H": 0, "L": 2, "N": 0, "O": 0}
+        if cmd not in need:
+            self._send("Command not found", len(line) + 1)
+            return
+        if len(args) != need[cmd]:
+            self._send("z,Protocol error", len(line) + 1)
+            return
+        self._integrate()
+        low = cmd.lower()
+        if cmd == "B":
+            reply = "b,5.01,5.00"
+        elif cmd == "D":
+            self.speed = [max(-127, min(127, args[0])), max(-127, min(127, args[1]))]
+            reply = low
+        elif cmd == "E":
+            reply = "e,%d,%d" % tuple(self.speed)
+        elif cmd == "G":
+            self.pos = [float(args[0]), float(args[1])]
+            reply = low
+        elif cmd == "H":
+            reply = "h,%d,%d" % (int(self.pos[0]), int(self.pos[1]))
+        elif cmd == "L":
+            n, act = args
+            if n in (0, 1) and act in (0, 1, 2):
+                self.leds[n] = (1 - self.leds[n]) if act == 2 else act
+                if n == 0:
+                    self._beacon(self.leds[0])
+            reply = low
+        elif cmd == "N":
+            reply = "n," + ",".join(str(v) for v in self.proximity())
+        else:
+            reply = "o," + ",".join(str(v) for v in self.ambient())
+        self._send(reply, len(line) + 1)
+
+    def _beacon(self, on: int) -> None:
+        if self.world is None:
+            return
+        if on and self.beacon_src is None:
+            self.beacon_src = self._patch(self.x_mm, self.y_mm)
+            self.world.signal(*self.beacon_src)
+        elif not on and self.beacon_src is not None:
+            self.world.signal(*self.beacon_src, sign=-1)
+            self.beacon_src = None
