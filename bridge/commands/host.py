@@ -6,6 +6,7 @@ import argparse
 import json
 import signal
 import sys
+import threading
 from pathlib import Path
 
 from bridge.commands.run import add_scenario_args, scenario_from_args
@@ -51,7 +52,8 @@ def cmd_host(args: argparse.Namespace) -> int:
         print(text, file=out, flush=True)
 
     stopping = []
-    signal.signal(signal.SIGTERM, lambda *a: stopping.append(1))
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, lambda *a: stopping.append(1))
     journal_path = args.journal or args.resume
     bus = open_bus(args.bus)
     with CanTransport(bus) as transport:
@@ -63,15 +65,14 @@ def cmd_host(args: argparse.Namespace) -> int:
             host = HostProcess(transport, sc.weight_centi, sc.homeX, sc.homeY, journal=journal,
                                tick_seconds=args.tick_ms / 1000.0, on_event=event)
             if args.resume is not None:
-                if args.resume == journal_path:
-                    host.resume(journal)
-                else:
-                    with Journal(args.resume) as old:
-                        host.resume(old)
+                assert journal is not None      # journal_path defaults to the resumed one
+                if args.resume.resolve() != Path(journal_path).resolve():
+                    with Journal(args.resume) as old:     # carry it over, then go on there
                         for n, (m, pw) in old.nodes().items():
-                            journal.add_node(n, m, pw) if journal else None
+                            journal.add_node(n, m, pw)
                         for t in old.touches():
-                            journal.add_touch(t) if journal else None
+                            journal.add_touch(t)
+                host.resume(journal)
             event(f"host on {args.bus}: object weight {sc.weight_centi}, home "
                   f"({sc.homeX},{sc.homeY}), journal {journal_path or 'none'}")
             try:

@@ -6,6 +6,7 @@ import argparse
 import json
 import signal
 import sys
+import threading
 import time
 
 from bridge.commands.run import add_scenario_args, scenario_from_args
@@ -49,7 +50,8 @@ def cmd_robots(args: argparse.Namespace) -> int:
         raise UsageError(f"--loss/--dup/--reorder: {err}") from err
     faulty = args.loss or args.dup or args.reorder > 1
     stopping = []
-    signal.signal(signal.SIGTERM, lambda *a: stopping.append(1))
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, lambda *a: stopping.append(1))
     with open_bus(args.bus) as bus:
         engine = swarm_engine(sc, args.seed, bus, up if faulty else None,
                               down if faulty else None)
