@@ -99,6 +99,46 @@ def host(ch: str, fs: list, tmp: Path) -> tuple[float, dict]:
     return len(fs) / dt, stats
 
 
+def sustained(ch: str, rate: int, seconds: float) -> dict:
+    """A sender thread paces HEARTBEATs at `rate` frames/s (bursts every 10 ms)
+    while the host runs its real loop (HostProcess.run, 10 ms ticks); report
+    whether every frame was handled and how long the host took to catch up."""
+    import threading
+    fs = frames(int(rate * seconds))
+    with open_bus(f"virtual://{ch}") as tx, CanTransport(open_bus(f"virtual://{ch}")) as tr:
+        h = HostProcess(tr, weight=10 ** 6, tick_seconds=0.01)
+        h.handle([(r, msg.HELLO, (1, 100, 1)) for r in range(1, ROBOTS + 1)])
+        h.messages = 0
+        sent_done = threading.Event()
+        caught_up: list[float] = []
+
+        def stop() -> bool:
+            if sent_done.is_set() and h.messages >= len(fs):
+                caught_up.append(time.perf_counter())
+                return True
+            return False
+
+        th = threading.Thread(target=lambda: h.run(stop=stop, max_ticks=int(seconds * 100) + 1000))
+        th.start()
+        burst = rate // 100
+        t0 = time.perf_counter()
+        for i in range(0, len(fs), burst):
+            for f in fs[i:i + burst]:
+                tx.send(f)
+            due = t0 + (i // burst + 1) * 0.01
+            delay = due - time.perf_counter()
+            if delay > 0:
+                time.sleep(delay)
+        t_sent = time.perf_counter()
+        sent_done.set()
+        th.join()
+    offered = len(fs) / (t_sent - t0)
+    return {"offered_frames_per_s": round(offered), "frames": len(fs),
+            "handled": h.messages, "zero_loss": h.messages == len(fs),
+            "catch_up_ms_after_last_frame": round((caught_up[0] - t_sent) * 1000, 1)
+            if caught_up else None}
+
+
 def main() -> None:
     fs = frames(N)
     with tempfile.TemporaryDirectory() as d:
@@ -108,6 +148,7 @@ def main() -> None:
             rate, stats = host(f"bench-host-{k}", fs, Path(d))
             host_rates.append(rate)
     b, h = max(bare_rates), max(host_rates)
+    sus = sustained("bench-sustained", 4 * BUS_MAX, 2.0)
     print(json.dumps({
         "bench": "host_throughput",
         "frames": N, "robots": ROBOTS, "repeats": REPEATS,
@@ -119,7 +160,8 @@ def main() -> None:
         "zero_loss": stats["handled"] == N and stats["bad_frames"] == {},
         "touches_journalled": stats["journalled"],
         "journal_ms_per_touch_incl_fsync": round(stats["journal_ms_per_touch"], 3),
-        "targets_met": h >= 4 * BUS_MAX and h >= 0.5 * b,
+        "sustained_4x_bus": sus,
+        "targets_met": h >= 4 * BUS_MAX and h >= 0.5 * b and sus["zero_loss"],
     }, sort_keys=True))
 
 

@@ -143,3 +143,20 @@ def test_random_frames_to_the_robots_decoder(fs):
         for kind, fields in hal.inbox:
             assert kind in codec.HOST_KINDS
         r.step(hal)           # the FSM takes whatever got through without failing
+
+
+@settings(max_examples=500, deadline=None)
+@given(st.integers(0, 0x7FF), st.binary(max_size=8))
+def test_random_frames_to_the_firmware_decoder(ident, data):
+    """What a MicroPython robot runs: split_id + unpack raise SchemaError or decode."""
+    kind, node = msg.split_id(ident)
+    assert 0 <= node <= 127
+    out = [0] * 6
+    try:
+        n = msg.unpack(kind, data, out)
+    except msg.SchemaError:
+        assert kind not in msg.SCHEMA or len(data) != msg.dlc(kind)
+        return
+    assert n == len(msg.fields(kind))
+    buf = bytearray(8)
+    assert bytes(buf[:msg.pack(kind, out[:n], buf)]) == data
