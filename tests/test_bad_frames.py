@@ -160,3 +160,21 @@ def test_random_frames_to_the_firmware_decoder(ident, data):
     assert n == len(msg.fields(kind))
     buf = bytearray(8)
     assert bytes(buf[:msg.pack(kind, out[:n], buf)]) == data
+
+
+def test_garbage_from_an_slcan_adapter_is_counted_not_fatal(tmp_path):
+    path = tmp_path / "ada"
+    with open_bus(f"slcan-pty://{path}") as adapter, \
+            CanTransport(open_bus(f"slcan://{path}?settle_ms=0")) as tr:
+        adapter.recv(0.05)                      # the host opened the channel
+        adapter.pending += b"t2\r" + b"tXYZ4zz\r" + b"t2815GG\r"    # lines python-can cannot parse
+        adapter._flush_out()
+        adapter.send(can.Message(arbitration_id=msg.can_id(msg.HELLO, 5), data=b"\x01\x64\x00\x01",
+                                 is_extended_id=False))
+        got = []
+        for _ in range(50):
+            got += tr.poll(0.02)
+            if got:
+                break
+        assert got == [(5, msg.HELLO, (1, 100, 1))]
+        assert tr.bad_frames().get("malformed adapter line", 0) >= 1
