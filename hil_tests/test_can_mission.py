@@ -1,8 +1,12 @@
 """The whole mission on virtual CAN: the host process (HostProcess over a
 CanTransport) in one thread, the simulated swarm behind one gateway bus in
 another, on a private python-can virtual channel; with and without injected
-faults (loss, duplicates, reordering) between robots and host."""
+faults (loss, duplicates, reordering) between robots and host.
 
+Set TOUCHSWARM_CAN_BUS (e.g. socketcan://can0) to run the same tests on a real
+bus: host and robots then open two handles on that interface."""
+
+import os
 import threading
 
 import pytest
@@ -16,17 +20,18 @@ from bridge.links.canlink import Faults, private_channel
 from sim_backend import scenario
 
 TICK = 0.002
+REAL_BUS = os.environ.get("TOUCHSWARM_CAN_BUS")
 
 
 def mission(sc, seed, faults=None, journal=None, stop_host_after=None, resume=None):
-    ch = private_channel("hil")
+    url = REAL_BUS or f"virtual://{private_channel('hil')}"
     out = {}
-    with open_bus(f"virtual://{ch}") as rb:
+    with open_bus(url) as rb:
         engine = swarm_engine(sc, seed, rb, *(faults or (None, None)))
         hosts = []
         # the host listens before the robots start (a virtual bus keeps no frames
         # for a bus that is not open yet)
-        first = CanTransport(open_bus(f"virtual://{ch}"))
+        first = CanTransport(open_bus(url))
 
         def host_thread():
             if stop_host_after is not None:
@@ -37,7 +42,7 @@ def mission(sc, seed, faults=None, journal=None, stop_host_after=None, resume=No
                     h.run(stop=lambda: len(h.coord.touches) >= stop_host_after,
                           max_ticks=20000)
                     # a crash loses everything in memory; the journal stays
-            tr = first if stop_host_after is None else CanTransport(open_bus(f"virtual://{ch}"))
+            tr = first if stop_host_after is None else CanTransport(open_bus(url))
             with tr:
                 h = HostProcess(tr, sc.weight_centi, sc.homeX, sc.homeY,
                                 journal=journal, tick_seconds=TICK)
