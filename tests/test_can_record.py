@@ -80,6 +80,13 @@ def test_replay_realtime_and_missing_sidecar(tmp_path, capsys):
     Path(str(f) + ".json").unlink()
     assert main(["replay", str(f)]) == 2
     assert "sidecar" in capsys.readouterr().err
+    bare = tmp_path / "bare.log"          # bus traffic only, no capture frames
+    with can.Logger(str(bare)) as w:
+        w.on_message_received(can.Message(arbitration_id=msg.can_id(msg.HELLO, 1),
+                                          data=b"\x01\x64\x00\x01", is_extended_id=False))
+    Path(str(bare) + ".json").write_text('{"scenario": {}, "seed": 1}')
+    assert main(["replay", str(bare)]) == 2
+    assert "no SENSOR/ACTION capture frames" in capsys.readouterr().err
     assert main(["run", *SMALL, "--record", str(tmp_path / "x.txt")]) == 2
 
 

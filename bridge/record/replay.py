@@ -84,6 +84,9 @@ def load(path: Path) -> Recording:
         else:
             rec.up[tick].append((node, kind, tuple(f)))
     rec.bad = dict(dec.bad.counts)
+    if not rec.ticks:
+        raise UsageError(f"replay: {path} holds no SENSOR/ACTION capture frames, so there is "
+                         f"no sensor stream to replay; record with `touchswarm run --record`")
     return rec
 
 
