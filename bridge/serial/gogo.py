@@ -1,0 +1,644 @@
+"""GoGo Board (serial generation) over its binary protocol, and a firmware HAL on top.
+
+`GoGoBoard` is the protocol client (../shared/design/protocols.md, docs/serial.md):
+9600 baud 8N1; the host sends `0x54 0xFE <cmd> [arg]`, the board echoes every
+byte it receives, then answers `0x55 0xFF` followed by ACK `0xAA` or, for a
+sensor read, two data bytes (high & 0x03, low) of a 10-bit value.
+
+Every transaction: stale input is flushed, the request written, and the
+reply read against a deadline (every read has a timeout). The echo must come
+back exactly; junk before the echo or between the echo and the `0x55 0xFF`
+header is skipped (counted in `junk`). A missing, garbled or truncated
+reply is retried `retries` times (not for `reverse`, which is not
+idempotent, once the echo proved the board got it), then raises:
+
+- GoGoTimeout: nothing came back at all (board off, wrong port);
+- GoGoEchoError: bytes came back but never the echo: wrong baud rate (a
+  GoGo board runs at 9600 8N1 only) or not a GoGo board;
+- GoGoReplyError: the echo was right but the reply was not what the
+  command expects (the message names what was expected and what came);
+- GoGoPortLost: the port failed or vanished; the next command tries to
+  reopen it, so a board that comes back (USB replugged) works again.
+
+All of them are GoGoError, under the serial package's SerialLinkError and
+bridge.errors.BridgeError.
+
+`GoGoBody` is the HAL of firmware_logic/hal.py for a differential-drive
+robot built on a GoGo board, its firmware running on the host per robot
+(like KheperaBody). Wiring (configurable): touch switches on sensor ports
+(a closed switch reads near 0, an open one near 1023; default front 1,
+right 2, rear 3, left 4), the left and right motors on outputs A and B,
+light sensors (lower is brighter; default one facing forward on port 5)
+give the field, the user LED is the beacon.
+
+Limitation: a GoGo board has no wheel encoders, so the pose is dead
+reckoning from the commanded motion (power level x calibrated mm/s per
+level x time the motors were on). It drifts with battery voltage, wheel
+slip and a wheel pushed against an obstacle; calibrate `mm_s_per_level`
+and `wheel_base_mm` per robot, and expect the error to grow with distance.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from types import TracebackType
+
+import serial
+
+from bridge.serial.errors import (ProtocolError, SerialLinkError, SerialOpenError,
+                                  SerialTimeout)
+from bridge.serial.transport import open_serial, resolve_url
+from firmware_logic import fixedpoint as fx
+from firmware_logic import messages as msg
+from firmware_logic.hal import Hal
+from firmware_logic.robot import NOTHING, OBJECT, WALL
+
+try:                                    # tcflush on a dead tty raises termios.error
+    import termios
+    _PORT_ERRORS: tuple[type[BaseException], ...] = (serial.SerialException, OSError,
+                                                     termios.error)
+except ImportError:                     # pragma: no cover - not POSIX
+    _PORT_ERRORS = (serial.SerialException, OSError)
+
+log = logging.getLogger(__name__)
+
+BAUD = 9600
+BITS_PER_BYTE = 10                      # 8N1: start + 8 data + stop
+
+HEADER = b"\x54\xfe"
+REPLY_HEADER = b"\x55\xff"
+ACK = 0xAA
+
+PING = 0x00
+SENSOR = 0x20
+MOTOR_ON = 0x40
+MOTOR_OFF = 0x44
+MOTOR_REVERSE = 0x48
+MOTOR_THISWAY = 0x4C
+MOTOR_THATWAY = 0x50
+MOTOR_COAST = 0x54
+POWER = 0x60
+SELECT = 0x80
+LED_ON = 0xC0
+LED_OFF = 0xC1
+BEEP = 0xC4
+
+NORMAL, MAX, MIN = 0, 1, 2              # sensor read modes
+OUTPUTS = {"A": 1, "B": 2, "C": 4, "D": 8}
+
+NAMES = {PING: "ping", MOTOR_ON: "motor on", MOTOR_OFF: "motor off",
+         MOTOR_REVERSE: "motor reverse", MOTOR_THISWAY: "motor thisway",
+         MOTOR_THATWAY: "motor thatway", MOTOR_COAST: "motor coast", SELECT: "select outputs",
+         LED_ON: "LED on", LED_OFF: "LED off", BEEP: "beep"}
+
+MAX_JUNK = 32                           # junk bytes tolerated around the echo / reply
+
+
+class GoGoError(SerialLinkError):
+    """Root of the GoGo Board errors."""
+
+
+class GoGoOpenError(GoGoError, SerialOpenError):
+    """The port could not be opened (missing device, bad URL or option)."""
+
+
+class GoGoUsageError(GoGoError, ValueError):
+    """A command argument out of the protocol's range (sensor 1..8, power 0..7, ...)."""
+
+
+class GoGoTimeout(GoGoError, SerialTimeout):
+    """Nothing at all came back within the timeout, on every try."""
+
+
+class GoGoProtocolError(GoGoError, ProtocolError):
+    """Something came back that the protocol does not allow."""
+
+
+class GoGoEchoError(GoGoProtocolError):
+    """Bytes came back but never the echo of the request: wrong baud or not a GoGo."""
+
+
+class GoGoReplyError(GoGoProtocolError):
+    """The echo was right; the reply was garbled, truncated or missing."""
+
+
+class GoGoPortLost(GoGoError):
+    """The port failed or vanished (USB unplugged, pty closed)."""
+
+
+def hexs(data: bytes) -> str:
+    return " ".join("%02x" % b for b in data) or "nothing"
+
+
+def sensor_command(n: int, mode: int = NORMAL) -> int:
+    if not 1 <= n <= 8:
+        raise GoGoUsageError("sensor port %r: a GoGo board has ports 1..8" % (n,))
+    if mode not in (NORMAL, MAX, MIN):
+        raise GoGoUsageError("sensor mode %r: 0 normal, 1 max, 2 min" % (mode,))
+    return SENSOR | (n - 1) << 2 | mode
+
+
+def output_mask(ports: str | int) -> int:
+    """'AB' -> 3; an int mask 0..15 passes through."""
+    if isinstance(ports, int):
+        if not 0 <= ports <= 15:
+            raise GoGoUsageError("output mask %r: A=1 B=2 C=4 D=8, 0..15" % (ports,))
+        return ports
+    mask = 0
+    for p in ports.upper():
+        if p not in OUTPUTS:
+            raise GoGoUsageError("output %r: a GoGo board has outputs A, B, C, D" % (p,))
+        mask |= OUTPUTS[p]
+    return mask
+
+
+class _Attempt:
+    """What one try of a transaction saw."""
+
+    __slots__ = ("buf", "echo_ok", "value", "done", "why")
+
+    def __init__(self) -> None:
+        self.buf = b""
+        self.echo_ok = False
+        self.value: int | None = None
+        self.done = False
+        self.why = ""
+
+
+class GoGoBoard:
+    """The GoGo serial protocol over any pyserial port or URL.
+
+    `url`: a device path, `gogo:///dev/ttyUSB0?baud=9600`, or a pyserial URL.
+    `timeout`: the deadline of one try; `quiet`: a try with some bytes ends
+    early when nothing more arrives for this long (a truncated reply).
+    """
+
+    def __init__(self, url: str, baud: int = BAUD, timeout: float = 0.3,
+                 retries: int = 2, quiet: float = 0.1) -> None:
+        try:
+            port, opts = resolve_url(url, "gogo", BAUD)
+        except SerialOpenError as err:
+            raise GoGoOpenError(str(err)) from err
+        self.url = url
+        self.port = port
+        self.baud = int(opts.get("baud", baud))
+        self.timeout = timeout
+        self.retries = retries
+        self.quiet = quiet
+        self.byte_time = BITS_PER_BYTE / self.baud
+        self.retried = 0                # tries after the first, over all commands
+        self.junk = 0                   # bytes skipped around echoes and replies
+        self.reopened = 0
+        self.transactions = 0
+        self.last_reply_at = 0.0        # monotonic time the last full reply arrived
+        self.ser: serial.SerialBase | None = None
+        self._closed = False
+        self._open()
+
+    def __enter__(self) -> "GoGoBoard":
+        return self
+
+    def __exit__(self, et: type[BaseException] | None, ev: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self.close()
+
+    def close(self) -> None:
+        self._closed = True
+        self._drop()
+
+    def _open(self) -> None:
+        try:
+            self.ser = open_serial(self.port, self.baud, 0.02)
+        except SerialOpenError as err:
+            raise GoGoOpenError("GoGo board: %s" % err) from err
+
+    def _drop(self) -> None:
+        ser, self.ser = self.ser, None
+        if ser is not None:
+            try:
+                ser.close()
+            except _PORT_ERRORS:
+                pass
+
+    def _ensure_open(self, what: str) -> serial.SerialBase:
+        if self._closed:
+            raise GoGoPortLost("GoGo board on %s: port is closed (%s)" % (self.port, what))
+        if self.ser is None:
+            try:
+                self._open()
+            except GoGoOpenError as err:
+                raise GoGoPortLost("GoGo board on %s is gone (%s): %s"
+                                   % (self.port, what, err)) from err
+            self.reopened += 1
+            log.info("GoGo board on %s: port reopened", self.port)
+        assert self.ser is not None
+        return self.ser
+
+    # -- one transaction --------------------------------------------------------------
+
+    @staticmethod
+    def _parse(at: _Attempt, req: bytes, data: bool) -> None:
+        buf = at.buf
+        i = buf.find(req)
+        if i < 0:
+            at.why = "echo"
+            return
+        at.echo_ok = True
+        rest = buf[i + len(req):]
+        j = rest.find(REPLY_HEADER)
+        if j < 0:
+            at.why = "header"
+            return
+        body = rest[j + 2:]
+        need = 2 if data else 1
+        if len(body) < need:
+            at.why = "short"
+            return
+        if data:
+            hi, lo = body[0], body[1]
+            if hi & 0xFC:
+                at.why = "high byte %02x has bits above 0x03" % hi
+                at.done = True
+                return
+            at.value = hi << 8 | lo
+        elif body[0] != ACK:
+            at.why = "%02x instead of ACK aa" % body[0]
+            at.done = True
+            return
+        at.done = True
+        at.why = ""
+
+    def _try(self, ser: serial.SerialBase, req: bytes, data: bool) -> _Attempt:
+        at = _Attempt()
+        ser.reset_input_buffer()
+        ser.write(req)
+        now = time.monotonic()
+        deadline = now + self.timeout
+        last = now
+        while now < deadline:
+            chunk = ser.read(ser.in_waiting or 1)
+            now = time.monotonic()
+            if chunk:
+                at.buf += chunk
+                last = now
+                self._parse(at, req, data)
+                if at.done:
+                    break
+                if len(at.buf) > len(req) + MAX_JUNK + 4:
+                    break               # far more than any reply: give up this try
+            elif at.buf and now - last >= self.quiet:
+                break                   # something came, then nothing: truncated
+        if at.value is not None or (at.done and not at.why):
+            self.last_reply_at = time.monotonic()
+            skipped = len(at.buf) - len(req) - (4 if data else 3)
+            self.junk += max(0, skipped)
+        return at
+
+    def transact(self, cmd: int, arg: int | None = None, data: bool = False,
+                 idempotent: bool = True) -> int | None:
+        """Send one command; return the 10-bit value (data=True) or None (ACK)."""
+        req = HEADER + bytes([cmd]) + (b"" if arg is None else bytes([arg]))
+        what = "%s (%s)" % (self._name(cmd), hexs(req))
+        want = ("55 ff then two data bytes (high <= 03, low)" if data
+                else "55 ff then ACK aa")
+        seen: list[_Attempt] = []
+        self.transactions += 1
+        for attempt in range(self.retries + 1):
+            if attempt:
+                self.retried += 1
+            ser = self._ensure_open(what)
+            try:
+                at = self._try(ser, req, data)
+            except _PORT_ERRORS as err:
+                self._drop()
+                raise GoGoPortLost("GoGo board on %s: port failed during %s: %s"
+                                   % (self.port, what, err)) from err
+            if at.done and not at.why:
+                return at.value
+            seen.append(at)
+            if at.echo_ok and not idempotent:
+                break                   # the board got it: a retry would apply it twice
+        heard = [a for a in seen if a.buf]
+        tries = len(seen)
+        if not heard:
+            raise GoGoTimeout("GoGo board on %s did not answer %s within %.2f s (%d tries); "
+                              "is it powered and on this port at 9600 baud 8N1?"
+                              % (self.port, what, self.timeout, tries))
+        if not any(a.echo_ok for a in seen):
+            raise GoGoEchoError("GoGo board on %s: no echo of %s in %d tries (last got %s); "
+                                "a GoGo board echoes every byte at 9600 baud 8N1, this port "
+                                "is at %d baud: check the baud rate and that it is a GoGo"
+                                % (self.port, what, tries, hexs(heard[-1].buf[:24]),
+                                   self.baud))
+        last = [a for a in seen if a.echo_ok][-1]
+        got = last.buf[last.buf.find(req) + len(req):]
+        detail = {"header": "no 55 ff header", "short": "truncated"}.get(last.why, last.why)
+        raise GoGoReplyError("GoGo board on %s: bad reply to %s after its echo: expected %s, "
+                             "got %s (%s; %d %s%s)"
+                             % (self.port, what, want, hexs(got[:24]), detail, tries,
+                                "try" if tries == 1 else "tries",
+                                "" if idempotent else ", not retried: not idempotent"))
+
+    @staticmethod
+    def _name(cmd: int) -> str:
+        if cmd & 0xE0 == SENSOR:
+            return "read sensor %d mode %d" % (((cmd >> 2) & 7) + 1, cmd & 3)
+        if cmd & 0xE0 == POWER:
+            return "power %d" % ((cmd >> 2) & 7)
+        return NAMES.get(cmd, "command %02x" % cmd)
+
+    # -- commands -------------------------------------------------------------------------
+
+    def ping(self) -> None:
+        self.transact(PING)
+
+    def sensor(self, n: int, mode: int = NORMAL) -> int:
+        """The 10-bit reading (0..1023) of sensor port n (1..8)."""
+        v = self.transact(sensor_command(n, mode), data=True)
+        assert v is not None
+        return v
+
+    def select(self, ports: str | int) -> None:
+        """Talk to these outputs from now on: 'AB', 'A', or a mask (A=1 B=2 C=4 D=8)."""
+        self.transact(SELECT, output_mask(ports))
+
+    def on(self) -> None:
+        self.transact(MOTOR_ON)
+
+    def off(self) -> None:
+        self.transact(MOTOR_OFF)
+
+    def reverse(self) -> None:
+        self.transact(MOTOR_REVERSE, idempotent=False)
+
+    def thisway(self) -> None:
+        self.transact(MOTOR_THISWAY)
+
+    def thatway(self) -> None:
+        self.transact(MOTOR_THATWAY)
+
+    def coast(self) -> None:
+        self.transact(MOTOR_COAST)
+
+    def power(self, level: int) -> None:
+        if not 0 <= level <= 7:
+            raise GoGoUsageError("power level %r: 0..7" % (level,))
+        self.transact(POWER | level << 2)
+
+    def led(self, on: bool) -> None:
+        self.transact(LED_ON if on else LED_OFF)
+
+    def beep(self) -> None:
+        self.transact(BEEP)
+
+
+# -- the body ------------------------------------------------------------------------------
+
+THISWAY = "thisway"
+THATWAY = "thatway"
+
+
+def _angle(a: float) -> float:
+    """Into -180..180."""
+    return (a + 180) % 360 - 180
+
+
+class GoGoBody(Hal):
+    """The firmware HAL over a GoGo board on a differential-drive robot.
+
+    Bearings in `touch_ports` / `light_ports` are relative to the robot's
+    heading, clockwise degrees (0 front, 90 right); values are sensor ports
+    1..8. `left` / `right` are the motor outputs; `*_forward` says which
+    direction command drives that wheel forward (mirrored motors usually
+    need one thisway and one thatway). Positions are Q8 patches of `patch_mm`.
+    `arena` (the world's half size in patches), when given, makes a touch
+    outside it a WALL rather than the object.
+    """
+
+    def __init__(self, board: GoGoBoard, node: int, link=None, patch_mm: float = 50.0,
+                 touch_ports: dict[int, int] | None = None,
+                 light_ports: dict[int, int] | None = None,
+                 touch_threshold: int = 512, dark: int = 800, light_step: int = 40,
+                 left: str = "A", right: str = "B", left_forward: str = THISWAY,
+                 right_forward: str = THISWAY, power: int = 7, mm_s_per_level: float = 20.0,
+                 wheel_base_mm: float = 100.0, x_mm: float = 0.0, y_mm: float = 0.0,
+                 heading: float = 0.0, arena: int | None = None) -> None:
+        self.b = board
+        self.node = node
+        self.link = link
+        self.patch_mm = patch_mm
+        self.touch_ports = dict(touch_ports if touch_ports is not None
+                                else {0: 1, 90: 2, 180: 3, 270: 4})
+        self.light_ports = dict(light_ports if light_ports is not None else {0: 5})
+        for p in list(self.touch_ports.values()) + list(self.light_ports.values()):
+            sensor_command(p)           # validates 1..8
+        if not self.light_ports:
+            raise GoGoUsageError("GoGoBody needs at least one light sensor port for the field")
+        self.touch_threshold = touch_threshold
+        self.dark = dark
+        self.light_step = light_step
+        if left_forward not in (THISWAY, THATWAY) or right_forward not in (THISWAY, THATWAY):
+            raise GoGoUsageError("left_forward / right_forward: 'thisway' or 'thatway'")
+        self.left, self.right = left.upper(), right.upper()
+        self.fwd = {self.left: left_forward, self.right: right_forward}
+        self.both = output_mask(self.left + self.right)
+        if not 0 <= power <= 7:
+            raise GoGoUsageError("power level %r: 0..7" % (power,))
+        self.level = power
+        self.mm_s = power * mm_s_per_level
+        self.wheel_base_mm = wheel_base_mm
+        self.arena = arena
+        self.x_mm, self.y_mm, self.theta = x_mm, y_mm, heading % 360
+        self.claimed = -1
+        self.beacon_on = 0
+        self.moving_seconds = 0.0
+        self._dirs: dict[str, str | None] = {self.left: None, self.right: None}
+        self._before: int | None = None    # light field before the last forward move
+        self._moved = False
+        board.ping()
+        board.select(self.both)
+        board.off()
+        board.power(self.level)
+        board.led(False)
+
+    # -- motion by dead reckoning -------------------------------------------------------
+
+    def _direction(self, port: str, forward: bool) -> None:
+        fwd = self.fwd[port]
+        want = fwd if forward else (THATWAY if fwd == THISWAY else THISWAY)
+        if self._dirs[port] == want:
+            return
+        self.b.select(port)
+        if want == THISWAY:
+            self.b.thisway()
+        else:
+            self.b.thatway()
+        self._dirs[port] = want
+
+    def _run(self, left_forward: bool, right_forward: bool, seconds: float) -> float:
+        """Run both wheels for `seconds`; return how long they really ran, as
+        the board saw it (the wire time of the on and off commands counted).
+        If the port is lost while they run, GoGoPortLost propagates: the board
+        keeps its last command, so the motors may still be on, and the move
+        is not added to the pose."""
+        self._direction(self.left, left_forward)
+        self._direction(self.right, right_forward)
+        self.b.select(self.both)
+        bt = self.b.byte_time
+        try:
+            self.b.on()
+        except GoGoError:
+            try:                        # the board may have got it: make sure it stops
+                self.b.off()
+            except GoGoError:
+                pass
+            raise
+        # `on` took effect when its last byte arrived, before the 3-byte reply;
+        # `off` takes effect when its 3rd byte arrives, 3 byte times after sending
+        started = self.b.last_reply_at - 3 * bt
+        end = started + seconds - 3 * bt
+        try:
+            while True:
+                left = end - time.monotonic()
+                if left <= 0:
+                    break
+                time.sleep(min(left, 0.05))
+        finally:
+            sent = time.monotonic()
+            self.b.off()
+        ran = max(0.0, sent + 3 * bt - started)
+        self.moving_seconds += ran
+        return ran
+
+    def turn_to(self, heading: float) -> None:
+        err = _angle(heading - self.theta)
+        if abs(err) < 1.0 or self.mm_s <= 0:
+            return
+        arc = math.radians(abs(err)) * self.wheel_base_mm / 2
+        ran = self._run(err > 0, err < 0, arc / self.mm_s)
+        turned = math.degrees(ran * self.mm_s * 2 / self.wheel_base_mm)
+        self.theta = (self.theta + math.copysign(turned, err)) % 360
+
+    def drive(self, mm: float) -> None:
+        if mm <= 0 or self.mm_s <= 0:
+            return
+        ran = self._run(True, True, mm / self.mm_s)
+        d = ran * self.mm_s
+        th = math.radians(self.theta)
+        self.x_mm += d * math.sin(th)
+        self.y_mm += d * math.cos(th)
+
+    def _q8(self, mm: float) -> int:
+        return int(round(mm * fx.ONE / self.patch_mm))
+
+    # -- sensing ----------------------------------------------------------------------
+
+    def x(self) -> int:
+        return self._q8(self.x_mm)
+
+    def y(self) -> int:
+        return self._q8(self.y_mm)
+
+    @staticmethod
+    def _nearest(ports: dict[int, int], rel: float) -> tuple[int, float]:
+        best, dist = -1, 999.0
+        for bearing, port in ports.items():
+            d = abs(_angle(rel - bearing))
+            if d < dist:
+                best, dist = port, d
+        return best, dist
+
+    def touching(self, port: int) -> bool:
+        """A closed switch reads near 0, an open one near 1023."""
+        return self.b.sensor(port) < self.touch_threshold
+
+    def probe(self, heading: int) -> int:
+        port, dist = self._nearest(self.touch_ports, _angle(heading - self.theta))
+        if dist > 50 or not self.touching(port):
+            return NOTHING
+        if self.arena is not None:
+            px = fx.patch(self.x() + fx.dx(heading % 360, fx.ONE))
+            py = fx.patch(self.y() + fx.dy(heading % 360, fx.ONE))
+            if max(abs(px), abs(py)) > self.arena:
+                return WALL
+        return OBJECT
+
+    def _field_from(self, v: int) -> int:
+        return max(0, self.dark - v) // self.light_step
+
+    def _light(self, port: int) -> int:
+        return self._field_from(self.b.sensor(port))
+
+    def field_ahead(self, heading: int) -> int:
+        port, dist = self._nearest(self.light_ports, _angle(heading - self.theta))
+        if dist <= 50:
+            return self._light(port)
+        # no light sensor faces that way: the field around the robot is the estimate
+        return self.field_here()
+
+    def field_here(self) -> int:
+        return min(self._light(p) for p in self.light_ports.values())
+
+    def uphill(self) -> int:
+        if len(self.light_ports) == 1:
+            # one sensor: follow the gradient along the way just driven
+            (bearing, port), = self.light_ports.items()
+            now = self._light(port)
+            up = self._moved and self._before is not None and now > self._before
+            if not up:
+                return -1
+            return int(round(((self.theta + bearing) % 360) / 45.0)) * 45 % 360
+        fields = {b: self._light(p) for b, p in self.light_ports.items()}
+        best = max(fields, key=lambda b: fields[b])
+        if fields[best] <= min(fields.values()):
+            return -1
+        return int(round(((self.theta + best) % 360) / 45.0)) * 45 % 360
+
+    def holding(self) -> int:
+        if self.claimed < 0:
+            return 0
+        return 1 if self.probe(self.claimed) == OBJECT else 0
+
+    # -- acting --------------------------------------------------------------------------
+
+    def forward(self, heading: int, step: int) -> None:
+        self.turn_to(heading)
+        if len(self.light_ports) == 1:
+            self._before = self._light(next(iter(self.light_ports.values())))
+        self.drive(step * self.patch_mm / fx.ONE)
+        self._moved = True
+
+    def claim(self, heading: int) -> None:
+        self.turn_to(heading)
+        self.claimed = heading
+
+    def carry(self, dx: int, dy: int) -> None:
+        if dx == 0 and dy == 0:
+            return
+        self.turn_to(math.degrees(math.atan2(dx, dy)) % 360)
+        self.drive(math.hypot(dx, dy) * self.patch_mm)
+        self._moved = False
+
+    def beacon(self, on: int) -> None:
+        self.b.led(bool(on))
+        self.beacon_on = 1 if on else 0
+
+    # -- messages ---------------------------------------------------------------------------
+
+    def send(self, kind: int, a0: int, a1: int, a2: int, a3: int, a4: int, a5: int) -> None:
+        if self.link is not None:
+            n = len(msg.fields(kind))
+            self.link.robot_send(self.node, kind, (a0, a1, a2, a3, a4, a5)[:n])
+
+    def recv(self, buf: list) -> int:
+        if self.link is None:
+            return 0
+        m = self.link.robot_recv(self.node)
+        if m is None:
+            return 0
+        kind, fields = m
+        for j, v in enumerate(fields):
+            buf[j] = v
+        return kind
