@@ -25,3 +25,45 @@ class RobotTransport(Protocol):
 
     def close(self) -> None:
         """Release the port or bus; safe to call twice."""
+
+
+class FanIn:
+    """Several transports as one: a message to a node goes to the transport
+    that node was heard on (node 0, or a node never heard: every transport).
+    Lets one host serve robots on a CAN bus and on serial ports at once."""
+
+    def __init__(self, parts: list) -> None:
+        self.parts = list(parts)
+        self.heard_on: dict[int, object] = {}
+
+    def __enter__(self) -> "FanIn":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def poll(self, timeout: float) -> list[Message]:
+        out: list[Message] = []
+        share = timeout / max(1, len(self.parts))
+        for part in self.parts:
+            got = part.poll(share if not out else 0.0)
+            for m in got:
+                self.heard_on[m[0]] = part
+            out.extend(got)
+        return out
+
+    def send(self, node: int, kind: int, fields: tuple) -> None:
+        part = self.heard_on.get(node) if node else None
+        for p in (part,) if part is not None else self.parts:
+            p.send(node, kind, fields)
+
+    def bad_frames(self) -> dict[str, int]:
+        out: dict[str, int] = {}
+        for part in self.parts:
+            for k, v in part.bad_frames().items():
+                out[k] = out.get(k, 0) + v
+        return out
+
+    def close(self) -> None:
+        for part in self.parts:
+            part.close()

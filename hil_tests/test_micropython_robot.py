@@ -10,12 +10,15 @@ journalled exactly once and acknowledged (the robot stops retransmitting).
 from __future__ import annotations
 
 import re
+import tempfile
 import time
+from pathlib import Path
 from typing import Callable
 
 import pytest
 
 from bridge.cli import main as cli_main
+from bridge.host.journal import Journal
 from bridge.serial.deploy import Deployer, DeployError
 from bridge.serial.pty import PtyRelay
 from bridge.serial.transport import SerialTransport
@@ -56,6 +59,9 @@ class Mission:
         self.dev = dev
         self.engine = mission_engine()
         self.journal: list[Touch] = []
+        # the host process's own SQLite (WAL) journal, written before the ACK
+        self.journal_path = Path(tempfile.mkdtemp()) / "host-journal.sqlite"
+        self.db = Journal(self.journal_path)
         self.journalled_at = -1      # robot ticks applied when the touch was journalled
         self.coord = Coordinator(self.engine.sc.weight_centi, journal=self._journal)
         self.serial = SerialTransport(dev.path, 115200, timeout=0.02, reopen_every=0.05)
@@ -64,6 +70,7 @@ class Mission:
         self.touch_msgs = 0
 
     def _journal(self, t: Touch) -> None:
+        self.db.add_touch(t)
         self.journal.append(t)
         if self.journalled_at < 0:
             self.journalled_at = self.link.applied_ticks
@@ -107,6 +114,7 @@ class Mission:
 
     def close(self) -> None:
         self.link.close()
+        self.db.close()
 
 
 def acked(m: Mission) -> bool:
@@ -121,6 +129,8 @@ def check_outcome(m: Mission, robot: dict[str, int]) -> None:
     assert t.node == 1 and t.seq == 1
     assert (t.sx, t.sy) in m.engine.world.object_cells
     assert m.coord.touches == m.journal
+    with Journal(m.journal_path) as db:        # durable, as a restarted host reads it
+        assert [x.as_tuple() for x in db.touches()] == [t.as_tuple()]
     assert robot["state"] == 5, robot           # HALT
     assert robot["pending"] == 0, robot         # the acknowledged touch is known acked
     assert robot["seq"] == 1, robot

@@ -13,13 +13,19 @@ from bridge.commands.run import add_scenario_args, scenario_from_args
 
 
 def register(sub) -> None:
-    p = sub.add_parser("host", help="run the host coordinator against a CAN bus",
+    p = sub.add_parser("host", help="run the host coordinator against a CAN bus and/or serial ports",
                        description="Collect touch reports from robots on a bus, journal each "
                                    "before acknowledging it, and command the transport home. "
                                    "Runs until the object is home or it is stopped.")
-    p.add_argument("--bus", required=True, metavar="URL",
+    p.add_argument("--bus", metavar="URL",
                    help="virtual://CHANNEL, socketcan://can0, slcan:///dev/ttyACM0?bitrate=500000"
                         " or can://INTERFACE/CHANNEL?bitrate=...")
+    p.add_argument("--serial", action="append", default=[], metavar="PORT",
+                   help="robots on a framed serial port: device path, "
+                        "serial:///dev/ttyUSB0?baud=115200 or any pyserial URL (repeatable; "
+                        "may be combined with --bus)")
+    p.add_argument("--serial-baud", type=int, default=115200, metavar="BAUD",
+                   help="baud rate of --serial ports without ?baud= (default: %(default)s)")
     add_scenario_args(p)
     p.add_argument("--journal", type=Path, metavar="PATH",
                    help="SQLite (WAL) journal written before every ACK "
@@ -40,8 +46,11 @@ def cmd_host(args: argparse.Namespace) -> int:
     from bridge.host.process import HostProcess
     from bridge.host.transport import CanTransport
     from bridge.links import LinkError, open_bus
+    from bridge.transport import FanIn
 
     sc = scenario_from_args(args)
+    if not args.bus and not args.serial:
+        raise UsageError("host: give --bus URL and/or --serial PORT (where the robots are)")
     if args.tick_ms <= 0:
         raise UsageError(f"--tick-ms {args.tick_ms}: expected a positive period")
     if args.resume is not None and not args.resume.exists():
@@ -55,8 +64,19 @@ def cmd_host(args: argparse.Namespace) -> int:
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, lambda *a: stopping.append(1))
     journal_path = args.journal or args.resume
-    bus = open_bus(args.bus)
-    with CanTransport(bus) as transport:
+    parts: list = []
+    try:
+        if args.bus:
+            parts.append(CanTransport(open_bus(args.bus)))
+        if args.serial:
+            from bridge.serial.transport import MultiSerialTransport
+            parts.append(MultiSerialTransport.open(args.serial, args.serial_baud))
+    except BaseException:
+        for part in parts:
+            part.close()
+        raise
+    where = " + ".join(([args.bus] if args.bus else []) + args.serial)
+    with (parts[0] if len(parts) == 1 else FanIn(parts)) as transport:
         try:
             journal = Journal(journal_path) if journal_path else None
         except JournalError as err:
@@ -73,7 +93,7 @@ def cmd_host(args: argparse.Namespace) -> int:
                         for t in old.touches():
                             journal.add_touch(t)
                 host.resume(journal)
-            event(f"host on {args.bus}: object weight {sc.weight_centi}, home "
+            event(f"host on {where}: object weight {sc.weight_centi}, home "
                   f"({sc.homeX},{sc.homeY}), journal {journal_path or 'none'}")
             try:
                 summary = host.run(stop=lambda: bool(stopping), max_ticks=args.max_ticks)

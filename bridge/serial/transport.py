@@ -25,12 +25,12 @@ from urllib.parse import parse_qs, urlsplit
 import serial
 
 from bridge.serial.errors import SerialOpenError
+from bridge.transport import FanIn, Message
 from firmware_logic import framing
 from firmware_logic import messages as msg
 
 log = logging.getLogger(__name__)
 
-Message = tuple[int, int, tuple]
 
 DEFAULT_BAUD = 115200
 
@@ -244,13 +244,12 @@ class SerialTransport:
             self._fault("send_dropped", "port is gone")
 
 
-class MultiSerialTransport:
-    """Several serial ports as one RobotTransport: a message to a node goes
-    to the port that node was heard on (node 0, or a node never heard: every
-    port)."""
+class MultiSerialTransport(FanIn):
+    """Several serial ports as one RobotTransport (see bridge.transport.FanIn)."""
 
     def __init__(self, transports: list[SerialTransport]) -> None:
-        self.transports = transports
+        super().__init__(transports)
+        self.transports = self.parts
 
     @classmethod
     def open(cls, urls: list[str], baud: int | None = None,
@@ -264,33 +263,3 @@ class MultiSerialTransport:
                 t.close()
             raise
         return cls(opened)
-
-    def __enter__(self) -> "MultiSerialTransport":
-        return self
-
-    def __exit__(self, et: type[BaseException] | None, ev: BaseException | None,
-                 tb: TracebackType | None) -> None:
-        self.close()
-
-    def poll(self, timeout: float) -> list[Message]:
-        out: list[Message] = []
-        share = timeout / max(1, len(self.transports))
-        for t in self.transports:
-            out.extend(t.poll(share if not out else 0.0))
-        return out
-
-    def send(self, node: int, kind: int, fields: tuple) -> None:
-        targets = [t for t in self.transports if node in t.nodes]
-        for t in targets or self.transports:
-            t.send(node, kind, fields)
-
-    def bad_frames(self) -> dict[str, int]:
-        out: dict[str, int] = {}
-        for t in self.transports:
-            for k, v in t.bad_frames().items():
-                out[k] = out.get(k, 0) + v
-        return out
-
-    def close(self) -> None:
-        for t in self.transports:
-            t.close()
