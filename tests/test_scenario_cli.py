@@ -106,3 +106,10 @@ def test_scenario_file_round_trip(tmp_path):
 def test_help_answers_questions():
     p = cli("run", "--help")
     assert "--scenario" in p.stdout and "--set" in p.stdout and "--json" in p.stdout
+
+
+def test_real_links_refuse_more_robots_than_node_ids():
+    p = cli("run", "--link", "can", "--robots", "200", "--set", "worldSize=60")
+    assert p.returncode == 2 and "allowed 1..127" in p.stderr
+    p = cli("run", "--robots", "200", "--set", "worldSize=60", "--json")
+    assert p.returncode == 0 and json.loads(p.stdout)["robots"] == 200

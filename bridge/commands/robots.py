@@ -9,7 +9,7 @@ import sys
 import threading
 import time
 
-from bridge.commands.run import add_scenario_args, scenario_from_args
+from bridge.commands.run import add_scenario_args, check_link_limits, scenario_from_args
 
 
 def register(sub) -> None:
@@ -41,6 +41,7 @@ def cmd_robots(args: argparse.Namespace) -> int:
     from bridge.links.canlink import Faults
 
     sc = scenario_from_args(args)
+    check_link_limits(sc, "CAN")
     if args.tick_ms <= 0:
         raise UsageError(f"--tick-ms {args.tick_ms}: expected a positive period")
     try:

@@ -28,6 +28,18 @@ def parse_value(text: str):
         return text
 
 
+def check_link_limits(sc, link: str) -> None:
+    """A real link carries node ids in 7 bits and patch coordinates in one
+    signed byte; the simulator alone can go further (vectorised sweeps)."""
+    from firmware_logic.messages import MAX_NODE
+    if sc.agents > MAX_NODE:
+        raise UsageError(f"agents: {sc.agents} robots do not fit the {link} link's node ids; "
+                         f"allowed 1..{MAX_NODE} (more only with --link inproc)")
+    if sc.worldSize > 120:
+        raise UsageError(f"worldSize: {sc.worldSize} exceeds the {link} link's one-byte patch "
+                         f"coordinates; allowed 10..120 (more only with --link inproc)")
+
+
 def scenario_from_args(args: argparse.Namespace):
     from sim_backend import scenario
     sc = scenario.load(args.scenario)
@@ -67,6 +79,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     nodes = list(range(1, sc.agents + 1))
     link = None
     if args.link == "can":
+        check_link_limits(sc, "CAN")
         from bridge.links.canlink import CanLink
         link = CanLink(nodes)
     recorder = None
