@@ -51,8 +51,7 @@ from bridge.serial.errors import (ProtocolError, SerialLinkError, SerialOpenErro
                                   SerialTimeout)
 from bridge.serial.transport import open_serial, resolve_url
 from firmware_logic import fixedpoint as fx
-from firmware_logic import messages as msg
-from firmware_logic.hal import Hal
+from bridge.serial.linked import LinkedHal
 from firmware_logic.robot import NOTHING, OBJECT, WALL
 
 try:                                    # tcflush on a dead tty raises termios.error
@@ -405,7 +404,7 @@ def _angle(a: float) -> float:
     return (a + 180) % 360 - 180
 
 
-class GoGoBody(Hal):
+class GoGoBody(LinkedHal):
     """The firmware HAL over a GoGo board on a differential-drive robot.
 
     Bearings in `touch_ports` / `light_ports` are relative to the robot's
@@ -627,18 +626,4 @@ class GoGoBody(Hal):
 
     # -- messages ---------------------------------------------------------------------------
 
-    def send(self, kind: int, a0: int, a1: int, a2: int, a3: int, a4: int, a5: int) -> None:
-        if self.link is not None:
-            n = len(msg.fields(kind))
-            self.link.robot_send(self.node, kind, (a0, a1, a2, a3, a4, a5)[:n])
-
-    def recv(self, buf: list) -> int:
-        if self.link is None:
-            return 0
-        m = self.link.robot_recv(self.node)
-        if m is None:
-            return 0
-        kind, fields = m
-        for j, v in enumerate(fields):
-            buf[j] = v
-        return kind
+    # send / recv: LinkedHal

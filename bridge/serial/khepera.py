@@ -28,8 +28,7 @@ import serial
 from bridge.serial.errors import ProtocolError, SerialTimeout
 from bridge.serial.transport import open_serial, resolve_url
 from firmware_logic import fixedpoint as fx
-from firmware_logic import messages as msg
-from firmware_logic.hal import Hal
+from bridge.serial.linked import LinkedHal
 from firmware_logic.robot import NOTHING, OBJECT
 
 log = logging.getLogger(__name__)
@@ -177,7 +176,7 @@ def _nearest(bearing: float) -> tuple[int, float]:
     return best, dist
 
 
-class KheperaBody(Hal):
+class KheperaBody(LinkedHal):
     """The firmware HAL over a Khepera II (the firmware runs on the host).
 
     `link` carries the robot's messages (robot_send / robot_recv, as the sim
@@ -311,18 +310,4 @@ class KheperaBody(Hal):
 
     # -- messages --------------------------------------------------------------------------
 
-    def send(self, kind: int, a0: int, a1: int, a2: int, a3: int, a4: int, a5: int) -> None:
-        if self.link is not None:
-            n = len(msg.fields(kind))
-            self.link.robot_send(self.node, kind, (a0, a1, a2, a3, a4, a5)[:n])
-
-    def recv(self, buf: list) -> int:
-        if self.link is None:
-            return 0
-        m = self.link.robot_recv(self.node)
-        if m is None:
-            return 0
-        kind, fields = m
-        for j, v in enumerate(fields):
-            buf[j] = v
-        return kind
+    # send / recv: LinkedHal
