@@ -5,7 +5,7 @@ from firmware_logic import robot as R
 from sim_backend import objects
 from sim_backend.engine import Engine
 from sim_backend.scenario import Scenario, validate
-from sim_backend.world import BLUE, YELLOW, World, signal_table
+from sim_backend.world import BLUE, World, signal_table
 
 
 def test_draw_object_shapes_match_the_thesis():
