@@ -10,8 +10,8 @@ import sys
 
 from bridge.errors import BridgeError, UsageError
 
-# one module per command; each has register(subparsers). A module not yet
-# present is skipped, so capabilities can land one at a time.
+# one module per command; each has register(subparsers) and keeps its heavy
+# imports (python-can, pyserial, numpy) inside its handler
 COMMANDS = [
     "bridge.commands.run",
     "bridge.commands.scenarios",
@@ -34,13 +34,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-v", "--verbose", action="count", default=0, help="log more (-vv: debug)")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMANDS:
-        try:
-            mod = importlib.import_module(name)
-        except ModuleNotFoundError as err:
-            if err.name and err.name.startswith(name.rsplit(".", 1)[0]):
-                continue  # a command still being built
-            raise
-        mod.register(sub)
+        importlib.import_module(name).register(sub)
     return p
 
 
