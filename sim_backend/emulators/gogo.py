@@ -38,11 +38,10 @@ beacon: on adds the robot's field to the world (Signal), off removes it.
 
 from __future__ import annotations
 
-import math
 import time
 
-from firmware_logic import fixedpoint as fx
 from sim_backend.emulators.ptyport import Emulator
+from sim_backend.emulators.worldrobot import WorldRobot
 from sim_backend.world import FREE
 
 FRAME_1, FRAME_2 = 0x54, 0xFE
@@ -55,7 +54,7 @@ THISWAY, THATWAY = 1, -1
 IDLE, GOT_54, GOT_FE, GOT_SELECT = range(4)
 
 
-class GoGoEmulator(Emulator):
+class GoGoEmulator(WorldRobot, Emulator):
     bits_per_byte = 10
 
     def __init__(self, world=None, index: int = 0, baud: int = 9600,
@@ -121,40 +120,7 @@ class GoGoEmulator(Emulator):
         vl, vr = self.wheel_speed("left"), self.wheel_speed("right")
         if dt <= 0 or (vl == 0 and vr == 0):
             return
-        dl, dr = vl * dt, vr * dt
-        dth = math.degrees((dl - dr) / self.wheel_base_mm)
-        d = (dl + dr) / 2
-        mid = math.radians(self.theta + dth / 2)
-        nx = self.x_mm + d * math.sin(mid)
-        ny = self.y_mm + d * math.cos(mid)
-        self.theta = (self.theta + dth) % 360
-        if self.world is not None and self._blocked(nx, ny):
-            return                      # pushing against something: the wheels slip
-        self.x_mm, self.y_mm = nx, ny
-        if self.world is not None:
-            w = self.world
-            w.xs[self.index] = int(round(nx * 256 / self.patch_mm))
-            w.ys[self.index] = int(round(ny * 256 / self.patch_mm))
-            w.recount()
-
-    def _patch(self, x_mm: float, y_mm: float) -> tuple[int, int]:
-        return (fx.patch(int(round(x_mm * 256 / self.patch_mm))),
-                fx.patch(int(round(y_mm * 256 / self.patch_mm))))
-
-    def _blocked(self, x_mm: float, y_mm: float) -> bool:
-        w = self.world
-        p = self._patch(x_mm, y_mm)
-        if p == self._patch(self.x_mm, self.y_mm):
-            return False
-        if not w.inside(*p):
-            return True
-        k = w.idx(*p)
-        return w.obj[k] != FREE or w.occ[k] > 0
-
-    def _look(self, bearing: float) -> tuple[int, int]:
-        th = math.radians(self.theta + bearing)
-        return self._patch(self.x_mm + self.patch_mm * math.sin(th),
-                           self.y_mm + self.patch_mm * math.cos(th))
+        self._drive(vl * dt, vr * dt, self.wheel_base_mm)
 
     def reading(self, port: int) -> int:
         """What sensor port 1..8 reads now (10 bits)."""
@@ -272,12 +238,3 @@ class GoGoEmulator(Emulator):
         else:
             self.unknown += 1             # echoed, not answered
 
-    def _beacon(self, on: int) -> None:
-        if self.world is None:
-            return
-        if on and self.beacon_src is None:
-            self.beacon_src = self._patch(self.x_mm, self.y_mm)
-            self.world.signal(*self.beacon_src)
-        elif not on and self.beacon_src is not None:
-            self.world.signal(*self.beacon_src, sign=-1)
-            self.beacon_src = None

@@ -22,11 +22,10 @@ world (Signal), off removes it.
 
 from __future__ import annotations
 
-import math
 import time
 
-from firmware_logic import fixedpoint as fx
 from sim_backend.emulators.ptyport import Emulator
+from sim_backend.emulators.worldrobot import WorldRobot
 from sim_backend.world import FREE
 
 BANNER = b"\r\nKhepera II BIOS rev 5.01\r\nSerial Communication Protocol\r\n"
@@ -37,7 +36,7 @@ WHEEL_BASE_MM = 53.0
 SENSOR_BEARINGS = (-90, -45, -10, 10, 45, 90, 170, -170)
 
 
-class KheperaEmulator(Emulator):
+class KheperaEmulator(WorldRobot, Emulator):
     bits_per_byte = 11
 
     def __init__(self, world=None, index: int = 0, baud: int = 38400,
@@ -80,41 +79,7 @@ class KheperaEmulator(Emulator):
         dr = self.speed[1] * dt / 0.01
         self.pos[0] += dl
         self.pos[1] += dr
-        dlm, drm = dl * PULSE_MM, dr * PULSE_MM
-        d = (dlm + drm) / 2
-        th = math.radians(self.theta + math.degrees((dlm - drm) / WHEEL_BASE_MM) / 2)
-        nx = self.x_mm + d * math.sin(th)
-        ny = self.y_mm + d * math.cos(th)
-        self.theta = (self.theta + math.degrees((dlm - drm) / WHEEL_BASE_MM)) % 360
-        if self.world is not None and self._blocked(nx, ny):
-            return                     # pushed against something: wheels slip
-        self.x_mm, self.y_mm = nx, ny
-        if self.world is not None:
-            w = self.world
-            w.xs[self.index] = int(round(nx * 256 / self.patch_mm))
-            w.ys[self.index] = int(round(ny * 256 / self.patch_mm))
-            w.recount()
-
-    def _patch(self, x_mm: float, y_mm: float) -> tuple[int, int]:
-        # the world's own rounding (Q8 -> patch), so occupancy agrees with it
-        return (fx.patch(int(round(x_mm * 256 / self.patch_mm))),
-                fx.patch(int(round(y_mm * 256 / self.patch_mm))))
-
-    def _blocked(self, x_mm: float, y_mm: float) -> bool:
-        w = self.world
-        p = self._patch(x_mm, y_mm)
-        here = self._patch(self.x_mm, self.y_mm)
-        if p == here:
-            return False
-        if not w.inside(*p):
-            return True
-        k = w.idx(*p)
-        return w.obj[k] != FREE or w.occ[k] > 0
-
-    def _look(self, bearing: float) -> tuple[int, int]:
-        th = math.radians(self.theta + bearing)
-        return self._patch(self.x_mm + self.patch_mm * math.sin(th),
-                           self.y_mm + self.patch_mm * math.cos(th))
+        self._drive(dl * PULSE_MM, dr * PULSE_MM, WHEEL_BASE_MM)
 
     def proximity(self) -> list[int]:
         out = []
@@ -216,12 +181,3 @@ class KheperaEmulator(Emulator):
             reply = "o," + ",".join(str(v) for v in self.ambient())
         self._send(reply, len(line) + 1)
 
-    def _beacon(self, on: int) -> None:
-        if self.world is None:
-            return
-        if on and self.beacon_src is None:
-            self.beacon_src = self._patch(self.x_mm, self.y_mm)
-            self.world.signal(*self.beacon_src)
-        elif not on and self.beacon_src is not None:
-            self.world.signal(*self.beacon_src, sign=-1)
-            self.beacon_src = None
