@@ -91,6 +91,3 @@ class World:
             y = py + ddy
             if self.inside(x, y):
                 self.field[self.idx(x, y)] += sign * v
-
-    def yellow_and_blue(self) -> list[tuple[int, int]]:
-        return list(self.object_cells)

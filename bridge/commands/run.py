@@ -40,15 +40,21 @@ def check_link_limits(sc, link: str) -> None:
                          f"coordinates; allowed 10..120 (more only with --link inproc)")
 
 
-def scenario_from_args(args: argparse.Namespace):
-    from sim_backend import scenario
-    sc = scenario.load(args.scenario)
+def parse_overrides(items: list[str]) -> dict:
+    """--set KEY=VALUE items as scenario changes (values read as TOML)."""
     changes = {}
-    for item in args.set:
+    for item in items:
         key, eq, value = item.partition("=")
         if not eq:
             raise UsageError(f"--set {item!r}: expected KEY=VALUE, e.g. --set sigRadius=6")
         changes[key.strip()] = parse_value(value.strip())
+    return changes
+
+
+def scenario_from_args(args: argparse.Namespace):
+    from sim_backend import scenario
+    sc = scenario.load(args.scenario)
+    changes = parse_overrides(args.set)
     if args.robots is not None:
         changes["agents"] = args.robots
     return sc.replace(**changes) if changes else sc

@@ -80,16 +80,11 @@ def _grid(items: list[str]) -> dict:
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
-    from bridge.commands.run import parse_value
+    from bridge.commands.run import parse_overrides
     from sim_backend import scenario, sweep
 
     base = scenario.load(args.scenario)
-    overrides = {}
-    for item in args.set:
-        key, eq, value = item.partition("=")
-        if not eq:
-            raise UsageError(f"--set {item!r}: expected KEY=VALUE")
-        overrides[key.strip()] = parse_value(value.strip())
+    overrides = parse_overrides(args.set)
     if args.thesis:
         if args.grid:
             raise UsageError("--thesis runs its own grid; drop --grid")

@@ -51,7 +51,7 @@ from bridge.serial.errors import (ProtocolError, SerialLinkError, SerialOpenErro
                                   SerialTimeout)
 from bridge.serial.transport import open_serial, resolve_url
 from firmware_logic import fixedpoint as fx
-from bridge.serial.linked import LinkedHal
+from bridge.serial.hostbody import HostBody
 from firmware_logic.robot import NOTHING, OBJECT, WALL
 
 try:                                    # tcflush on a dead tty raises termios.error
@@ -404,7 +404,7 @@ def _angle(a: float) -> float:
     return (a + 180) % 360 - 180
 
 
-class GoGoBody(LinkedHal):
+class GoGoBody(HostBody):
     """The firmware HAL over a GoGo board on a differential-drive robot.
 
     Bearings in `touch_ports` / `light_ports` are relative to the robot's
@@ -529,16 +529,9 @@ class GoGoBody(LinkedHal):
         self.x_mm += d * math.sin(th)
         self.y_mm += d * math.cos(th)
 
-    def _q8(self, mm: float) -> int:
-        return int(round(mm * fx.ONE / self.patch_mm))
-
     # -- sensing ----------------------------------------------------------------------
 
-    def x(self) -> int:
-        return self._q8(self.x_mm)
-
-    def y(self) -> int:
-        return self._q8(self.y_mm)
+    # x() / y(): HostBody
 
     @staticmethod
     def _nearest(ports: dict[int, int], rel: float) -> tuple[int, float]:
@@ -626,4 +619,4 @@ class GoGoBody(LinkedHal):
 
     # -- messages ---------------------------------------------------------------------------
 
-    # send / recv: LinkedHal
+    # send / recv: HostBody

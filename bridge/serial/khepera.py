@@ -28,7 +28,7 @@ import serial
 from bridge.serial.errors import ProtocolError, SerialTimeout
 from bridge.serial.transport import open_serial, resolve_url
 from firmware_logic import fixedpoint as fx
-from bridge.serial.linked import LinkedHal
+from bridge.serial.hostbody import HostBody
 from firmware_logic.robot import NOTHING, OBJECT
 
 log = logging.getLogger(__name__)
@@ -176,7 +176,7 @@ def _nearest(bearing: float) -> tuple[int, float]:
     return best, dist
 
 
-class KheperaBody(LinkedHal):
+class KheperaBody(HostBody):
     """The firmware HAL over a Khepera II (the firmware runs on the host).
 
     `link` carries the robot's messages (robot_send / robot_recv, as the sim
@@ -218,16 +218,9 @@ class KheperaBody(LinkedHal):
         self.y_mm += d * math.cos(mid)
         self.theta = (self.theta + dth) % 360
 
-    def _q8(self, mm: float) -> int:
-        return int(round(mm * fx.ONE / self.patch_mm))
-
     # -- sensing ---------------------------------------------------------------------
 
-    def x(self) -> int:
-        return self._q8(self.x_mm)
-
-    def y(self) -> int:
-        return self._q8(self.y_mm)
+    # x() / y(): HostBody
 
     def _rel(self, heading: int) -> float:
         return (heading - self.theta + 180) % 360 - 180
@@ -310,4 +303,4 @@ class KheperaBody(LinkedHal):
 
     # -- messages --------------------------------------------------------------------------
 
-    # send / recv: LinkedHal
+    # send / recv: HostBody

@@ -110,6 +110,10 @@ class SerialTransport:
 
     def close(self) -> None:
         self._closed = True
+        self._drop_port()
+
+    def _drop_port(self) -> None:
+        """Forget the port, closing it quietly: it may already be gone."""
         ser, self._ser = self._ser, None
         if ser is not None:
             try:
@@ -147,12 +151,7 @@ class SerialTransport:
 
     def _lost(self, err: BaseException) -> None:
         self._fault("disconnect", str(err))
-        ser, self._ser = self._ser, None
-        if ser is not None:
-            try:
-                ser.close()
-            except (serial.SerialException, OSError):
-                pass
+        self._drop_port()
         self._dec.reset()
         self._next_reopen = time.monotonic() + self.reopen_every
 

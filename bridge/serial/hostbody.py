@@ -1,17 +1,32 @@
-"""Messaging for host-side robot bodies (Khepera II, GoGo): the firmware's
-send/recv go to an engine Link (sim_backend.engine.Link) or nowhere."""
+"""What the host-side robot bodies (Khepera II, GoGo) share: a pose kept in
+millimetres and reported to the firmware in Q8 patches, and messaging over
+an engine Link (sim_backend.engine.Link) or nowhere."""
 
 from __future__ import annotations
 
+from firmware_logic import fixedpoint as fx
 from firmware_logic import messages as msg
 from firmware_logic.hal import Hal
 
 
-class LinkedHal(Hal):
-    """A HAL whose messages travel over `self.link` as node `self.node`."""
+class HostBody(Hal):
+    """Base of a HAL driven from the host; subclasses set node, link,
+    patch_mm, x_mm and y_mm and implement the sensing and acting calls."""
 
     node: int
     link: object | None
+    patch_mm: float
+    x_mm: float
+    y_mm: float
+
+    def _q8(self, mm: float) -> int:
+        return int(round(mm * fx.ONE / self.patch_mm))
+
+    def x(self) -> int:
+        return self._q8(self.x_mm)
+
+    def y(self) -> int:
+        return self._q8(self.y_mm)
 
     def send(self, kind: int, a0: int, a1: int, a2: int, a3: int, a4: int, a5: int) -> None:
         if self.link is not None:
