@@ -25,6 +25,32 @@ Messages (firmware_logic/messages.py):
 """
 
 
+# probe results (the HAL contract: every body answers probe() with one of these)
+NOTHING = 0
+OBJECT = 1   # a free (yellow) segment of the object
+CLAIMED = 2  # a segment another robot holds (blue)
+ROBOT = 3
+WALL = 4
+PROBE_NAMES = ("nothing", "object", "claimed", "robot", "wall")
+
+# codes of the HAL's queries and actions, as a recording captures them
+# (SENSOR.query and ACTION.action, docs/protocol.md); index = code
+QUERY_NAMES = ("", "probe", "field_ahead", "field_here", "uphill", "holding", "recv", "x", "y")
+ACTION_NAMES = ("", "forward", "claim", "carry", "beacon")
+PROBE = 1
+FIELD_AHEAD = 2
+FIELD_HERE = 3
+UPHILL = 4
+HOLDING = 5
+RECV = 6
+POS_X = 7
+POS_Y = 8
+FORWARD = 1
+CLAIM = 2
+CARRY = 3
+BEACON = 4
+
+
 class Hal:
     """Base class documenting the interface; bodies override every method."""
 

@@ -27,12 +27,8 @@ HALT = 5     # mission over or halted by the host
 
 STATE_NAMES = ("search", "field", "grasp", "hold", "carry", "halt")
 
-# probe results
-NOTHING = 0
-OBJECT = 1   # a free (yellow) segment of the object
-CLAIMED = 2  # a segment another robot holds (blue)
-ROBOT = 3
-WALL = 4
+# probe results (the HAL's contract)
+from firmware_logic.hal import CLAIMED, NOTHING, OBJECT, ROBOT, WALL  # noqa: E402,F401
 
 # movement models (the thesis's movementModel values)
 FIREFLY = 1
