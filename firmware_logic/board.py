@@ -28,7 +28,7 @@ an object with `read(timeout_ms)` -> a byte or -1 on timeout, and
 from firmware_logic import framing
 from firmware_logic import messages as msg
 from firmware_logic.hal import Hal
-from firmware_logic.robot import HALT, Robot, WALL
+from firmware_logic.behaviours.thesis.robot import HALT, Robot, WALL
 
 # SENSOR queries (the SimBody tape uses the same codes)
 Q_PROBE = 1

@@ -33,7 +33,7 @@ from firmware_logic import fixedpoint as fx
 from firmware_logic import messages as msg
 from firmware_logic.hal import Hal
 from firmware_logic.rng import Rng
-from firmware_logic.robot import CLAIMED, NOTHING, OBJECT, ROBOT, STATE_NAMES, WALL
+from firmware_logic.behaviours.thesis.robot import CLAIMED, NOTHING, OBJECT, ROBOT, STATE_NAMES, WALL
 
 # trace record: op, tick, then ARITY[op] ints
 OP_X = 1

@@ -19,12 +19,12 @@ import pytest
 
 from bridge.cli import main as cli_main
 from bridge.host.journal import Journal
-from bridge.serial.deploy import Deployer, DeployError
+from bridge.serial.deploy import MODULES, Deployer, DeployError
 from bridge.serial.pty import PtyRelay
 from bridge.serial.transport import SerialTransport
 from firmware_logic import fixedpoint as fx
 from firmware_logic import messages as msg
-from firmware_logic.coordinator import Coordinator, Touch
+from firmware_logic.behaviours.thesis.coordinator import Coordinator, Touch
 from sim_backend import scenario
 from sim_backend.emulators.tether import TetherTransport
 from sim_backend.engine import Engine
@@ -139,16 +139,16 @@ def check_outcome(m: Mission, robot: dict[str, int]) -> None:
 def test_deploy_command_prints_bytes_and_verifies(micropython_device: PtyRelay,
                                                   capsys: pytest.CaptureFixture[str]) -> None:
     rc = cli_main(["deploy", "--port", micropython_device.path, "--config", "NODE=4"])
-    out = capsys.readouterr().out
-    assert rc == 0, out
+    out, err = capsys.readouterr()
+    assert rc == 0, out + err
     m = re.search(r"deployed (\d+) bytes in (\d+) files", out)
     assert m, out
     flash = micropython_device.flash   # type: ignore[attr-defined]
     on_disk = sum(p.stat().st_size for p in flash.rglob("*") if p.is_file())
     assert int(m.group(1)) == on_disk
-    assert int(m.group(2)) == 10
+    assert int(m.group(2)) == len(MODULES) + 2   # + main.py and robot_config.py
     assert (flash / "robot_config.py").read_text() == "NODE = 4\n"
-    assert out.count("verified") == 10
+    assert out.count("verified") == len(MODULES) + 2
 
 
 def test_deploy_refuses_a_device_with_another_mpy_version(micropython_device: PtyRelay,
@@ -168,7 +168,7 @@ def test_deploy_refuses_firmware_failing_the_subset_check(micropython_device: Pt
     from bridge.serial.deploy import FIRMWARE_DIR
     fw = tmp_path / "fw"
     shutil.copytree(FIRMWARE_DIR, fw, ignore=shutil.ignore_patterns("__pycache__"))
-    (fw / "robot.py").write_text((fw / "robot.py").read_text()
+    (fw / "behaviours" / "thesis" / "robot.py").write_text((fw / "behaviours" / "thesis" / "robot.py").read_text()
                                  + "\n\ndef bad():\n    print('x', 1.5)\n")
     with pytest.raises(DeployError, match=r"(?s)subset check.*robot.py:\d+: FW-PRINT"):
         Deployer(micropython_device.path, firmware_dir=fw).deploy()

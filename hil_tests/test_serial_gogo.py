@@ -18,7 +18,7 @@ from bridge.serial.gogo import (GoGoBoard, GoGoBody, GoGoEchoError, GoGoError, G
                                 GoGoTimeout)
 from firmware_logic import fixedpoint as fx
 from firmware_logic import messages as msg
-from firmware_logic.robot import FIREFLY, HOLD, NOTHING, OBJECT, WALL, Robot
+from firmware_logic.behaviours.thesis.robot import FIREFLY, HOLD, NOTHING, OBJECT, WALL, Robot
 from sim_backend import scenario
 from sim_backend.emulators.gogo import GoGoEmulator
 from sim_backend.engine import InprocLink

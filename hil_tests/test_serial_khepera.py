@@ -13,7 +13,7 @@ import pytest
 
 from bridge.serial.khepera import KheperaBody, KheperaII
 from firmware_logic import fixedpoint as fx
-from firmware_logic.robot import NOTHING, OBJECT
+from firmware_logic.behaviours.thesis.robot import NOTHING, OBJECT
 from sim_backend import scenario
 from sim_backend.emulators.khepera import KheperaEmulator
 from sim_backend.world import World

@@ -10,7 +10,7 @@ from __future__ import annotations
 from firmware_logic import fixedpoint as fx
 from firmware_logic import messages as msg
 from firmware_logic.hal import Hal
-from firmware_logic.robot import CLAIMED, NOTHING, OBJECT, ROBOT, WALL
+from firmware_logic.behaviours.thesis.robot import CLAIMED, NOTHING, OBJECT, ROBOT, WALL
 from sim_backend.world import BLUE, YELLOW, World
 
 UPHILL = ((0, 0, 1), (45, 1, 1), (90, 1, 0), (135, 1, -1),

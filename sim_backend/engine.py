@@ -21,8 +21,8 @@ from typing import Callable, Protocol
 
 from firmware_logic import fixedpoint as fx
 from firmware_logic import perception
-from firmware_logic.coordinator import Coordinator
-from firmware_logic.robot import Robot
+from firmware_logic.behaviours.thesis.coordinator import Coordinator
+from firmware_logic.behaviours.thesis.robot import Robot
 from sim_backend.body import SimBody
 from sim_backend.scenario import Scenario
 from sim_backend.world import BLUE, FREE, YELLOW, World

@@ -3,7 +3,7 @@
 It implements exactly the tick semantics of the reference engine
 (sim_backend/engine.py, docs/tick-semantics.md) and is bit-identical to it
 for every seed: every robot's MWC RNG lanes live in int64 arrays and advance
-only where the firmware FSM (firmware_logic/robot.py) would draw, so robots
+only where the firmware FSM (firmware_logic/behaviours/thesis/robot.py) would draw, so robots
 that draw a data-dependent number of values per tick (firefly FindObject
 after each failed probe, HeadCarefully only when blocked) stay in step with
 the reference. Sensing reads the tick-start snapshot; intents are applied in
@@ -14,7 +14,7 @@ destination cells, whose first occurrence is the lowest node).
 All robots of all runs sit in one flat set of arrays, run-major and in node
 order within a run; the runs' grids are one flat array with a fixed stride
 per run. The host coordinator stays per-run Python
-(firmware_logic.coordinator.Coordinator), fed the same messages in the same
+(firmware_logic.behaviours.thesis.coordinator.Coordinator), fed the same messages in the same
 order as the in-process link feeds it; it is only called for a run that
 received a message this tick or is in the centralised phase (every other
 call would return nothing and change nothing).
@@ -35,8 +35,8 @@ import numpy as np
 from firmware_logic import fixedpoint as fx
 from firmware_logic import messages as msg
 from firmware_logic import rng as _rng
-from firmware_logic.coordinator import Coordinator
-from firmware_logic.robot import (ANT, CARRY, FIELD, FIREFLY, GRASP, HALT, HEARTBEAT_EVERY,
+from firmware_logic.behaviours.thesis.coordinator import Coordinator
+from firmware_logic.behaviours.thesis.robot import (ANT, CARRY, FIELD, FIREFLY, GRASP, HALT, HEARTBEAT_EVERY,
                                   HOLD, RETX_FIRST, RETX_MAX, SEARCH)
 from sim_backend.engine import RunResult
 from sim_backend.scenario import Scenario

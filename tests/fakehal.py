@@ -1,6 +1,6 @@
 """A hand-driven HAL for unit tests of single FSM rules."""
 
-from firmware_logic.robot import NOTHING
+from firmware_logic.behaviours.thesis.robot import NOTHING
 
 
 class FakeHal:

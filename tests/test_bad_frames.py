@@ -14,7 +14,7 @@ from bridge.host.transport import CanTransport
 from bridge.links import codec, open_bus
 from bridge.links.canlink import Gateway, private_channel
 from firmware_logic import messages as msg
-from firmware_logic.robot import Robot
+from firmware_logic.behaviours.thesis.robot import Robot
 from tests.fakehal import FakeHal
 from tests.test_journal import FakeTransport
 

@@ -6,7 +6,7 @@ import threading
 from bridge.cli import main
 from bridge.host.journal import Journal
 from bridge.links.canlink import private_channel
-from firmware_logic.coordinator import Touch
+from firmware_logic.behaviours.thesis.coordinator import Touch
 
 
 def test_host_gives_up_without_robots_and_resumes_into_a_new_journal(tmp_path, capsys):

@@ -1,7 +1,7 @@
 """The host coordinator: touches, power, leader, transport, arrival."""
 
 from firmware_logic import messages as msg
-from firmware_logic.coordinator import Coordinator
+from firmware_logic.behaviours.thesis.coordinator import Coordinator
 
 
 def hello(c, node, power=100, tick=1):

@@ -20,7 +20,7 @@ from bridge.firmware import cli
 from bridge.firmware.conformance import (
     ANT, FIREFLY, STATE_NAMES, Report, RunParams, Tools, find_tools, first_divergence,
     run_conformance)
-from bridge.firmware.subset_check import package_dir
+from bridge.firmware.subset_check import firmware_files, package_dir
 
 
 @pytest.fixture(scope="module")
@@ -44,7 +44,10 @@ def test_tools_agree_and_every_module_compiles(report: Report) -> None:
     assert report.errors == []
     assert report.mpy_version_cross.split(".")[0] == report.mpy_version_port.split(".")[0]
     assert report.loaded_from == "mpy"
-    sources = {p.stem for p in package_dir().glob("*.py")}
+    root = package_dir()
+    sources = {p.relative_to(root).with_suffix("").as_posix().replace("/", ".")
+               for p in firmware_files(root)}
+    assert "behaviours.thesis.robot" in sources
     assert set(report.mpy_sizes) == sources
     assert all(size > 0 for size in report.mpy_sizes.values())
     assert report.mpy_total == sum(report.mpy_sizes.values())
@@ -79,7 +82,7 @@ def test_report_ok_and_json_ready(report: Report) -> None:
 
 def test_divergent_firmware_is_detected(tmp_path: Path) -> None:
     fw = firmware_copy(tmp_path)
-    edit(fw / "robot.py", "RETX_FIRST = 4\n", "RETX_FIRST = 5\n")
+    edit(fw / "behaviours" / "thesis" / "robot.py", "RETX_FIRST = 4\n", "RETX_FIRST = 5\n")
     rep = run_conformance(fw, RunParams(ticks=300), models=(FIREFLY,), heap_steps=50)
     m = rep.models[0]
     assert not m.identical and not rep.ok
@@ -91,7 +94,7 @@ def test_divergent_firmware_is_detected(tmp_path: Path) -> None:
 
 def test_allocating_firmware_is_measured(tmp_path: Path) -> None:
     fw = firmware_copy(tmp_path)
-    edit(fw / "robot.py", "        self.ticks += 1\n",
+    edit(fw / "behaviours" / "thesis" / "robot.py", "        self.ticks += 1\n",
          "        self.ticks += 1\n        self.last = (self.ticks, self.state)\n")
     rep = run_conformance(fw, RunParams(ticks=300), models=(ANT,), heap_steps=300)
     m = rep.models[0]
@@ -165,7 +168,7 @@ def test_script_hal_implements_every_hal_method() -> None:
 
 
 def test_script_hal_trace_buffer_is_bounded() -> None:
-    from firmware_logic.robot import Robot
+    from firmware_logic.behaviours.thesis.robot import Robot
     from firmware_logic.scripted import ScriptHal
 
     robot = Robot(3, 12345, FIREFLY, 45, 2, 100)

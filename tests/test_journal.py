@@ -7,7 +7,7 @@ import pytest
 from bridge.host.journal import Journal, JournalError
 from bridge.host.process import HostProcess
 from firmware_logic import messages as msg
-from firmware_logic.coordinator import Touch
+from firmware_logic.behaviours.thesis.coordinator import Touch
 
 
 class FakeTransport:

@@ -3,7 +3,7 @@ several seeds: the object is found, power converges, and it arrives home."""
 
 import pytest
 
-from firmware_logic import robot as R
+from firmware_logic.behaviours.thesis import robot as R
 from sim_backend import objects
 from sim_backend.engine import Engine
 from sim_backend.scenario import validate

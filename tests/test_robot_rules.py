@@ -1,8 +1,8 @@
 """Each behaviour rule of the thesis's robot (Appendix A), one test each."""
 
 from firmware_logic import messages as msg
-from firmware_logic import robot as R
-from firmware_logic.robot import Robot
+from firmware_logic.behaviours.thesis import robot as R
+from firmware_logic.behaviours.thesis.robot import Robot
 from tests.fakehal import FakeHal
 
 

@@ -175,8 +175,8 @@ def test_exemptions_and_allowed_constructs(tmp_path: Path) -> None:
 
 
 def test_violation_format() -> None:
-    v = Violation("firmware_logic/robot.py", 12, "STEP-TUPLE", "tuple of non-constants")
-    assert str(v) == "firmware_logic/robot.py:12: STEP-TUPLE tuple of non-constants"
+    v = Violation("firmware_logic/behaviours/thesis/robot.py", 12, "STEP-TUPLE", "tuple of non-constants")
+    assert str(v) == "firmware_logic/behaviours/thesis/robot.py:12: STEP-TUPLE tuple of non-constants"
 
 
 def test_check_paths_accepts_directories(tmp_path: Path) -> None:
@@ -187,7 +187,7 @@ def test_check_paths_accepts_directories(tmp_path: Path) -> None:
         ("a.py", 1, "FW-IMPORT"), ("b.py", 1, "FW-FLOAT")]
 
 
-@pytest.mark.parametrize("module", ["robot.py", "fixedpoint.py", "hal.py", "messages.py",
+@pytest.mark.parametrize("module", ["behaviours/thesis/robot.py", "fixedpoint.py", "hal.py", "messages.py",
                                     "scripted.py", "__init__.py"])
 def test_robot_side_modules_pass(module: str) -> None:
     assert check_paths([package_dir() / module]) == []

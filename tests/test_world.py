@@ -1,7 +1,7 @@
 """The simulated world: objects, Signal, placement and the tick conflict rules."""
 
 from firmware_logic import fixedpoint as fx
-from firmware_logic import robot as R
+from firmware_logic.behaviours.thesis import robot as R
 from sim_backend import objects
 from sim_backend.engine import Engine
 from sim_backend.scenario import Scenario, validate

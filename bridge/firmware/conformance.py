@@ -28,7 +28,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from bridge.firmware import mp_runner
-from bridge.firmware.subset_check import package_dir
+from bridge.firmware.subset_check import firmware_files, package_dir
 
 log = logging.getLogger(__name__)
 
@@ -200,15 +200,16 @@ def compile_firmware(tools: Tools, src: Path, out: Path) -> dict[str, int]:
     The embedded source name is `firmware_logic/<file>`, so the sizes do not
     depend on where the sources or the temporary directory are.
     """
-    pkg = out / "firmware_logic"
-    pkg.mkdir(parents=True, exist_ok=True)
     sizes: dict[str, int] = {}
-    for py in sorted(src.glob("*.py")):
-        target = pkg / (py.stem + ".mpy")
-        r = _run([tools.mpy_cross, "-o", target, "-s", "firmware_logic/" + py.name, py])
+    for py in firmware_files(src):
+        rel = py.relative_to(src).with_suffix("")
+        target = out / "firmware_logic" / rel.with_suffix(".mpy")
+        target.parent.mkdir(parents=True, exist_ok=True)
+        shown = "firmware_logic/" + rel.as_posix() + ".py"
+        r = _run([tools.mpy_cross, "-o", target, "-s", shown, py])
         if r.returncode != 0:
             raise ConformanceError("mpy-cross failed on %s:\n%s" % (py, (r.stdout + r.stderr).strip()))
-        sizes[py.stem] = target.stat().st_size
+        sizes[rel.as_posix().replace("/", ".")] = target.stat().st_size
     return sizes
 
 
@@ -216,10 +217,9 @@ def check_load(tools: Tools, fw_dir: Path, modules: Sequence[str]) -> None:
     """Import every compiled module in micropython; each must come from a .mpy."""
     lines = ["import sys", "sys.path.insert(0, %r)" % str(fw_dir)]
     for mod in modules:
+        name = ("firmware_logic." + mod).replace(".__init__", "")
         if mod == "__init__":
             name = "firmware_logic"
-        else:
-            name = "firmware_logic." + mod
         lines.append("import %s" % name)
         lines.append("print(%r, %s.__file__)" % (mod, name))
     r = _run([tools.micropython, "-c", "\n".join(lines)])

@@ -20,7 +20,7 @@ TRACE_CAPACITY = 1024       # ints; one tick's records fit easily
 
 
 def make(node, seed, model, span, defiance, power, horizon):
-    from firmware_logic.robot import Robot
+    from firmware_logic.behaviours.thesis.robot import Robot
     from firmware_logic.scripted import ScriptHal
 
     robot = Robot(node, seed, model, span, defiance, power)
@@ -102,9 +102,9 @@ def main(argv):
     for a in argv[3:]:
         nums.append(int(a))
     sys.path.insert(0, fwdir)
-    import firmware_logic.robot
+    import firmware_logic.behaviours.thesis.robot
 
-    print("# module " + str(getattr(firmware_logic.robot, "__file__", "?")))
+    print("# module " + str(getattr(firmware_logic.behaviours.thesis.robot, "__file__", "?")))
     node, seed, model, span, defiance, power = nums[0], nums[1], nums[2], nums[3], nums[4], nums[5]
     if mode == "trace":
         run_trace(node, seed, model, span, defiance, power, nums[6], print)

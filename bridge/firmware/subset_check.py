@@ -481,12 +481,22 @@ def check_paths(paths: Iterable[str | os.PathLike[str]]) -> list[Violation]:
     out: list[Violation] = []
     for p in paths:
         path = Path(p)
-        files = sorted(path.glob("*.py")) if path.is_dir() else [path]
+        files = firmware_files(path) if path.is_dir() else [path]
         for f in files:
             shown = _display(f)
             log.debug("subset check %s", shown)
             out.extend(check_source(f.read_text(encoding="utf-8"), shown))
     return sorted(out)
+
+
+# host-side modules inside firmware_logic/ that never go to a board
+HOST_ONLY = ("registry.py",)
+
+
+def firmware_files(root: Path) -> list[Path]:
+    """Every firmware module under root, behaviour packages included."""
+    return sorted(p for p in root.rglob("*.py")
+                  if p.name not in HOST_ONLY and "__pycache__" not in p.parts)
 
 
 def package_dir() -> Path:

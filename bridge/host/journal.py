@@ -10,7 +10,7 @@ from __future__ import annotations
 import sqlite3
 from pathlib import Path
 
-from firmware_logic.coordinator import Touch
+from firmware_logic.behaviours.thesis.coordinator import Touch
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS nodes (node INTEGER PRIMARY KEY, model INTEGER NOT NULL,

@@ -18,7 +18,7 @@ from bridge.links.codec import UNANNOUNCED, BadFrames, Message
 from bridge.host.journal import Journal
 from bridge.transport import RobotTransport
 from firmware_logic import messages as msg
-from firmware_logic.coordinator import Coordinator, Touch
+from firmware_logic.behaviours.thesis.coordinator import Coordinator, Touch
 
 log = logging.getLogger(__name__)
 

@@ -9,7 +9,7 @@ from typing import Any, Callable
 import can
 
 from bridge.links.canlink import Faults, Gateway
-from firmware_logic import robot as R
+from firmware_logic.behaviours.thesis import robot as R
 
 
 def swarm_engine(sc: Any, seed: int, bus: can.BusABC, faults_up: Faults | None = None,

@@ -23,9 +23,9 @@ from bridge.errors import UsageError
 from bridge.links.codec import HOST_KINDS, BadFrames, Decoder, Message
 from bridge.record.recorder import Q_RECV, Q_X, Q_Y, meta_path
 from firmware_logic import messages as msg
-from firmware_logic.coordinator import Coordinator
+from firmware_logic.behaviours.thesis.coordinator import Coordinator
 from firmware_logic.hal import Hal
-from firmware_logic.robot import Robot
+from firmware_logic.behaviours.thesis.robot import Robot
 
 log = logging.getLogger(__name__)
 

@@ -36,8 +36,13 @@ log = logging.getLogger(__name__)
 ROOT = Path(__file__).resolve().parents[2]
 FIRMWARE_DIR = ROOT / "firmware_logic"
 BOARD_MAIN = Path(__file__).resolve().parent / "board_main.py"
-# what the board runs: the FSM, its helpers, the schema, framing and runtime
-MODULES = ("__init__", "fixedpoint", "rng", "messages", "hal", "robot", "framing", "board")
+# what the board runs besides the behaviour: helpers, schema, framing, runtime
+CORE_MODULES = ("__init__", "fixedpoint", "rng", "messages", "hal", "framing", "board",
+                "behaviours/__init__")
+# the behaviour deployed unless told otherwise (its package's modules follow)
+BEHAVIOUR_MODULES = ("behaviours/thesis/__init__", "behaviours/thesis/spec",
+                     "behaviours/thesis/robot")
+MODULES = CORE_MODULES + BEHAVIOUR_MODULES
 REMOTE_PKG = "firmware_logic"
 TIMEOUT_S = 60.0
 
@@ -160,7 +165,8 @@ class Deployer:
     def compile(self, sources: list[Path], out: Path) -> list[Path]:
         done = []
         for src in sources:
-            dst = out / (src.stem + ".mpy")
+            dst = out / src.relative_to(self.firmware_dir).with_suffix(".mpy")
+            dst.parent.mkdir(parents=True, exist_ok=True)
             r = subprocess.run([self.mpy_cross, "-o", str(dst), str(src)],
                                capture_output=True, text=True, timeout=self.timeout)
             if r.returncode != 0:
@@ -191,7 +197,8 @@ class Deployer:
                     "MicroPython, or pass --mpy-cross PATH"
                     % (self.port, have[0], have[1], want[0], want[1]))
             files: list[tuple[Path, str]] = [
-                (p, "%s/%s" % (REMOTE_PKG, p.name)) for p in compiled]
+                (p, "%s/%s" % (REMOTE_PKG, p.relative_to(stage).as_posix()))
+                for p in compiled]
             main = stage / "main.py"
             shutil.copyfile(BOARD_MAIN, main)
             files.append((main, "main.py"))
@@ -210,17 +217,22 @@ class Deployer:
         return report
 
     def _copy(self, files: list[tuple[Path, str]]) -> None:
-        args: list[str] = ["fs", "mkdir", ":" + REMOTE_PKG]
-        try:
-            self._mpremote(*args)
-        except DeployError as err:
-            if "exist" not in str(err).lower():
-                raise
-        pkg = [str(p) for p, r in files if r.startswith(REMOTE_PKG + "/")]
-        self._mpremote("fs", "cp", *pkg, ":%s/" % REMOTE_PKG)
+        # one mkdir per package folder, then one cp per folder (a few round trips)
+        folders: dict[str, list[str]] = {}
         for p, r in files:
-            if not r.startswith(REMOTE_PKG + "/"):
-                self._mpremote("fs", "cp", str(p), ":" + r)
+            folders.setdefault(r.rpartition("/")[0], []).append(str(p))
+        for folder in sorted(f for f in folders if f):
+            try:
+                self._mpremote("fs", "mkdir", ":" + folder)
+            except DeployError as err:
+                if "exist" not in str(err).lower():
+                    raise
+        for folder, local in sorted(folders.items()):
+            if folder:
+                self._mpremote("fs", "cp", *local, ":%s/" % folder)
+            else:
+                for p in local:
+                    self._mpremote("fs", "cp", p, ":" + Path(p).name)
 
     def verify(self, report: DeployReport) -> None:
         text = self._mpremote("fs", "sha256sum", *[":" + f.remote for f in report.files])

@@ -52,7 +52,7 @@ from bridge.serial.errors import (ProtocolError, SerialLinkError, SerialOpenErro
 from bridge.serial.transport import open_serial, resolve_url
 from firmware_logic import fixedpoint as fx
 from bridge.serial.hostbody import HostBody
-from firmware_logic.robot import NOTHING, OBJECT, WALL
+from firmware_logic.behaviours.thesis.robot import NOTHING, OBJECT, WALL
 
 try:                                    # tcflush on a dead tty raises termios.error
     import termios

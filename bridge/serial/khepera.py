@@ -29,7 +29,7 @@ from bridge.serial.errors import ProtocolError, SerialTimeout
 from bridge.serial.transport import open_serial, resolve_url
 from firmware_logic import fixedpoint as fx
 from bridge.serial.hostbody import HostBody
-from firmware_logic.robot import NOTHING, OBJECT
+from firmware_logic.behaviours.thesis.robot import NOTHING, OBJECT
 
 log = logging.getLogger(__name__)
 

@@ -17,22 +17,12 @@ from firmware_logic import fixedpoint as fx
 from firmware_logic import messages as msg
 from firmware_logic.rng import Rng
 
-# states
-SEARCH = 0   # wandering, no field sensed (foundObject=false, foundField=false)
-FIELD = 1    # inside a potential field: uphill, then fieldDefiance random steps
-GRASP = 2    # claimed a segment; waiting for the grip to be confirmed
-HOLD = 3     # holding the object: stationary, beacon on, touch reported
-CARRY = 4    # centralised phase: moving with the object on the host's command
-HALT = 5     # mission over or halted by the host
+from firmware_logic.behaviours.thesis.spec import (ANT, CARRY, FIELD, FIREFLY,  # noqa: F401
+                                                   GRASP, HALT, HOLD, SEARCH, STATES,
+                                                   TOUCH, TRANSPORT)
+from firmware_logic.hal import CLAIMED, NOTHING, OBJECT, ROBOT, WALL  # noqa: F401
 
-STATE_NAMES = ("search", "field", "grasp", "hold", "carry", "halt")
-
-# probe results (the HAL's contract)
-from firmware_logic.hal import CLAIMED, NOTHING, OBJECT, ROBOT, WALL  # noqa: E402,F401
-
-# movement models (the thesis's movementModel values)
-FIREFLY = 1
-ANT = 2
+STATE_NAMES = STATES
 
 # report retransmission, in ticks: first retry after RETX_FIRST, doubling
 RETX_FIRST = 4
@@ -208,7 +198,7 @@ class Robot:
                 self.hello_acked = 1
             elif self.pending and b[0] == self.seq:
                 self.pending = 0
-        elif kind == msg.TRANSPORT:
+        elif kind == TRANSPORT:
             if self.state == HOLD or self.state == CARRY:
                 if b[0] != self.last_step:
                     self.state = CARRY
@@ -222,7 +212,7 @@ class Robot:
                 hal.beacon(0)
 
     def _send_touch(self, hal):
-        hal.send(msg.TOUCH, self.seq, self.rx, self.ry, self.sx, self.sy, self.power)
+        hal.send(TOUCH, self.seq, self.rx, self.ry, self.sx, self.sy, self.power)
         self.retx_timer = self.retx_every
 
     def _housekeeping(self, hal):

@@ -1,0 +1,1 @@
+"""The thesis's behaviour (Appendix A): search, touch, claim, field, transport."""
