@@ -1,0 +1,145 @@
+"""Behaviours by name or by folder: the one seam every engine, link and tool
+goes through (host side only; never deployed, see HOST_ONLY in
+bridge/firmware/subset_check.py).
+
+A behaviour is a package of firmware-subset modules:
+
+    spec.py         its declaration: NAME, TITLE, STATES, MODELS, MESSAGES,
+                    PARAMS, MEASURES (see behaviours/thesis/spec.py)
+    robot.py        the FSM class named by ROBOT, stepped as `robot.step(hal)`
+    coordinator.py  its host-side coordinator (portable, may allocate)
+    __init__.py     the wiring: ROBOT = "module:Class", and
+                    robot_args(node, seed, sc) -> the FSM's constructor args,
+                    coordinator(sc) -> a coordinator for a scenario
+
+Found by name among the built-ins and the entry points of the group
+`touchswarm.behaviours` (a separately installed package adds one with
+`[project.entry-points."touchswarm.behaviours"] mine = "my_pkg.mine"`), or
+by path to a folder holding such a package.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.metadata
+import importlib.util
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+GROUP = "touchswarm.behaviours"
+BUILTIN = {
+    "thesis": "firmware_logic.behaviours.thesis",
+    "aggregate": "firmware_logic.behaviours.aggregate",
+}
+SPEC_KEYS = ("NAME", "TITLE", "STATES", "MODELS", "MESSAGES", "PARAMS", "MEASURES")
+
+
+class BehaviourError(ValueError):
+    """A behaviour that cannot be found or does not declare what it must."""
+
+
+@dataclass(frozen=True)
+class Behaviour:
+    name: str
+    package: ModuleType
+    spec: ModuleType
+
+    @property
+    def module_name(self) -> str:
+        return self.package.__name__
+
+    @property
+    def folder(self) -> Path:
+        return Path(self.package.__file__).resolve().parent
+
+    @property
+    def robot_module(self) -> ModuleType:
+        return importlib.import_module(self.module_name + "." + self.package.ROBOT.split(":")[0])
+
+    @property
+    def robot_class(self) -> type:
+        return getattr(self.robot_module, self.package.ROBOT.split(":")[1])
+
+    def robot_args(self, node: int, seed: int, sc: Any) -> tuple:
+        return tuple(self.package.robot_args(node, seed, sc))
+
+    def make_robot(self, node: int, seed: int, sc: Any) -> Any:
+        return self.robot_class(*self.robot_args(node, seed, sc))
+
+    def coordinator(self, sc: Any, **kw: Any) -> Any:
+        return self.package.coordinator(sc, **kw)
+
+    def state_name(self, code: int) -> str:
+        states = self.spec.STATES
+        return states[code] if 0 <= code < len(states) else str(code)
+
+    def model_names(self) -> dict[int, str]:
+        return dict(self.spec.MODELS)
+
+    def modules(self) -> list[Path]:
+        """The behaviour's firmware files (what deploy copies to a board)."""
+        return sorted(p for p in self.folder.glob("*.py"))
+
+
+def names() -> dict[str, str]:
+    """Every installed behaviour: name -> module (built-ins, then entry points)."""
+    out = dict(BUILTIN)
+    for ep in importlib.metadata.entry_points(group=GROUP):
+        out.setdefault(ep.name, ep.value)
+    return out
+
+
+def _check(mod: ModuleType, spec: ModuleType, where: str) -> None:
+    missing = [k for k in SPEC_KEYS if not hasattr(spec, k)]
+    if missing:
+        raise BehaviourError(f"behaviour {where}: spec.py lacks {', '.join(missing)}")
+    for attr in ("ROBOT", "robot_args", "coordinator"):
+        if not hasattr(mod, attr):
+            raise BehaviourError(f"behaviour {where}: __init__.py lacks {attr}")
+
+
+def _import_folder(path: Path) -> ModuleType:
+    init = path / "__init__.py"
+    if not init.is_file():
+        raise BehaviourError(f"behaviour folder {str(path)!r} has no __init__.py")
+    name = path.name
+    if name in sys.modules and Path(getattr(sys.modules[name], "__file__", "")) \
+            .resolve() == init.resolve():
+        return sys.modules[name]
+    spec = importlib.util.spec_from_file_location(name, init,
+                                                  submodule_search_locations=[str(path)])
+    if spec is None or spec.loader is None:
+        raise BehaviourError(f"behaviour folder {str(path)!r} cannot be imported")
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[name] = mod
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def load(ref: str | Path | None = None) -> Behaviour:
+    """A behaviour by registered name (default "thesis") or folder path."""
+    ref = "thesis" if ref is None else ref
+    known = names()
+    if str(ref) in known:
+        modname = known[str(ref)]
+        try:
+            mod = importlib.import_module(modname)
+        except ImportError as err:
+            raise BehaviourError(f"behaviour {ref!r}: cannot import {modname}: {err}") from err
+        where = repr(str(ref))
+    else:
+        path = Path(ref)
+        if not path.is_dir():
+            raise BehaviourError(f"behaviour {str(ref)!r}: not an installed behaviour "
+                                 f"({', '.join(sorted(known))}) nor a folder")
+        mod = _import_folder(path.resolve())
+        where = repr(str(path))
+    try:
+        spec = importlib.import_module(mod.__name__ + ".spec")
+    except ImportError as err:
+        raise BehaviourError(f"behaviour {where}: no spec.py ({err})") from err
+    _check(mod, spec, where)
+    return Behaviour(spec.NAME, mod, spec)
