@@ -27,24 +27,13 @@ an object with `read(timeout_ms)` -> a byte or -1 on timeout, and
 
 from firmware_logic import framing
 from firmware_logic import messages as msg
+from firmware_logic import hal
 from firmware_logic.hal import Hal
 from firmware_logic.behaviours.thesis.robot import HALT, Robot, WALL
 
-# SENSOR queries (the SimBody tape uses the same codes)
-Q_PROBE = 1
-Q_FIELD_AHEAD = 2
-Q_FIELD_HERE = 3
-Q_UPHILL = 4
-Q_HOLDING = 5
-Q_X = 7
-Q_Y = 8
-
-# ACTION codes
+# SENSOR queries and ACTION codes: the HAL's (firmware_logic/hal.py); END
+# closes a tick's actions on the tether
 A_END = 0
-A_FORWARD = 1
-A_CLAIM = 2
-A_CARRY = 3
-A_BEACON = 4
 
 INBOX = 8          # queued host messages between two FSM steps
 REPLY_MS = 200     # wait for one answer before asking again
@@ -166,40 +155,40 @@ class TetherHal(Hal):
     # -- sensing ---------------------------------------------------------------
 
     def x(self):
-        return self._ask(Q_X, 0, 0)
+        return self._ask(hal.POS_X, 0, 0)
 
     def y(self):
-        return self._ask(Q_Y, 0, 0)
+        return self._ask(hal.POS_Y, 0, 0)
 
     def probe(self, heading):
         # no answer: behave as if a wall were ahead (never move blind)
-        return self._ask(Q_PROBE, heading, WALL)
+        return self._ask(hal.PROBE, heading, WALL)
 
     def field_ahead(self, heading):
-        return self._ask(Q_FIELD_AHEAD, heading, 0)
+        return self._ask(hal.FIELD_AHEAD, heading, 0)
 
     def field_here(self):
-        return self._ask(Q_FIELD_HERE, 0, 0)
+        return self._ask(hal.FIELD_HERE, 0, 0)
 
     def uphill(self):
-        return self._ask(Q_UPHILL, 0, -1)
+        return self._ask(hal.UPHILL, 0, -1)
 
     def holding(self):
-        return self._ask(Q_HOLDING, 0, 0)
+        return self._ask(hal.HOLDING, 0, 0)
 
     # -- acting ---------------------------------------------------------------------
 
     def forward(self, heading, step):
-        self._act(A_FORWARD, heading, step)
+        self._act(hal.FORWARD, heading, step)
 
     def claim(self, heading):
-        self._act(A_CLAIM, heading, 0)
+        self._act(hal.CLAIM, heading, 0)
 
     def carry(self, dx, dy):
-        self._act(A_CARRY, dx, dy)
+        self._act(hal.CARRY, dx, dy)
 
     def beacon(self, on):
-        self._act(A_BEACON, on, 0)
+        self._act(hal.BEACON, on, 0)
 
     # -- messages --------------------------------------------------------------------
 

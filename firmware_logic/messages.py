@@ -22,26 +22,84 @@ ACTION = 11     # capture: one action the firmware decided
 HOST = 0
 MAX_NODE = 127
 
-# kind -> (name, ((field, size in bytes, signed), ...))
-SCHEMA = {
-    HALT: ("HALT", (("reason", 1, 0),)),
-    TRANSPORT: ("TRANSPORT", (("step", 1, 0), ("dx", 1, 1), ("dy", 1, 1))),
-    ACK: ("ACK", (("seq", 1, 0),)),
-    TOUCH: ("TOUCH", (("seq", 1, 0), ("rx", 1, 1), ("ry", 1, 1),
-                      ("sx", 1, 1), ("sy", 1, 1), ("power", 2, 0))),
-    HELLO: ("HELLO", (("model", 1, 0), ("power", 2, 0), ("version", 1, 0))),
-    HEARTBEAT: ("HEARTBEAT", (("state", 1, 0), ("x", 2, 1), ("y", 2, 1),
-                              ("heading", 2, 0), ("step", 1, 0))),
-    SENSOR: ("SENSOR", (("tick", 2, 0), ("index", 1, 0), ("query", 1, 0),
-                        ("arg", 2, 1), ("value", 2, 1))),
-    ACTION: ("ACTION", (("tick", 2, 0), ("index", 1, 0), ("action", 1, 0),
-                        ("a", 2, 1), ("b", 2, 1))),
-}
+UP = "up"       # robot -> host
+DOWN = "down"   # host -> robot(s)
+CAPTURE = "capture"   # written into recordings, never sent on a bus
+
+# The one table of the link's messages. Everything about a message is here;
+# the compact SCHEMA below, the host codec's validation, the DBC (units,
+# scaling, value tables, comments), the recorder and replay derive from it.
+#
+# (kind, name, direction, comment, fields); a field is
+# (name, bytes, signed, divisor, unit, lo, hi, values):
+#   physical value = raw / divisor, in `unit`;
+#   lo..hi bound the raw value beyond its bytes (None: no further bound);
+#   values names a value table: "states" and "models" come from the running
+#   behaviour's spec.py, "query"/"action"/"probe" from firmware_logic/hal.py.
+MESSAGES = (
+    (HALT, "HALT", DOWN, "host -> robot(s): stop everything, beacon off (node 0: broadcast)",
+     (("reason", 1, 0, 1, "", None, None, ""),)),
+    (TRANSPORT, "TRANSPORT", DOWN,
+     "host -> carrier: transport step number and displacement in patches",
+     (("step", 1, 0, 1, "", 1, None, ""),
+      ("dx", 1, 1, 1, "patch", -1, 1, ""),
+      ("dy", 1, 1, 1, "patch", -1, 1, ""))),
+    (ACK, "ACK", DOWN, "host -> robot: touch report seq journalled (seq 0: HELLO acknowledged)",
+     (("seq", 1, 0, 1, "", None, None, ""),)),
+    (TOUCH, "TOUCH", UP, "robot -> host: touch report, robot patch, touched segment, power",
+     (("seq", 1, 0, 1, "", 1, None, ""),
+      ("rx", 1, 1, 1, "patch", None, None, ""),
+      ("ry", 1, 1, 1, "patch", None, None, ""),
+      ("sx", 1, 1, 1, "patch", None, None, ""),
+      ("sy", 1, 1, 1, "patch", None, None, ""),
+      ("power", 2, 0, 100, "power", 1, None, ""))),
+    (HELLO, "HELLO", UP, "robot -> host: announces the node, movement model, power, firmware version",
+     (("model", 1, 0, 1, "", None, None, "models"),
+      ("power", 2, 0, 100, "power", 1, None, ""),
+      ("version", 1, 0, 1, "", 1, None, ""))),
+    (HEARTBEAT, "HEARTBEAT", UP,
+     "robot -> host: FSM state, pose in patches, heading degrees, last transport step done",
+     (("state", 1, 0, 1, "", None, None, "states"),
+      ("x", 2, 1, 256, "patch", None, None, ""),
+      ("y", 2, 1, 256, "patch", None, None, ""),
+      ("heading", 2, 0, 1, "deg", 0, 359, ""),
+      ("step", 1, 0, 1, "", None, None, ""))),
+    (SENSOR, "SENSOR", CAPTURE, "capture: one sensor reading the firmware took",
+     (("tick", 2, 0, 1, "", None, None, ""),
+      ("index", 1, 0, 1, "", None, None, ""),
+      ("query", 1, 0, 1, "", 1, 8, "query"),
+      ("arg", 2, 1, 1, "", None, None, ""),
+      ("value", 2, 1, 1, "", None, None, ""))),
+    (ACTION, "ACTION", CAPTURE, "capture: one action the firmware decided",
+     (("tick", 2, 0, 1, "", None, None, ""),
+      ("index", 1, 0, 1, "", None, None, ""),
+      ("action", 1, 0, 1, "", 1, 4, "action"),
+      ("a", 2, 1, 1, "", None, None, ""),
+      ("b", 2, 1, 1, "", None, None, ""))),
+)
+
+# kind -> (name, ((field, size in bytes, signed), ...)): what pack/unpack and
+# the framing decoder need, derived from MESSAGES once at import
+SCHEMA = {}
+for _m in MESSAGES:
+    _f = []
+    for _x in _m[4]:
+        _f.append((_x[0], _x[1], _x[2]))
+    SCHEMA[_m[0]] = (_m[1], tuple(_f))
+
+
+def spec(kind):
+    """The full declaration of a message kind (a row of MESSAGES)."""
+    for m in MESSAGES:
+        if m[0] == kind:
+            return m
+    raise SchemaError("unknown message kind %d" % kind)
+
 
 FIRMWARE_VERSION = 1
 
 # host-side helpers exempt from the step-path allocation rules (docs/subset.md)
-SUBSET_SETUP = ("split_id",)
+SUBSET_SETUP = ("split_id", "spec")
 
 
 class SchemaError(ValueError):

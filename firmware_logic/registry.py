@@ -4,7 +4,7 @@ bridge/firmware/subset_check.py).
 
 A behaviour is a package of firmware-subset modules:
 
-    spec.py         its declaration: NAME, TITLE, STATES, MODELS, MESSAGES,
+    spec.py         its declaration: NAME, TITLE, STATES, MODELS,
                     PARAMS, MEASURES (see behaviours/thesis/spec.py)
     robot.py        the FSM class named by ROBOT, stepped as `robot.step(hal)`
     coordinator.py  its host-side coordinator (portable, may allocate)
@@ -34,7 +34,7 @@ BUILTIN = {
     "thesis": "firmware_logic.behaviours.thesis",
     "aggregate": "firmware_logic.behaviours.aggregate",
 }
-SPEC_KEYS = ("NAME", "TITLE", "STATES", "MODELS", "MESSAGES", "PARAMS", "MEASURES")
+SPEC_KEYS = ("NAME", "TITLE", "STATES", "MODELS", "PARAMS", "MEASURES")
 
 
 class BehaviourError(ValueError):

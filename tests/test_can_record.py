@@ -97,7 +97,9 @@ def test_cantools_decodes_a_recording(tmp_path):
     out = subprocess.run([str(exe), "decode", str(ROOT / "docs" / "touchswarm.dbc")],
                          input=f.read_text(), capture_output=True, text=True, check=True).stdout
     assert "SENSOR_1(" in out and "HELLO_8(" in out and "ACK_1(" in out
-    assert "query: 6" in out and "model: 1" in out and "Unknown" not in out
+    # physical values and names, not raw codes (issue: x: 598 for 2.34 patches)
+    assert "query: recv" in out and "model: firefly" in out and "Unknown" not in out
+    assert "power: 1.0 power" in out and "action: forward" in out
 
 
 def test_python_can_tools_open_a_recording(tmp_path):

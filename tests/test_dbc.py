@@ -33,7 +33,8 @@ def test_every_kind_decodes_field_by_field(kind, pick):
         m = DB.get_message_by_frame_id(msg.can_id(kind, node))
         assert m.length == n == msg.dlc(kind)
         assert m.name == "%s_%d" % (msg.SCHEMA[kind][0], node)
-        decoded = DB.decode_message(msg.can_id(kind, node), bytes(buf[:n]))
+        decoded = DB.decode_message(msg.can_id(kind, node), bytes(buf[:n]),
+                                     decode_choices=False, scaling=False)
         names = [f[0] for f in msg.fields(kind)]
         assert list(decoded) == names
         for name, v in zip(names, vals):
@@ -48,10 +49,12 @@ def test_random_values_roundtrip(data):
     vals = field_values(kind, lambda lo, hi: data.draw(st.integers(lo, hi)))
     buf = bytearray(8)
     n = msg.pack(kind, vals, buf)
-    decoded = DB.decode_message(msg.can_id(kind, node), bytes(buf[:n]))
+    decoded = DB.decode_message(msg.can_id(kind, node), bytes(buf[:n]),
+                                     decode_choices=False, scaling=False)
     assert [decoded[f[0]] for f in msg.fields(kind)] == vals
     # and cantools encodes to the same bytes the firmware packs
-    assert DB.encode_message(msg.can_id(kind, node), decoded) == bytes(buf[:n])
+    assert DB.encode_message(msg.can_id(kind, node), decoded, scaling=False,
+                             strict=False) == bytes(buf[:n])
 
 
 def test_shipped_dbc_is_current():
@@ -64,3 +67,20 @@ def test_dbc_command(tmp_path, capsys):
     db = cantools.database.load_file(str(out))
     assert db.get_message_by_name("TOUCH_4").frame_id == msg.can_id(msg.TOUCH, 4)
     assert main(["dbc", "-o", str(out), "--max-node", "200"]) == 2
+
+
+def test_physical_values_units_and_names() -> None:
+    """cantools shows patches, power units, state and model names, derived from
+    messages.MESSAGES and the thesis spec."""
+    hb = DB.get_message_by_frame_id(msg.can_id(msg.HEARTBEAT, 5))
+    buf = bytearray(8)
+    n = msg.pack(msg.HEARTBEAT, (3, 598, -256, 90, 2), buf)
+    d = DB.decode_message(hb.frame_id, bytes(buf[:n]))
+    assert d["state"] == "hold"
+    assert d["x"] == pytest.approx(598 / 256) and d["y"] == -1.0
+    assert hb.get_signal_by_name("x").unit == "patch"
+    hello = DB.get_message_by_frame_id(msg.can_id(msg.HELLO, 5))
+    n = msg.pack(msg.HELLO, (2, 150, 1), buf)
+    d = DB.decode_message(hello.frame_id, bytes(buf[:n]))
+    assert d["model"] == "ant" and d["power"] == 1.5
+    assert "journalled" in DB.get_message_by_frame_id(msg.can_id(msg.ACK, 0)).comment

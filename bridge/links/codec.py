@@ -11,19 +11,20 @@ from __future__ import annotations
 
 import logging
 import struct
-from typing import Callable
+from typing import Any, Callable
 
 import can
 
+from firmware_logic import hal
 from firmware_logic import messages as msg
 
 log = logging.getLogger(__name__)
 
 Message = tuple[int, int, tuple]   # (node, kind, fields)
 
-HOST_KINDS = frozenset((msg.HALT, msg.TRANSPORT, msg.ACK))
-ROBOT_KINDS = frozenset((msg.TOUCH, msg.HELLO, msg.HEARTBEAT))
-CAPTURE_KINDS = frozenset((msg.SENSOR, msg.ACTION))
+HOST_KINDS = frozenset(m[0] for m in msg.MESSAGES if m[2] == msg.DOWN)
+ROBOT_KINDS = frozenset(m[0] for m in msg.MESSAGES if m[2] == msg.UP)
+CAPTURE_KINDS = frozenset(m[0] for m in msg.MESSAGES if m[2] == msg.CAPTURE)
 
 # fault kinds, the keys of BadFrames.counts
 EXTENDED = "extended id"
@@ -39,44 +40,53 @@ FAULTS = (EXTENDED, REMOTE, ERROR, FD, UNKNOWN_ID, WRONG_DLC, OUT_OF_RANGE,
           UNANNOUNCED, WRONG_DIRECTION)
 
 
-def _ok_halt(f: tuple) -> bool:
-    return True
+def value_tables(behaviour: Any = None) -> dict[str, dict[int, str]]:
+    """Value tables by the names messages.MESSAGES uses: the behaviour's states
+    and models (default: the thesis) and the HAL's query/action codes."""
+    from firmware_logic import registry
+
+    b = behaviour if behaviour is not None else registry.load()
+    return {
+        "states": dict(enumerate(b.spec.STATES)),
+        "models": dict(b.spec.MODELS),
+        "query": {i: n for i, n in enumerate(hal.QUERY_NAMES) if n},
+        "action": {i: n for i, n in enumerate(hal.ACTION_NAMES) if n},
+    }
 
 
-def _ok_transport(f: tuple) -> bool:
-    return f[0] >= 1 and -1 <= f[1] <= 1 and -1 <= f[2] <= 1
+def field_checks(kind: int, tables: dict[str, dict[int, str]]) -> list[tuple[int, Any, Any, Any]]:
+    """(index, lo, hi, allowed values) for every field of `kind` that the
+    declaration bounds beyond its byte size."""
+    out = []
+    for i, (_name, _size, _signed, _div, _unit, lo, hi, values) in enumerate(msg.spec(kind)[4]):
+        allowed = frozenset(tables[values]) if values else None
+        if lo is not None or hi is not None or allowed is not None:
+            out.append((i, lo, hi, allowed))
+    return out
 
 
-def _ok_ack(f: tuple) -> bool:
-    return True
+def _adjacent(f: tuple) -> bool:
+    # the one cross-field rule: a touched segment is next to the robot's patch
+    return -1 <= f[3] - f[1] <= 1 and -1 <= f[4] - f[2] <= 1
 
 
-def _ok_touch(f: tuple) -> bool:
-    return f[0] >= 1 and f[5] >= 1 and -1 <= f[3] - f[1] <= 1 and -1 <= f[4] - f[2] <= 1
+def validator(kind: int, tables: dict[str, dict[int, str]]) -> Callable[[tuple], bool]:
+    checks = field_checks(kind, tables)
+    extra = _adjacent if kind == msg.TOUCH else None
+
+    def ok(f: tuple) -> bool:
+        for i, lo, hi, allowed in checks:
+            v = f[i]
+            if (lo is not None and v < lo) or (hi is not None and v > hi) or \
+                    (allowed is not None and v not in allowed):
+                return False
+        return extra is None or extra(f)
+    return ok
 
 
-def _ok_hello(f: tuple) -> bool:
-    return f[0] in (1, 2) and f[1] >= 1 and f[2] >= 1
-
-
-def _ok_heartbeat(f: tuple) -> bool:
-    return f[0] <= 5 and f[3] < 360
-
-
-def _ok_sensor(f: tuple) -> bool:
-    return 1 <= f[2] <= 8
-
-
-def _ok_action(f: tuple) -> bool:
-    return 1 <= f[2] <= 4
-
-
-# field ranges beyond what the byte sizes already bound (docs/protocol.md)
-VALID: dict[int, Callable[[tuple], bool]] = {
-    msg.HALT: _ok_halt, msg.TRANSPORT: _ok_transport, msg.ACK: _ok_ack,
-    msg.TOUCH: _ok_touch, msg.HELLO: _ok_hello, msg.HEARTBEAT: _ok_heartbeat,
-    msg.SENSOR: _ok_sensor, msg.ACTION: _ok_action,
-}
+# field ranges beyond what the byte sizes already bound (docs/protocol.md),
+# derived from messages.MESSAGES and the default behaviour's value tables
+VALID: dict[int, Callable[[tuple], bool]] = {k: validator(k, value_tables()) for k in msg.SCHEMA}
 
 
 def struct_for(kind: int) -> struct.Struct:

@@ -9,51 +9,49 @@ capture frames for robots 1..max_node.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 from firmware_logic import messages as msg
 
-from bridge.links.codec import HOST_KINDS
+from bridge.links.codec import HOST_KINDS, value_tables
 
-COMMENTS = {
-    msg.HALT: "host -> robot(s): stop, beacon off (node 0: broadcast)",
-    msg.TRANSPORT: "host -> carrier: transport step number and displacement in patches",
-    msg.ACK: "host -> robot: touch report seq journalled (seq 0: HELLO acknowledged)",
-    msg.TOUCH: "robot -> host: touch report, robot patch, touched segment, power (1/100)",
-    msg.HELLO: "robot -> host: announces the node, movement model, power, firmware version",
-    msg.HEARTBEAT: "robot -> host: FSM state, pose Q8 patches, heading degrees, last step done",
-    msg.SENSOR: "capture: one sensor reading (query 1 probe, 2 field_ahead, 3 field_here, "
-                "4 uphill, 5 holding, 6 recv, 7 x, 8 y)",
-    msg.ACTION: "capture: one action (1 forward, 2 claim, 3 carry, 4 beacon)",
-}
-
-
-def build(max_node: int = msg.MAX_NODE):
-    """A cantools Database of every message the schema defines."""
+def build(max_node: int = msg.MAX_NODE, behaviour: Any = None):
+    """A cantools Database of every message of messages.MESSAGES: physical
+    units and scaling, value tables (the behaviour's states and models,
+    default the thesis's), comments."""
     from cantools.database.can import Database, Message, Node, Signal
+    from cantools.database.conversion import BaseConversion
+
+    tables = value_tables(behaviour)
 
     if not 1 <= max_node <= msg.MAX_NODE:
         raise ValueError(f"max_node must be 1..{msg.MAX_NODE}, not {max_node}")
     names = ["HOST"] + [f"R{n}" for n in range(1, max_node + 1)]
     nodes = [Node(name, comment=None) for name in names]
     messages = []
-    for kind in sorted(msg.SCHEMA):
-        kname, spec = msg.SCHEMA[kind]
+    for kind, kname, _direction, comment, spec in sorted(msg.MESSAGES):
         first = 0 if kind in HOST_KINDS else 1
         for node in range(first, max_node + 1):
             signals = []
             pos = 0
-            for field, size, signed in spec:
+            for field, size, signed, divisor, unit, flo, fhi, values in spec:
                 bits = size * 8
                 lo = -(1 << (bits - 1)) if signed else 0
                 hi = (1 << (bits - 1)) - 1 if signed else (1 << bits) - 1
+                lo = lo if flo is None else flo
+                hi = hi if fhi is None else fhi
+                conv = BaseConversion.factory(scale=1 / divisor, offset=0,
+                                              choices=tables[values] if values else None,
+                                              is_float=False)
                 signals.append(Signal(field, start=pos * 8, length=bits,
                                       byte_order="little_endian", is_signed=bool(signed),
-                                      minimum=lo, maximum=hi))
+                                      conversion=conv, minimum=lo / divisor,
+                                      maximum=hi / divisor, unit=unit or None))
                 pos += size
             sender = "HOST" if kind in HOST_KINDS else f"R{node}"
             messages.append(Message(frame_id=msg.can_id(kind, node), name=f"{kname}_{node}",
                                     length=pos, signals=signals, senders=[sender],
-                                    comment=COMMENTS[kind], is_extended_frame=False))
+                                    comment=comment, is_extended_frame=False))
     return Database(messages=messages, nodes=nodes, version=str(msg.FIRMWARE_VERSION))
 
 

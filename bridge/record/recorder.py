@@ -7,7 +7,7 @@ timestamps are EPOCH + tick * TICK_SECONDS (+ 1 us per frame within a tick),
 so the files are reproducible and `--realtime` replay paces by them. A
 sidecar FILE.json keeps what the frames cannot: the scenario and the seed.
 
-Sensor query codes (SENSOR.query): 1 probe(arg=heading), 2 field_ahead(heading),
+Sensor query codes (SENSOR.query; the codes are firmware_logic/hal.py's): 1 probe(arg=heading), 2 field_ahead(heading),
 3 field_here, 4 uphill, 5 holding, 6 recv (arg = kind received, 0 none; the
 fields are the host frame itself), 7 x, 8 y.
 Action codes (ACTION.action): 1 forward(a=heading, b=step), 2 claim(heading),
@@ -24,6 +24,7 @@ from typing import Any
 import can
 
 from bridge.links.codec import Message, encode
+from firmware_logic import hal
 from bridge.errors import UsageError
 from firmware_logic import messages as msg
 
@@ -32,7 +33,7 @@ log = logging.getLogger(__name__)
 EPOCH = 1_700_000_000.0
 TICK_SECONDS = 0.01
 SUFFIXES = (".blf", ".asc", ".log", ".csv", ".trc")
-Q_RECV, Q_X, Q_Y = 6, 7, 8
+Q_RECV, Q_X, Q_Y = hal.RECV, hal.POS_X, hal.POS_Y
 
 
 def meta_path(path: Path) -> Path:

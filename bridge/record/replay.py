@@ -24,13 +24,13 @@ from bridge.links.codec import HOST_KINDS, BadFrames, Decoder, Message
 from bridge.record.recorder import Q_RECV, Q_X, Q_Y, meta_path
 from firmware_logic import messages as msg
 from firmware_logic.behaviours.thesis.coordinator import Coordinator
+from firmware_logic import hal
 from firmware_logic.hal import Hal
 from firmware_logic.behaviours.thesis.robot import Robot
 
 log = logging.getLogger(__name__)
 
-QUERY_NAMES = {1: "probe", 2: "field_ahead", 3: "field_here", 4: "uphill", 5: "holding",
-               Q_RECV: "recv", Q_X: "x", Q_Y: "y"}
+QUERY_NAMES = dict(enumerate(hal.QUERY_NAMES))
 
 
 class Diverged(Exception):

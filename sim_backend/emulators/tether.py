@@ -17,7 +17,7 @@ from __future__ import annotations
 import logging
 from types import TracebackType
 
-from firmware_logic import board
+from firmware_logic import board, hal
 from firmware_logic import messages as msg
 from sim_backend.engine import Engine
 
@@ -47,19 +47,19 @@ class TetherTransport:
         self.close()
 
     def _sense(self, body, query: int, arg: int) -> int:
-        if query == board.Q_PROBE:
+        if query == hal.PROBE:
             return body.probe(arg)
-        if query == board.Q_FIELD_AHEAD:
+        if query == hal.FIELD_AHEAD:
             return body.field_ahead(arg)
-        if query == board.Q_FIELD_HERE:
+        if query == hal.FIELD_HERE:
             return body.field_here()
-        if query == board.Q_UPHILL:
+        if query == hal.UPHILL:
             return body.uphill()
-        if query == board.Q_HOLDING:
+        if query == hal.HOLDING:
             return body.holding()
-        if query == board.Q_X:
+        if query == hal.POS_X:
             return body.x()
-        if query == board.Q_Y:
+        if query == hal.POS_Y:
             return body.y()
         raise ValueError("unknown sensor query %d" % query)
 
@@ -85,13 +85,13 @@ class TetherTransport:
             self.inner.send(node, msg.ACTION, (tick, index, board.A_END, 0, 0))
         elif self.last_end.get(node) == tick:
             return            # an action repeated after its tick was applied
-        elif code == board.A_FORWARD:
+        elif code == hal.FORWARD:
             body.forward(a, b)
-        elif code == board.A_CLAIM:
+        elif code == hal.CLAIM:
             body.claim(a)
-        elif code == board.A_CARRY:
+        elif code == hal.CARRY:
             body.carry(a, b)
-        elif code == board.A_BEACON:
+        elif code == hal.BEACON:
             body.beacon(a)
 
     def poll(self, timeout: float) -> list[Message]:

@@ -18,8 +18,7 @@ from firmware_logic import messages as msg
 from firmware_logic.rng import Rng
 
 from firmware_logic.behaviours.thesis.spec import (ANT, CARRY, FIELD, FIREFLY,  # noqa: F401
-                                                   GRASP, HALT, HOLD, SEARCH, STATES,
-                                                   TOUCH, TRANSPORT)
+                                                   GRASP, HALT, HOLD, SEARCH, STATES)
 from firmware_logic.hal import CLAIMED, NOTHING, OBJECT, ROBOT, WALL  # noqa: F401
 
 STATE_NAMES = STATES
@@ -198,7 +197,7 @@ class Robot:
                 self.hello_acked = 1
             elif self.pending and b[0] == self.seq:
                 self.pending = 0
-        elif kind == TRANSPORT:
+        elif kind == msg.TRANSPORT:
             if self.state == HOLD or self.state == CARRY:
                 if b[0] != self.last_step:
                     self.state = CARRY
@@ -212,7 +211,7 @@ class Robot:
                 hal.beacon(0)
 
     def _send_touch(self, hal):
-        hal.send(TOUCH, self.seq, self.rx, self.ry, self.sx, self.sy, self.power)
+        hal.send(msg.TOUCH, self.seq, self.rx, self.ry, self.sx, self.sy, self.power)
         self.retx_timer = self.retx_every
 
     def _housekeeping(self, hal):

@@ -25,28 +25,10 @@ FIREFLY = 1
 ANT = 2
 MODELS = ((FIREFLY, "firefly"), (ANT, "ant"))
 
-# -- this behaviour's messages (firmware_logic/messages.py has the common ones)
-# kind code, name, direction ("up": robot -> host, "down": host -> robot),
-# comment, fields; a field is (name, bytes, signed, divisor, unit, lo, hi)
-# where the physical value is raw / divisor and lo..hi bounds the raw value
-# beyond what its bytes allow (None: no further bound).
-TRANSPORT = 2
-TOUCH = 4
-MESSAGES = (
-    (TRANSPORT, "TRANSPORT", "down",
-     "host -> carrier: transport step number and displacement in patches",
-     (("step", 1, 0, 1, "", 1, None),
-      ("dx", 1, 1, 1, "patch", -1, 1),
-      ("dy", 1, 1, 1, "patch", -1, 1))),
-    (TOUCH, "TOUCH", "up",
-     "robot -> host: touch report, robot patch, touched segment, power",
-     (("seq", 1, 0, 1, "", 1, None),
-      ("rx", 1, 1, 1, "patch", None, None),
-      ("ry", 1, 1, 1, "patch", None, None),
-      ("sx", 1, 1, 1, "patch", None, None),
-      ("sy", 1, 1, 1, "patch", None, None),
-      ("power", 2, 0, 100, "power", 1, None))),
-)
+# -- messages: the link's own (firmware_logic/messages.py MESSAGES); this
+# behaviour fills HELLO.model with MODELS and HEARTBEAT.state with STATES.
+# The thesis's TOUCH and TRANSPORT kinds are link messages too, since the
+# host process understands them.
 
 # -- parameters: thesis name, default, low, high, meaning ---------------------
 # (scenario keys; the world's own keys are in sim_backend/scenario.py)
