@@ -15,6 +15,7 @@ from bridge.errors import BridgeError, UsageError
 COMMANDS = [
     "bridge.commands.run",
     "bridge.commands.scenarios",
+    "bridge.commands.behaviours",
     "bridge.firmware.cli",
     "bridge.commands.dbc",
     "bridge.commands.host",

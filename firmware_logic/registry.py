@@ -10,9 +10,9 @@ A behaviour is a package of firmware-subset modules:
     coordinator.py  its host-side coordinator (portable, may allocate)
     __init__.py     the wiring: ROBOT = "module:Class", and
                     robot_args(node, seed, sc) -> the FSM's constructor args,
-                    coordinator(sc) -> a coordinator for a scenario
+                    make_coordinator(sc) -> its coordinator for a scenario
 
-Found by name among the built-ins and the entry points of the group
+Found by name among the built-ins (every package in firmware_logic/behaviours/) and the entry points of the group
 `touchswarm.behaviours` (a separately installed package adds one with
 `[project.entry-points."touchswarm.behaviours"] mine = "my_pkg.mine"`), or
 by path to a folder holding such a package.
@@ -30,10 +30,7 @@ from types import ModuleType
 from typing import Any
 
 GROUP = "touchswarm.behaviours"
-BUILTIN = {
-    "thesis": "firmware_logic.behaviours.thesis",
-    "aggregate": "firmware_logic.behaviours.aggregate",
-}
+BEHAVIOURS_DIR = Path(__file__).resolve().parent / "behaviours"
 SPEC_KEYS = ("NAME", "TITLE", "STATES", "MODELS", "PARAMS", "MEASURES")
 
 
@@ -70,7 +67,7 @@ class Behaviour:
         return self.robot_class(*self.robot_args(node, seed, sc))
 
     def coordinator(self, sc: Any, **kw: Any) -> Any:
-        return self.package.coordinator(sc, **kw)
+        return self.package.make_coordinator(sc, **kw)
 
     def state_name(self, code: int) -> str:
         states = self.spec.STATES
@@ -84,9 +81,17 @@ class Behaviour:
         return sorted(p for p in self.folder.glob("*.py"))
 
 
+def builtin() -> dict[str, str]:
+    """The packages in firmware_logic/behaviours/ (a new folder there is found
+    without any registration)."""
+    return {p.name: "firmware_logic.behaviours." + p.name
+            for p in sorted(BEHAVIOURS_DIR.iterdir())
+            if (p / "__init__.py").is_file() and (p / "spec.py").is_file()}
+
+
 def names() -> dict[str, str]:
     """Every installed behaviour: name -> module (built-ins, then entry points)."""
-    out = dict(BUILTIN)
+    out = builtin()
     for ep in importlib.metadata.entry_points(group=GROUP):
         out.setdefault(ep.name, ep.value)
     return out
@@ -96,7 +101,7 @@ def _check(mod: ModuleType, spec: ModuleType, where: str) -> None:
     missing = [k for k in SPEC_KEYS if not hasattr(spec, k)]
     if missing:
         raise BehaviourError(f"behaviour {where}: spec.py lacks {', '.join(missing)}")
-    for attr in ("ROBOT", "robot_args", "coordinator"):
+    for attr in ("ROBOT", "robot_args", "make_coordinator"):
         if not hasattr(mod, attr):
             raise BehaviourError(f"behaviour {where}: __init__.py lacks {attr}")
 

@@ -33,7 +33,7 @@ from firmware_logic import fixedpoint as fx
 from firmware_logic import messages as msg
 from firmware_logic.hal import Hal
 from firmware_logic.rng import Rng
-from firmware_logic.behaviours.thesis.robot import CLAIMED, NOTHING, OBJECT, ROBOT, STATE_NAMES, WALL
+from firmware_logic.hal import CLAIMED, NOTHING, OBJECT, ROBOT, WALL
 
 # trace record: op, tick, then ARITY[op] ints
 OP_X = 1
@@ -66,7 +66,8 @@ SUBSET_SETUP = ("ScriptHal.lines", "ScriptHal.drain_lines")
 
 
 class ScriptHal(Hal):
-    def __init__(self, seed, horizon=2000, capacity=1024):
+    def __init__(self, seed, horizon=2000, capacity=1024, state_names=()):
+        self.state_names = state_names   # the behaviour's STATES, for the trace
         self.rng = Rng(seed, SCRIPT_NODE)
         self.horizon = horizon
         self.contest_until = horizon // 2
@@ -310,7 +311,8 @@ class ScriptHal(Hal):
                     parts.append("->")
                 v = b[i + 2 + j]
                 if op == OP_STATE:
-                    parts.append(STATE_NAMES[v])
+                    parts.append(self.state_names[v] if v < len(self.state_names)
+                                 else str(v))
                 else:
                     parts.append(str(v))
                 if op == OP_RECV and j == 0 and v == 0:

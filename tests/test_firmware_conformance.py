@@ -18,8 +18,9 @@ import pytest
 
 from bridge.firmware import cli
 from bridge.firmware.conformance import (
-    ANT, FIREFLY, STATE_NAMES, Report, RunParams, Tools, find_tools, first_divergence,
-    run_conformance)
+    Report, RunParams, Tools, find_tools, first_divergence, run_conformance)
+from firmware_logic.behaviours.thesis.spec import ANT, FIREFLY
+from firmware_logic.behaviours.thesis.spec import STATES as STATE_NAMES
 from bridge.firmware.subset_check import firmware_files, package_dir
 
 

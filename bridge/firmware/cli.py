@@ -24,6 +24,9 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # typ
                     "models and compare the traces, and measure heap bytes per step. "
                     "Exit status 0 only if everything passes.")
     c.add_argument("--json", action="store_true", help="print one JSON object")
+    c.add_argument("--behaviour", default="thesis",
+                   help="behaviour to check: a name from `touchswarm behaviours` or a folder "
+                        "(default: %(default)s)")
     c.add_argument("--seed", type=int, default=12345, help="run seed (default: %(default)s)")
     c.add_argument("--node", type=int, default=3, help="robot node id (default: %(default)s)")
     c.add_argument("--ticks", type=int, default=2000,
@@ -40,10 +43,23 @@ def _help(p: argparse.ArgumentParser) -> int:
 
 def cmd_check(args: argparse.Namespace) -> int:
     from bridge.firmware.conformance import RunParams, run_conformance
-    from bridge.firmware.subset_check import check_package
+    from bridge.firmware.subset_check import check_package, package_dir
 
+    from firmware_logic import registry
+
+    try:
+        b = registry.load(getattr(args, "behaviour", "thesis"))
+    except registry.BehaviourError as err:
+        print(f"touchswarm: {err}", file=sys.stderr)
+        return 2
+    if not str(b.folder).startswith(str(package_dir())):
+        print(f"touchswarm: behaviour {args.behaviour!r} lives outside firmware_logic/; "
+              "copy its folder into firmware_logic/behaviours/ to check it on MicroPython",
+              file=sys.stderr)
+        return 2
     violations = check_package()
-    params = RunParams(node=args.node, seed=args.seed, ticks=args.ticks)
+    params = RunParams(node=args.node, seed=args.seed, ticks=args.ticks,
+                       behaviour=b.module_name)
     rep = run_conformance(params=params, heap_steps=args.ticks)
     ok = not violations and rep.ok
 

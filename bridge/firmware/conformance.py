@@ -24,6 +24,7 @@ import subprocess
 import sys
 import tempfile
 from collections.abc import Sequence
+from typing import Any
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -36,10 +37,14 @@ TIMEOUT_S = 60.0
 RUNNER = Path(__file__).resolve().with_name("mp_runner.py")
 MP_HEAPSIZE = "4M"
 
-FIREFLY = 1
-ANT = 2
-MODELS = {FIREFLY: "firefly", ANT: "ant"}
-STATE_NAMES = ("search", "field", "grasp", "hold", "carry", "halt")
+THESIS = "firmware_logic.behaviours.thesis"
+
+
+def behaviour_spec(module: str) -> Any:
+    """The spec.py of a behaviour package, by its module name."""
+    import importlib
+
+    return importlib.import_module(module + ".spec")
 SMALL_INT_LIMIT = 1 << 30   # a 32-bit board's small ints are below this
 
 
@@ -57,15 +62,16 @@ class Tools:
 class RunParams:
     node: int = 3
     seed: int = 12345
-    model: int = FIREFLY
+    model: int = 1
     span: int = 45
     defiance: int = 2
     power: int = 100
     ticks: int = 2000
+    behaviour: str = THESIS   # the behaviour package's module name
 
     def argv(self) -> list[str]:
-        return [str(v) for v in (self.node, self.seed, self.model, self.span,
-                                 self.defiance, self.power)]
+        return [self.behaviour] + [str(v) for v in (self.node, self.seed, self.model,
+                                                    self.span, self.defiance, self.power)]
 
 
 @dataclass
@@ -109,6 +115,8 @@ class Report:
     loaded_from: str = ""         # "mpy" or "py"
     models: list[ModelResult] = field(default_factory=list)
     errors: list[str] = field(default_factory=list)
+    behaviour: str = THESIS
+    states: list[str] = field(default_factory=list)   # every one must be visited
 
     @property
     def mpy_total(self) -> int:
@@ -123,7 +131,7 @@ class Report:
                 return False
             if m.max_abs_value >= SMALL_INT_LIMIT:
                 return False
-            if set(m.states_visited) != set(STATE_NAMES):
+            if set(m.states_visited) != set(self.states):
                 return False
         return True
 
@@ -239,7 +247,7 @@ def trace_cpython(p: RunParams) -> list[str]:
     """The trace of one run under this interpreter with the installed firmware."""
     out: list[str] = []
     mp_runner.run_trace(p.node, p.seed, p.model, p.span, p.defiance, p.power, p.ticks,
-                        out.append)
+                        out.append, p.behaviour)
     return out
 
 
@@ -271,7 +279,8 @@ def first_divergence(a: Sequence[str], b: Sequence[str]) -> Divergence | None:
     return None
 
 
-def summarise_trace(lines: Sequence[str]) -> tuple[int, list[str], int]:
+def summarise_trace(lines: Sequence[str],
+                    states: Sequence[str]) -> tuple[int, list[str], int]:
     """(actions, states visited in FSM order, largest |int| in the trace)."""
     actions = 0
     seen: set[str] = set()
@@ -286,7 +295,7 @@ def summarise_trace(lines: Sequence[str]) -> tuple[int, list[str], int]:
         for tok in parts:
             if tok.lstrip("-").isdigit():
                 biggest = max(biggest, abs(int(tok)))
-    return actions, [s for s in STATE_NAMES if s in seen], biggest
+    return actions, [s for s in states if s in seen], biggest
 
 
 # -- 3. heap ---------------------------------------------------------------------
@@ -300,7 +309,8 @@ def measure_heap(tools: Tools, fw_dir: Path, p: RunParams, warmup: int,
     for line in r.stdout.splitlines():
         if line.startswith("heap "):
             allocated, n, mask, failed = (int(v) for v in line.split()[1:5])
-            states = [s for i, s in enumerate(STATE_NAMES) if mask & (1 << i)]
+            states = [s for i, s in enumerate(behaviour_spec(p.behaviour).STATES)
+                      if mask & (1 << i)]
             return allocated, n, states, failed
     raise ConformanceError("micropython heap run failed (exit %d):\n%s"
                            % (r.returncode, (r.stdout[-2000:] + r.stderr[-2000:]).strip()))
@@ -310,7 +320,7 @@ def measure_heap(tools: Tools, fw_dir: Path, p: RunParams, warmup: int,
 
 
 def run_conformance(src: Path | None = None, params: RunParams | None = None,
-                    models: Sequence[int] = (FIREFLY, ANT), heap_warmup: int = 0,
+                    models: Sequence[int] | None = None, heap_warmup: int = 0,
                     heap_steps: int = 2000, tools: Tools | None = None) -> Report:
     """Compile, load, compare traces and measure the heap; never raises on a
     tool problem: it lands in Report.errors.
@@ -319,9 +329,12 @@ def run_conformance(src: Path | None = None, params: RunParams | None = None,
     the installed firmware_logic). CPython always runs the installed one, so
     a modified copy shows up as a divergence.
     """
-    rep = Report()
-    src = package_dir() if src is None else Path(src)
     base = params or RunParams()
+    spec = behaviour_spec(base.behaviour)
+    rep = Report(behaviour=base.behaviour, states=list(spec.STATES))
+    names = dict(spec.MODELS)
+    models = list(names) if models is None else models
+    src = package_dir() if src is None else Path(src)
     try:
         tools = tools or find_tools()
         rep.mpy_cross_version, cross = mpy_cross_version(tools)
@@ -352,15 +365,16 @@ def run_conformance(src: Path | None = None, params: RunParams | None = None,
             rep.loaded_from = "py"
         for model in models:
             p = RunParams(base.node, base.seed, model, base.span, base.defiance,
-                          base.power, base.ticks)
-            res = ModelResult(MODELS.get(model, str(model)))
+                          base.power, base.ticks, base.behaviour)
+            res = ModelResult(names.get(model, str(model)))
             rep.models.append(res)
             try:
                 cp = trace_cpython(p)
                 mp, module = trace_micropython(tools, fw_dir, p)
                 log.debug("micropython loaded the robot from %s", module)
                 res.trace_lines = len(cp)
-                res.actions, res.states_visited, res.max_abs_value = summarise_trace(cp)
+                res.actions, res.states_visited, res.max_abs_value = summarise_trace(
+                    cp, rep.states)
                 res.divergence = first_divergence(cp, mp)
                 res.identical = res.divergence is None
                 (res.heap_bytes, res.heap_steps, res.heap_states,

@@ -2,9 +2,11 @@
 
 Under MicroPython (the unix port) it is run as a script:
 
-    micropython mp_runner.py FWDIR trace NODE SEED MODEL SPAN DEFIANCE POWER TICKS
-    micropython mp_runner.py FWDIR heap  NODE SEED MODEL SPAN DEFIANCE POWER WARMUP STEPS
+    micropython mp_runner.py FWDIR trace BEHAVIOUR NODE SEED MODEL SPAN DEFIANCE POWER TICKS
+    micropython mp_runner.py FWDIR heap  BEHAVIOUR NODE SEED MODEL SPAN DEFIANCE POWER WARMUP STEPS
 
+BEHAVIOUR is the behaviour package's module name (its robot.py holds Robot,
+its spec.py the STATES), e.g. firmware_logic.behaviours.thesis.
 FWDIR is put first on sys.path; it holds the package directory
 firmware_logic/ (compiled .mpy files, or .py sources). `trace` prints one
 trace line per HAL call (see firmware_logic/scripted.py) and an `end` line;
@@ -19,18 +21,24 @@ import sys
 TRACE_CAPACITY = 1024       # ints; one tick's records fit easily
 
 
-def make(node, seed, model, span, defiance, power, horizon):
-    from firmware_logic.behaviours.thesis.robot import Robot
+BEHAVIOUR = "firmware_logic.behaviours.thesis"
+
+
+def make(node, seed, model, span, defiance, power, horizon, behaviour=None):
     from firmware_logic.scripted import ScriptHal
 
-    robot = Robot(node, seed, model, span, defiance, power)
-    hal = ScriptHal(seed, horizon, TRACE_CAPACITY)
+    if behaviour is None:
+        behaviour = BEHAVIOUR
+    robot_mod = __import__(behaviour + ".robot", None, None, ("Robot",))
+    spec = __import__(behaviour + ".spec", None, None, ("STATES",))
+    robot = robot_mod.Robot(node, seed, model, span, defiance, power)
+    hal = ScriptHal(seed, horizon, TRACE_CAPACITY, spec.STATES)
     return robot, hal
 
 
-def run_trace(node, seed, model, span, defiance, power, ticks, emit):
+def run_trace(node, seed, model, span, defiance, power, ticks, emit, behaviour=None):
     """Run `ticks` steps, calling emit(line) for every trace line."""
-    robot, hal = make(node, seed, model, span, defiance, power, ticks)
+    robot, hal = make(node, seed, model, span, defiance, power, ticks, behaviour)
     i = 0
     while i < ticks:
         robot.step(hal)
@@ -96,15 +104,17 @@ def run_heap(node, seed, model, span, defiance, power, warmup, steps):
 
 
 def main(argv):
+    global BEHAVIOUR
     fwdir = argv[1]
     mode = argv[2]
+    BEHAVIOUR = argv[3]
     nums = []
-    for a in argv[3:]:
+    for a in argv[4:]:
         nums.append(int(a))
     sys.path.insert(0, fwdir)
-    import firmware_logic.behaviours.thesis.robot
+    robot_mod = __import__(BEHAVIOUR + ".robot", None, None, ("Robot",))
 
-    print("# module " + str(getattr(firmware_logic.behaviours.thesis.robot, "__file__", "?")))
+    print("# module " + str(getattr(robot_mod, "__file__", "?")))
     node, seed, model, span, defiance, power = nums[0], nums[1], nums[2], nums[3], nums[4], nums[5]
     if mode == "trace":
         run_trace(node, seed, model, span, defiance, power, nums[6], print)

@@ -2,7 +2,7 @@
 
 # The wiring the registry reads (firmware_logic/registry.py); host side only.
 ROBOT = "robot:Robot"
-SUBSET_SETUP = ("robot_args", "coordinator")   # host side: may allocate
+SUBSET_SETUP = ("robot_args", "make_coordinator")   # host side: may allocate
 
 
 def robot_args(node, seed, sc):
@@ -10,7 +10,7 @@ def robot_args(node, seed, sc):
     return (node, seed, sc.model, sc.robotVisionSpan, sc.fieldDefiance, sc.power_centi)
 
 
-def coordinator(sc, journal=None):
+def make_coordinator(sc, journal=None):
     """The host coordinator of a mission in scenario `sc`."""
     from firmware_logic.behaviours.thesis.coordinator import Coordinator
     return Coordinator(sc.weight_centi, sc.homeX, sc.homeY, journal=journal)

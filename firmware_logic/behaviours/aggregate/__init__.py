@@ -1,0 +1,16 @@
+"""Aggregation: the second behaviour, exercising the seam end to end."""
+
+# The wiring the registry reads (firmware_logic/registry.py); host side only.
+ROBOT = "robot:Robot"
+SUBSET_SETUP = ("robot_args", "make_coordinator")   # host side: may allocate
+
+
+def robot_args(node, seed, sc):
+    """The FSM's constructor arguments for robot `node` of scenario `sc`."""
+    return (node, seed, sc.model, sc.robotVisionSpan, sc.fieldDefiance, sc.power_centi)
+
+
+def make_coordinator(sc, journal=None):
+    """The host coordinator: halt once `quorum` percent of the swarm stopped."""
+    from firmware_logic.behaviours.aggregate.coordinator import Coordinator
+    return Coordinator(sc.agents, getattr(sc, "quorum", 80), journal=journal)

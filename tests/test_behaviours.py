@@ -1,0 +1,79 @@
+"""The behaviour seam: registry, a second behaviour end to end, the scaffold."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from bridge.cli import main
+from bridge.firmware.conformance import RunParams, run_conformance
+from firmware_logic import registry
+from sim_backend.engine import Engine
+from sim_backend.scenario import load
+
+
+def mission(b: registry.Behaviour, seed: int, **changes):
+    sc = load().replace(**changes)
+    e = Engine(sc, seed)
+    # the seam: robots and coordinator come from the behaviour, nothing else
+    e.robots = [b.make_robot(n, seed, sc) for n in range(1, sc.agents + 1)]
+    e.coordinator = b.coordinator(sc)
+    return e, e.run()
+
+
+def test_registry_lists_both_and_refuses_unknown(capsys: pytest.CaptureFixture[str]) -> None:
+    assert {"thesis", "aggregate"} <= set(registry.names())
+    assert main(["behaviours"]) == 0
+    out = capsys.readouterr().out
+    assert "thesis" in out and "aggregate" in out and "search, climb, stay, halt" in out
+    with pytest.raises(registry.BehaviourError, match="not an installed behaviour"):
+        registry.load("no-such-behaviour")
+
+
+def test_folder_without_spec_is_refused(tmp_path: Path) -> None:
+    (tmp_path / "half").mkdir()
+    (tmp_path / "half" / "__init__.py").write_text("ROBOT = 'robot:Robot'\n")
+    with pytest.raises(registry.BehaviourError, match="no spec.py"):
+        registry.load(tmp_path / "half")
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_aggregation_reaches_quorum_and_halts(seed: int) -> None:
+    b = registry.load("aggregate")
+    e, r = mission(b, seed, maxTicks=3000)
+    c = e.coordinator
+    assert c.delivered_tick > 0, "the quorum never stopped"
+    stay = b.spec.STATES.index("stay")
+    staying = {rb.node for rb in e.robots if rb.state == stay}
+    # the host's count is the truth on the ground: every robot it counts has stopped
+    assert set(c.stopped) <= staying | {rb.node for rb in e.robots
+                                        if rb.state == b.spec.STATES.index("halt")}
+    assert len(c.stopped) >= c.need
+    m = c.measures()
+    assert m["stopped"] == len(c.stopped) and 1 <= m["clusters"] <= m["stopped"]
+    assert m["largest"] >= 2      # a stop needs a touch: nobody stops alone
+
+
+def test_scaffold_runs_like_its_template(tmp_path: Path,
+                                         capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["behaviour", "new", "chain", "--into", str(tmp_path)]) == 0
+    chain = registry.load(tmp_path / "chain")
+    assert chain.name == "chain" and chain.robot_class.__module__ == "chain.robot"
+    _, a = mission(registry.load("aggregate"), 4, maxTicks=500)
+    _, c = mission(chain, 4, maxTicks=500)
+    assert c.summary()["found_tick"] == a.summary()["found_tick"]
+    assert list(c.world.xs) == list(a.world.xs)
+    assert main(["behaviour", "new", "Bad-Name"]) == 2
+    assert "lower-case Python identifier" in capsys.readouterr().err
+
+
+def test_aggregation_on_micropython_matches_cpython_with_zero_heap() -> None:
+    rep = run_conformance(params=RunParams(behaviour=registry.load("aggregate").module_name,
+                                           ticks=1500), heap_steps=1500)
+    assert rep.errors == []
+    assert rep.states == ["search", "climb", "stay", "halt"]
+    for m in rep.models:
+        assert m.identical, m.divergence
+        assert m.heap_bytes == 0 and m.heap_locked_ok
+        assert set(m.states_visited) == set(rep.states)
