@@ -17,12 +17,11 @@ from __future__ import annotations
 import logging
 from collections import deque
 from dataclasses import dataclass, field
-from typing import Callable, Protocol
+from typing import Any, Callable, Protocol
 
 from firmware_logic import fixedpoint as fx
 from firmware_logic import perception
-from firmware_logic.behaviours.thesis.coordinator import Coordinator
-from firmware_logic.behaviours.thesis.robot import Robot
+from firmware_logic import registry
 from sim_backend.body import SimBody
 from sim_backend.scenario import Scenario
 from sim_backend.world import BLUE, FREE, YELLOW, World
@@ -72,8 +71,8 @@ class RunResult:
     seed: int
     ticks: int
     world: World
-    coordinator: Coordinator
-    robots: list[Robot]
+    coordinator: Any          # the behaviour's coordinator
+    robots: list[Any]         # the behaviour's FSMs
     trajectories: list[tuple[list[int], list[int]]] = field(default_factory=list)
 
     @property
@@ -108,6 +107,7 @@ class RunResult:
             "shape_iou": self.shape_iou(),
             "leader": c.leader or None,
             "delivered": self.delivered,
+            **(c.measures() if hasattr(c, "measures") else {}),
         }
 
 
@@ -121,10 +121,11 @@ class Engine:
         self.world = World(sc, seed)
         nodes = list(range(1, sc.agents + 1))
         self.link = link if link is not None else InprocLink(nodes)
-        self.robots = [Robot(n, seed, sc.model, sc.robotVisionSpan, sc.fieldDefiance,
-                             sc.power_centi) for n in nodes]
+        # the behaviour seam: robots and coordinator come from the registry
+        self.behaviour = registry.load(sc.behaviour)
+        self.robots = [self.behaviour.make_robot(n, seed, sc) for n in nodes]
         self.bodies = [SimBody(self.world, i, n, self.link) for i, n in enumerate(nodes)]
-        self.coordinator = Coordinator(sc.weight_centi, sc.homeX, sc.homeY)
+        self.coordinator = self.behaviour.coordinator(sc)
         self.tick = 0
         self.beacons: dict[int, tuple[int, int]] = {}   # node -> field source patch
         self.record = record_trajectories

@@ -38,6 +38,8 @@ class Scenario:
     objectX: int | None = None   # None: `random 10`, as CreateWorld draws it
     objectY: int | None = None
     maxTicks: int = 20000
+    behaviour: str = "thesis"    # a name from `touchswarm behaviours` or a folder
+    quorum: int = 80             # aggregate: percent of the swarm that must stop
 
     @property
     def model(self) -> int:
@@ -75,6 +77,7 @@ RANGES: dict[str, tuple[type, Any, Any]] = {
     "objectX": (int, -60, 60),
     "objectY": (int, -60, 60),
     "maxTicks": (int, 1, 10_000_000),
+    "quorum": (int, 1, 100),
 }
 FIELDS = {f.name for f in dataclasses.fields(Scenario)}
 
@@ -100,6 +103,16 @@ def _model_name(value: Any) -> str:
     raise ScenarioError(f"movementModel: expected 'firefly' (1) or 'ant' (2), got {value!r}")
 
 
+def _behaviour_name(value: Any) -> str:
+    from firmware_logic import registry
+
+    try:
+        registry.load(str(value))
+    except registry.BehaviourError as err:
+        raise ScenarioError(f"behaviour: {err}") from err
+    return str(value)
+
+
 def validate(raw: dict[str, Any], source: str = "scenario") -> Scenario:
     unknown = sorted(set(raw) - FIELDS)
     if unknown:
@@ -113,6 +126,8 @@ def validate(raw: dict[str, Any], source: str = "scenario") -> Scenario:
             values[key] = _model_name(value)
         elif key in ("name", "description"):
             values[key] = str(value)
+        elif key == "behaviour":
+            values[key] = _behaviour_name(value)
         elif key in ("objectX", "objectY") and value is None:
             values[key] = None
         else:

@@ -14,11 +14,10 @@ from sim_backend.scenario import load
 
 
 def mission(b: registry.Behaviour, seed: int, **changes):
-    sc = load().replace(**changes)
-    e = Engine(sc, seed)
-    # the seam: robots and coordinator come from the behaviour, nothing else
-    e.robots = [b.make_robot(n, seed, sc) for n in range(1, sc.agents + 1)]
-    e.coordinator = b.coordinator(sc)
+    # the seam: the scenario names the behaviour; the engine asks the registry
+    ref = b.name if b.name in registry.names() else str(b.folder)
+    e = Engine(load().replace(behaviour=ref, **changes), seed)
+    assert type(e.robots[0]) is b.robot_class
     return e, e.run()
 
 
