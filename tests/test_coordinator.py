@@ -96,3 +96,23 @@ def test_restore_readopts_journalled_touches_without_double_counting():
     b.restore(a.touches)
     b.restore(a.touches)
     assert b.power == 100 and len(b.touches) == 1 and b.leader == 1
+
+
+def test_a_touch_at_home_never_crashes_the_host() -> None:
+    """Issue 8: a TOUCH at (-15,-15) raised ZeroDivisionError in step planning,
+    and since the touch was journalled first, every resume crashed again."""
+    c = Coordinator(600)
+    hello(c, 7, power=600)
+    c.tick(1)
+    touch(c, 7, 1, (-15, -15), 2, power=600, robot=(-15, -16))
+    out = c.tick(2)          # converges and plans: must not raise
+    assert c.converged_tick == 2
+    assert c.delivered_tick >= 0
+    c.tick(3)
+    # a resumed host (touch restored from the journal) survives it too
+    r = Coordinator(600)
+    hello(r, 7, power=600)
+    r.restore(list(c.touches))
+    r.tick(4)
+    assert r.delivered_tick >= 0
+    assert (msg.HOST, msg.HALT, (0,)) in out + c.tick(4) + r.tick(5)

@@ -217,6 +217,12 @@ class Coordinator:
             if d < here:
                 ranked.append((d, len(ranked), ddx, ddy))
         ranked.sort()
+        if not ranked:
+            # no step brings the object closer: it is as near home as it gets
+            # (a touch reported at home); call it delivered rather than divide
+            # by zero, which a journalled touch would repeat on every resume
+            self.delivered_tick = tick
+            return
         pick = ranked[self.blocked % len(ranked)]
         self.planned_from = (self.moved_x, self.moved_y)
         self.step = self.step % 255 + 1
