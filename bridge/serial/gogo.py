@@ -17,8 +17,10 @@ idempotent, once the echo proved the board got it), then raises:
   GoGo board runs at 9600 8N1 only) or not a GoGo board;
 - GoGoReplyError: the echo was right but the reply was not what the
   command expects (the message names what was expected and what came);
-- GoGoPortLost: the port failed or vanished; the next command tries to
-  reopen it, so a board that comes back (USB replugged) works again.
+- GoGoPortLost (a SerialPortLost, so a SerialTimeout): the port failed
+  or vanished; the next command tries to reopen it, so a board that comes
+  back (USB replugged) works again. No raw termios.error / OSError ever
+  escapes: every port error is converted where the port is used.
 
 All of them are GoGoError, under the serial package's SerialLinkError and
 bridge.errors.BridgeError.
@@ -47,19 +49,13 @@ from types import TracebackType
 
 import serial
 
-from bridge.serial.errors import (ProtocolError, SerialLinkError, SerialOpenError,
+from bridge.serial.errors import (PORT_ERRORS, PortClosedError, ProtocolError,
+                                  SerialLinkError, SerialOpenError, SerialPortLost,
                                   SerialTimeout)
+from bridge.serial.hostbody import DRIVE, TURN, Clock, HostBody, Phase
 from bridge.serial.transport import open_serial, resolve_url
 from firmware_logic import fixedpoint as fx
-from bridge.serial.hostbody import HostBody
-from firmware_logic.behaviours.thesis.robot import NOTHING, OBJECT, WALL
-
-try:                                    # tcflush on a dead tty raises termios.error
-    import termios
-    _PORT_ERRORS: tuple[type[BaseException], ...] = (serial.SerialException, OSError,
-                                                     termios.error)
-except ImportError:                     # pragma: no cover - not POSIX
-    _PORT_ERRORS = (serial.SerialException, OSError)
+from firmware_logic.hal import NOTHING, OBJECT, WALL
 
 log = logging.getLogger(__name__)
 
@@ -123,8 +119,13 @@ class GoGoReplyError(GoGoProtocolError):
     """The echo was right; the reply was garbled, truncated or missing."""
 
 
-class GoGoPortLost(GoGoError):
-    """The port failed or vanished (USB unplugged, pty closed)."""
+class GoGoPortLost(GoGoError, SerialPortLost):
+    """The port failed or vanished (USB unplugged, pty closed); the next
+    command reopens it."""
+
+
+class GoGoPortClosed(GoGoError, PortClosedError):
+    """The board object was used after close()."""
 
 
 def hexs(data: bytes) -> str:
@@ -204,6 +205,7 @@ class GoGoBoard:
         self.close()
 
     def close(self) -> None:
+        """Idempotent; never raises (the port may already be gone)."""
         self._closed = True
         self._drop()
 
@@ -218,12 +220,12 @@ class GoGoBoard:
         if ser is not None:
             try:
                 ser.close()
-            except _PORT_ERRORS:
-                pass
+            except Exception as err:     # closing a dead port: nothing left to do
+                log.debug("GoGo board on %s: close: %s", self.port, err)
 
     def _ensure_open(self, what: str) -> serial.SerialBase:
         if self._closed:
-            raise GoGoPortLost("GoGo board on %s: port is closed (%s)" % (self.port, what))
+            raise GoGoPortClosed("GoGo board on %s: port is closed (%s)" % (self.port, what))
         if self.ser is None:
             try:
                 self._open()
@@ -310,7 +312,10 @@ class GoGoBoard:
             ser = self._ensure_open(what)
             try:
                 at = self._try(ser, req, data)
-            except _PORT_ERRORS as err:
+            except serial.SerialTimeoutException as err:
+                raise GoGoTimeout("GoGo board on %s: could not write %s within %.2f s: %s"
+                                  % (self.port, what, self.timeout, err)) from err
+            except PORT_ERRORS as err:
                 self._drop()
                 raise GoGoPortLost("GoGo board on %s: port failed during %s: %s"
                                    % (self.port, what, err)) from err
@@ -414,20 +419,25 @@ class GoGoBody(HostBody):
     need one thisway and one thatway). Positions are Q8 patches of `patch_mm`.
     `arena` (the world's half size in patches), when given, makes a touch
     outside it a WALL rather than the object.
+
+    Motions are timed (no encoders): a phase turns the motors on and notes
+    the time; each later tick checks it, and when its end falls before the
+    next tick (`tick_s` away) waits out that last part of a tick and turns
+    them off, so no call waits longer than one tick per phase.
     """
 
-    def __init__(self, board: GoGoBoard, node: int, link=None, patch_mm: float = 50.0,
+    def __init__(self, board: GoGoBoard, node: int, link: object | None = None,
+                 patch_mm: float = 50.0,
                  touch_ports: dict[int, int] | None = None,
                  light_ports: dict[int, int] | None = None,
                  touch_threshold: int = 512, dark: int = 800, light_step: int = 40,
                  left: str = "A", right: str = "B", left_forward: str = THISWAY,
                  right_forward: str = THISWAY, power: int = 7, mm_s_per_level: float = 20.0,
                  wheel_base_mm: float = 100.0, x_mm: float = 0.0, y_mm: float = 0.0,
-                 heading: float = 0.0, arena: int | None = None) -> None:
+                 heading: float = 0.0, arena: int | None = None, tick_s: float = 0.05,
+                 clock: Clock | None = None) -> None:
+        super().__init__(node, link, patch_mm, x_mm, y_mm, heading, clock)
         self.b = board
-        self.node = node
-        self.link = link
-        self.patch_mm = patch_mm
         self.touch_ports = dict(touch_ports if touch_ports is not None
                                 else {0: 1, 90: 2, 180: 3, 270: 4})
         self.light_ports = dict(light_ports if light_ports is not None else {0: 5})
@@ -449,26 +459,42 @@ class GoGoBody(HostBody):
         self.mm_s = power * mm_s_per_level
         self.wheel_base_mm = wheel_base_mm
         self.arena = arena
-        self.x_mm, self.y_mm, self.theta = x_mm, y_mm, heading % 360
-        self.claimed = -1
-        self.beacon_on = 0
+        self.tick_s = tick_s
         self.moving_seconds = 0.0
         self._dirs: dict[str, str | None] = {self.left: None, self.right: None}
         self._before: int | None = None    # light field before the last forward move
-        self._moved = False
-        board.ping()
-        board.select(self.both)
-        board.off()
-        board.power(self.level)
-        board.led(False)
+        self._moved = False                # a forward move's drive ended since
+        self._sample_gradient = False      # the current motion is a forward move
+        self._stop_owed = False            # a lost port may have left the motors on
+        self._setup()
+
+    def _setup(self) -> None:
+        """Put the board in a known state (also after it was replugged: a
+        board that lost power is back at power 7, nothing selected)."""
+        self._dirs = {self.left: None, self.right: None}
+        self.b.ping()
+        self.b.select(self.both)
+        self.b.off()
+        self.b.power(self.level)
+        self.b.led(bool(self.beacon_on))
+        self._stop_owed = False
+        self._seen_reopen = self.b.reopened
+
+    def _replugged(self) -> bool:
+        return self.b.reopened != self._seen_reopen
 
     # -- motion by dead reckoning -------------------------------------------------------
+
+    def _resume(self) -> None:
+        if self._stop_owed or (self._replugged() and not self.phases):
+            self._setup()
 
     def _direction(self, port: str, forward: bool) -> None:
         fwd = self.fwd[port]
         want = fwd if forward else (THATWAY if fwd == THISWAY else THISWAY)
         if self._dirs[port] == want:
             return
+        self._dirs[port] = None         # unknown until the board confirmed it
         self.b.select(port)
         if want == THISWAY:
             self.b.thisway()
@@ -476,58 +502,95 @@ class GoGoBody(HostBody):
             self.b.thatway()
         self._dirs[port] = want
 
-    def _run(self, left_forward: bool, right_forward: bool, seconds: float) -> float:
-        """Run both wheels for `seconds`; return how long they really ran, as
-        the board saw it (the wire time of the on and off commands counted).
-        If the port is lost while they run, GoGoPortLost propagates: the board
-        keeps its last command, so the motors may still be on, and the move
-        is not added to the pose."""
-        self._direction(self.left, left_forward)
-        self._direction(self.right, right_forward)
+    def _wire(self) -> float:
+        """How long a 3-byte command or reply takes on the wire (0 on a
+        simulated clock, where bytes take no time)."""
+        return 3 * self.b.byte_time if self.clock.wire_time else 0.0
+
+    def _motors_on(self, ph: Phase) -> bool:
+        """Start the phase's wheels; False if there is nothing to do."""
+        if self.mm_s <= 0:
+            return False
+        if self._replugged():
+            self._setup()
+        if ph.kind == TURN:
+            err = _angle(ph.heading - self.theta)
+            if abs(err) < 1.0:
+                return False
+            ph.sign = 1.0 if err > 0 else -1.0
+            ph.seconds = math.radians(abs(err)) * self.wheel_base_mm / 2 / self.mm_s
+            left_fwd, right_fwd = err > 0, err < 0
+        else:
+            if ph.mm <= 0:
+                return False
+            ph.seconds = ph.mm / self.mm_s
+            left_fwd = right_fwd = True
+            if self._sample_gradient:
+                # facing the way it will drive now: the field before the move
+                port = next(iter(self.light_ports.values()))
+                self._before = self._field_from(self.b.sensor(port))
+        self._direction(self.left, left_fwd)
+        self._direction(self.right, right_fwd)
         self.b.select(self.both)
-        bt = self.b.byte_time
         try:
             self.b.on()
         except GoGoError:
-            try:                        # the board may have got it: make sure it stops
-                self.b.off()
-            except GoGoError:
-                pass
+            self._stop_owed = True      # the board may have got it: stop on the next tick
             raise
-        # `on` took effect when its last byte arrived, before the 3-byte reply;
-        # `off` takes effect when its 3rd byte arrives, 3 byte times after sending
-        started = self.b.last_reply_at - 3 * bt
-        end = started + seconds - 3 * bt
+        # `on` took effect when its last byte arrived, before its 3-byte reply
+        ph.t_on = self.clock.now() - self._wire()
+        return True
+
+    def _motors_off(self, ph: Phase) -> None:
+        """Stop the wheels and add what they did to the pose. If the port is
+        lost here, the board keeps its last command (the motors may still
+        run) and the move is not added to the pose."""
+        sent = self.clock.now()
         try:
-            while True:
-                left = end - time.monotonic()
-                if left <= 0:
-                    break
-                time.sleep(min(left, 0.05))
-        finally:
-            sent = time.monotonic()
             self.b.off()
-        ran = max(0.0, sent + 3 * bt - started)
+        except GoGoError:
+            self._stop_owed = True
+            raise
+        # `off` takes effect when its 3rd byte arrives
+        ran = max(0.0, sent + self._wire() - ph.t_on)
         self.moving_seconds += ran
-        return ran
+        if ph.kind == TURN:
+            turned = math.degrees(ran * self.mm_s * 2 / self.wheel_base_mm)
+            self.theta = (self.theta + ph.sign * turned) % 360
+        else:
+            d = ran * self.mm_s
+            th = math.radians(self.theta)
+            self.x_mm += d * math.sin(th)
+            self.y_mm += d * math.cos(th)
+            self._moved = self._sample_gradient
+
+    def _advance(self) -> None:
+        try:
+            while self.phases:
+                ph = self.phases[0]
+                if ph.t_on < 0 and not self._motors_on(ph):
+                    self.phases.pop(0)
+                    continue
+                left = ph.t_on + ph.seconds - self._wire() - self.clock.now()
+                if left > self.tick_s:
+                    ph.ticks += 1
+                    return              # the next tick comes before the end
+                self.clock.sleep(left)  # the end falls within this tick: wait for it
+                self._motors_off(ph)
+                self.phases.pop(0)
+        except GoGoError:
+            self.phases.clear()         # the motion is lost with the port; see _resume
+            raise
+
+    _begin = _advance
 
     def turn_to(self, heading: float) -> None:
-        err = _angle(heading - self.theta)
-        if abs(err) < 1.0 or self.mm_s <= 0:
-            return
-        arc = math.radians(abs(err)) * self.wheel_base_mm / 2
-        ran = self._run(err > 0, err < 0, arc / self.mm_s)
-        turned = math.degrees(ran * self.mm_s * 2 / self.wheel_base_mm)
-        self.theta = (self.theta + math.copysign(turned, err)) % 360
+        """Start turning in place to `heading` (degrees); see begin_tick()."""
+        self._start([Phase(TURN, heading=heading % 360)])
 
     def drive(self, mm: float) -> None:
-        if mm <= 0 or self.mm_s <= 0:
-            return
-        ran = self._run(True, True, mm / self.mm_s)
-        d = ran * self.mm_s
-        th = math.radians(self.theta)
-        self.x_mm += d * math.sin(th)
-        self.y_mm += d * math.cos(th)
+        """Start driving `mm` straight ahead; see begin_tick()."""
+        self._start([Phase(DRIVE, mm=mm)] if mm > 0 else [])
 
     # -- sensing ----------------------------------------------------------------------
 
@@ -542,9 +605,12 @@ class GoGoBody(HostBody):
                 best, dist = port, d
         return best, dist
 
+    def _sensor(self, port: int) -> int:
+        return self._reading(port, lambda: self.b.sensor(port))     # type: ignore[return-value]
+
     def touching(self, port: int) -> bool:
         """A closed switch reads near 0, an open one near 1023."""
-        return self.b.sensor(port) < self.touch_threshold
+        return self._sensor(port) < self.touch_threshold
 
     def probe(self, heading: int) -> int:
         port, dist = self._nearest(self.touch_ports, _angle(heading - self.theta))
@@ -561,7 +627,7 @@ class GoGoBody(HostBody):
         return max(0, self.dark - v) // self.light_step
 
     def _light(self, port: int) -> int:
-        return self._field_from(self.b.sensor(port))
+        return self._field_from(self._sensor(port))
 
     def field_ahead(self, heading: int) -> int:
         port, dist = self._nearest(self.light_ports, _angle(heading - self.theta))
@@ -596,22 +662,22 @@ class GoGoBody(HostBody):
     # -- acting --------------------------------------------------------------------------
 
     def forward(self, heading: int, step: int) -> None:
-        self.turn_to(heading)
-        if len(self.light_ports) == 1:
-            self._before = self._light(next(iter(self.light_ports.values())))
-        self.drive(step * self.patch_mm / fx.ONE)
-        self._moved = True
+        self._sample_gradient = len(self.light_ports) == 1
+        self._moved = False
+        self._start([Phase(TURN, heading=heading % 360),
+                     Phase(DRIVE, mm=step * self.patch_mm / fx.ONE)])
 
     def claim(self, heading: int) -> None:
-        self.turn_to(heading)
         self.claimed = heading
+        self._start([Phase(TURN, heading=heading % 360)])
 
     def carry(self, dx: int, dy: int) -> None:
         if dx == 0 and dy == 0:
             return
-        self.turn_to(math.degrees(math.atan2(dx, dy)) % 360)
-        self.drive(math.hypot(dx, dy) * self.patch_mm)
+        self._sample_gradient = False
         self._moved = False
+        self._start([Phase(TURN, heading=math.degrees(math.atan2(dx, dy)) % 360),
+                     Phase(DRIVE, mm=math.hypot(dx, dy) * self.patch_mm)])
 
     def beacon(self, on: int) -> None:
         self.b.led(bool(on))

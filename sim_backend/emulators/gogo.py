@@ -14,6 +14,12 @@ line time. So one exchange takes (request + reply) x 10 / baud seconds,
 real UART. A byte that does not fit the header is echoed and ignored; an
 unknown command is echoed and not answered.
 
+Strict on purpose, so a lenient driver shows up here rather than on a
+board: a command byte outside the table below (sensor mode 3, a motor or
+power code with its low bits set, ...) and a select mask with bits above
+0x0F are echoed, counted in `unknown` and neither carried out nor answered
+(the driver must notice the missing reply, not get a guess).
+
 Commands (bits 7-5 command, 4-2 parameter, 1-0 extra):
     0x00 ping; 0x20|(n-1)<<2|mode read sensor n (mode 0 normal, 1 max,
     2 min: this emulator samples on demand, so all three read the same);
@@ -26,7 +32,8 @@ Commands (bits 7-5 command, 4-2 parameter, 1-0 extra):
 The robot: one robot of a sim World (index `index`), pose in mm and degrees
 (0 = north, clockwise), mirrored into the world's Q8 position. The `left`
 and `right` outputs drive the wheels at power x `mm_s_per_level` mm/s
-(forward when their direction is `*_forward`) in wall-clock time; a wheel
+(forward when their direction is `*_forward`) in the time of `clock` (wall
+time by default; a SimClock for tests that must not depend on load); a wheel
 pushed into an object, a robot or the arena's edge does not move the robot.
 Touch switches (`touch_ports`, bearing -> port) are closed, reading near 0,
 when the patch one patch away in their direction is object, wall or another
@@ -38,10 +45,8 @@ beacon: on adds the robot's field to the world (Signal), off removes it.
 
 from __future__ import annotations
 
-import time
-
 from sim_backend.emulators.ptyport import Emulator
-from sim_backend.emulators.worldrobot import WorldRobot
+from sim_backend.emulators.worldrobot import SimClock, SystemClock, WorldRobot
 from sim_backend.world import FREE
 
 FRAME_1, FRAME_2 = 0x54, 0xFE
@@ -63,8 +68,10 @@ class GoGoEmulator(WorldRobot, Emulator):
                  light_ports: dict[int, int] | None = None,
                  dark: int = 800, light_step: int = 40, left: str = "A", right: str = "B",
                  left_forward: str = "thisway", right_forward: str = "thisway",
-                 mm_s_per_level: float = 20.0, wheel_base_mm: float = 100.0) -> None:
+                 mm_s_per_level: float = 20.0, wheel_base_mm: float = 100.0,
+                 clock: SimClock | SystemClock | None = None) -> None:
         super().__init__(baud, path)
+        self.clock = clock if clock is not None else SystemClock()
         self.world = world
         self.index = index
         self.patch_mm = patch_mm
@@ -96,7 +103,7 @@ class GoGoEmulator(WorldRobot, Emulator):
         self.beacon_src: tuple[int, int] | None = None
         self._state = IDLE
         self._cmd = 0
-        self._t = time.monotonic()
+        self._t = self.clock.now()
         # faults for tests
         self.noise_next = b""           # written before the next request's echo
         self.garbage_next = b""         # written between the next echo and its reply
@@ -114,7 +121,7 @@ class GoGoEmulator(WorldRobot, Emulator):
         return sign * self.motor_power[bit] * self.mm_s_per_level
 
     def _integrate(self) -> None:
-        now = time.monotonic()
+        now = self.clock.now()
         dt = now - self._t
         self._t = now
         vl, vr = self.wheel_speed("left"), self.wheel_speed("right")
@@ -202,7 +209,7 @@ class GoGoEmulator(WorldRobot, Emulator):
         group, param, extra = cmd >> 5, (cmd >> 2) & 7, cmd & 3
         if cmd == 0x00:
             self._answer(bytes([OK]))
-        elif group == 1:                 # 0x20: read sensor param+1
+        elif group == 1 and extra <= 2:  # 0x20: read sensor param+1 (mode 3: none)
             v = self.reading(param + 1)
             self._answer(bytes([(v >> 8) & 0x03, v & 0xFF]))
         elif group == 2 and extra == 0 and param <= 5:
@@ -225,8 +232,8 @@ class GoGoEmulator(WorldRobot, Emulator):
                 if self.selected & bit:
                     self.motor_power[bit] = param
             self._answer(bytes([OK]))
-        elif cmd == 0x80:
-            self.selected = arg & 0x0F
+        elif cmd == 0x80 and 0 <= arg <= 0x0F:
+            self.selected = arg
             self._answer(bytes([OK]))
         elif cmd in (0xC0, 0xC1):
             self.led = 1 if cmd == 0xC0 else 0

@@ -10,9 +10,16 @@ rate gets garbage, as from a real UART. Commands: B, D, E, G, H, L, N, O
 (others answer `Command not found`; a wrong argument count answers
 `z,Protocol error`, as KiKS does).
 
+Strict on purpose, so a lenient driver shows up here rather than on a
+robot: a line longer than MAX_LINE bytes is discarded up to its CR and
+answered `z,Protocol error` as a whole (no tail of it is ever executed);
+arguments must be plain decimal integers (`-12`, not ` 12`, `+12` or
+`1_2`); a command letter is one upper-case letter with nothing around it.
+
 The body: one robot of a sim World (index `index`), pose kept in mm and
 degrees (0 = north, clockwise) and mirrored into the world's Q8 position.
-Wheels move by the set speeds (pulses per 10 ms) in wall-clock time.
+Wheels move by the set speeds (pulses per 10 ms) in the time of `clock`
+(wall time by default; a SimClock for tests that must not depend on load).
 Proximity sensor k reads high (about 1000) when the patch one patch away
 in its direction is object, wall or robot, else a low noise level; ambient
 sensor k reads `dark - field x light_step` of the patch in its direction
@@ -22,10 +29,10 @@ world (Signal), off removes it.
 
 from __future__ import annotations
 
-import time
+import re
 
 from sim_backend.emulators.ptyport import Emulator
-from sim_backend.emulators.worldrobot import WorldRobot
+from sim_backend.emulators.worldrobot import SimClock, SystemClock, WorldRobot
 from sim_backend.world import FREE
 
 BANNER = b"\r\nKhepera II BIOS rev 5.01\r\nSerial Communication Protocol\r\n"
@@ -34,6 +41,8 @@ WHEEL_BASE_MM = 53.0
 # sensor bearings relative to the robot's heading, clockwise degrees
 # (0 left side ... 5 right side, 6 rear right, 7 rear left)
 SENSOR_BEARINGS = (-90, -45, -10, 10, 45, 90, 170, -170)
+MAX_LINE = 64                           # no command is that long
+INTEGER = re.compile(rb"-?[0-9]+\Z")
 
 
 class KheperaEmulator(WorldRobot, Emulator):
@@ -41,8 +50,10 @@ class KheperaEmulator(WorldRobot, Emulator):
 
     def __init__(self, world=None, index: int = 0, baud: int = 38400,
                  patch_mm: float = 50.0, heading: float = 0.0, path: str | None = None,
-                 dark: int = 450, light_step: int = 40) -> None:
+                 dark: int = 450, light_step: int = 40,
+                 clock: SimClock | SystemClock | None = None) -> None:
         super().__init__(baud, path)
+        self.clock = clock if clock is not None else SystemClock()
         self.world = world
         self.index = index
         self.patch_mm = patch_mm
@@ -58,19 +69,22 @@ class KheperaEmulator(WorldRobot, Emulator):
         self.speed = [0, 0]
         self.leds = [0, 0]
         self.beacon_src: tuple[int, int] | None = None
-        self._t = time.monotonic()
+        self._t = self.clock.now()
         self._line = b""
+        self._overlong = False          # discarding the rest of a line too long
         self.commands = 0
+        self.refused = 0                # lines answered with an error
         # faults for tests
         self.garbage_next = b""         # sent before the next reply
         self.truncate_next = 0          # cut the next reply to this many bytes
         self.mute_next = 0              # do not answer the next N requests
+        self.corrupt_request_next = 0   # noise hits the next N requests on their way in
         self.reply(BANNER)
 
     # -- physics ---------------------------------------------------------------
 
     def _integrate(self) -> None:
-        now = time.monotonic()
+        now = self.clock.now()
         dt = now - self._t
         self._t = now
         if dt <= 0 or self.speed == [0, 0]:
@@ -115,12 +129,19 @@ class KheperaEmulator(WorldRobot, Emulator):
         for c in data:
             if c in (10, 13):
                 line, self._line = self._line, b""
-                if line:
+                if self._overlong:
+                    self._overlong = False
+                    self._refuse("z,Protocol error", MAX_LINE + 1)
+                elif line:
                     self._command(line)
+            elif self._overlong:
+                continue
             else:
                 self._line += bytes([c])
-                if len(self._line) > 64:
-                    self._line = b""       # no command is that long
+                if len(self._line) > MAX_LINE:
+                    # the whole line is bad: drop it up to its CR, then say so
+                    self._line = b""
+                    self._overlong = True
 
     def _send(self, text: str, request_len: int) -> None:
         out = self.garbage_next + text.encode("ascii") + b"\r\n"
@@ -130,30 +151,28 @@ class KheperaEmulator(WorldRobot, Emulator):
             self.truncate_next = 0
         self.reply(out, request_len)
 
+    def _refuse(self, text: str, request_len: int) -> None:
+        self.refused += 1
+        self._send(text, request_len)
+
     def _command(self, line: bytes) -> None:
         self.commands += 1
         if self.mute_next:
             self.mute_next -= 1
             return
-        try:
-            text = line.decode("ascii")
-        except UnicodeDecodeError:
-            self._send("Command not found", len(line) + 1)
-            return
-        parts = text.strip().split(",")
-        cmd = parts[0]
-        try:
-            args = [int(a) for a in parts[1:]]
-        except ValueError:
-            self._send("z,Protocol error", len(line) + 1)
-            return
+        if self.corrupt_request_next:
+            self.corrupt_request_next -= 1
+            line = b"\xf3" + line[1:]          # the command letter hit by noise
+        parts = line.split(b",")
+        cmd = parts[0].decode("latin-1")
         need = {"B": 0, "D": 2, "E": 0, "G": 2, "H": 0, "L": 2, "N": 0, "O": 0}
         if cmd not in need:
-            self._send("Command not found", len(line) + 1)
+            self._refuse("Command not found", len(line) + 1)
             return
-        if len(args) != need[cmd]:
-            self._send("z,Protocol error", len(line) + 1)
+        if not all(INTEGER.match(a) for a in parts[1:]) or len(parts) - 1 != need[cmd]:
+            self._refuse("z,Protocol error", len(line) + 1)
             return
+        args = [int(a) for a in parts[1:]]
         self._integrate()
         low = cmd.lower()
         if cmd == "B":

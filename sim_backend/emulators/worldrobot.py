@@ -1,13 +1,57 @@
 """The physics both device emulators share: a differential-drive robot in
-the sim world (mm pose, wheel arcs, collisions, beacon field). The protocol
-sides of the emulators stay separate; only the world they drive is shared."""
+the sim world (mm pose, wheel arcs, collisions, beacon field), and the
+clock its wheels run on. The protocol sides of the emulators stay separate;
+only the world they drive is shared.
+
+Clocks: `SystemClock` (the default) is wall time. `SimClock` moves only
+when told (`advance`, `sleep`); a test shares one with the emulator and the
+body under test, so how far a wheel turns depends on the simulated time
+between two commands, never on how loaded the machine is. Bytes on the
+wire take no simulated time (`wire_time` False): the emulator still sleeps
+the line time, but only in wall time.
+"""
 
 from __future__ import annotations
 
 import math
+import threading
+import time
 
 from firmware_logic import fixedpoint as fx
 from sim_backend.world import FREE
+
+
+class SystemClock:
+    """Wall time (time.monotonic)."""
+
+    wire_time = True
+
+    def now(self) -> float:
+        return time.monotonic()
+
+    def sleep(self, seconds: float) -> None:
+        if seconds > 0:
+            time.sleep(seconds)
+
+
+class SimClock:
+    """Simulated seconds that pass only when the test (or a body) says so."""
+
+    wire_time = False
+
+    def __init__(self, start: float = 0.0) -> None:
+        self._t = start
+        self._lock = threading.Lock()
+
+    def now(self) -> float:
+        return self._t
+
+    def sleep(self, seconds: float) -> None:
+        if seconds > 0:
+            with self._lock:
+                self._t += seconds
+
+    advance = sleep
 
 
 class WorldRobot:
