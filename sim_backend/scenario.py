@@ -19,6 +19,23 @@ from sim_backend.errors import ScenarioError
 
 MODELS = {"firefly": 1, "ant": 2}
 
+# The firmware's RNG folds a run seed modulo 1,000,003 (firmware_logic/rng.py,
+# seed_state), so seed 1,000,004 would silently repeat seed 1. Seeds are held
+# to the one range where every seed gives its own run.
+SEED_MIN, SEED_MAX = 0, 1_000_002
+
+
+def check_seed(seed: Any, source: str = "seed") -> int:
+    """The seed as an int; ScenarioError naming the range when it is outside."""
+    if isinstance(seed, bool) or not isinstance(seed, int):
+        raise ScenarioError(f"{source}: expected an integer in {SEED_MIN}..{SEED_MAX}, "
+                            f"got {seed!r}")
+    if not SEED_MIN <= seed <= SEED_MAX:
+        raise ScenarioError(f"{source} {seed}: outside {SEED_MIN}..{SEED_MAX}; the firmware "
+                            f"RNG takes seeds modulo {SEED_MAX + 1}, so larger or negative "
+                            "seeds would repeat another seed's run")
+    return seed
+
 
 @dataclass(frozen=True)
 class Scenario:
@@ -169,8 +186,11 @@ def _check_consistency(sc: Scenario) -> None:
         for ox in range(ax[0], ax[1] + 1):
             for oy in range(ay[0], ay[1] + 1):
                 if (x + ox - sc.homeX) ** 2 + (y + oy - sc.homeY) ** 2 < 16:
-                    raise ScenarioError("object: may be placed within 4 patches of home; "
-                                        "move objectX/objectY or homeX/homeY")
+                    raise ScenarioError(
+                        f"object: {sc.object!r} at anchor x {ax[0]}..{ax[1]}, y "
+                        f"{ay[0]}..{ay[1]} may come within 4 patches of home "
+                        f"({sc.homeX}, {sc.homeY}); it must stay at least 4 patches away: "
+                        "move objectX/objectY or homeX/homeY")
     reach = objects.touchable(sc.object)
     needed = -(-sc.weight_centi // sc.power_centi)
     if needed > sc.agents:

@@ -13,14 +13,20 @@ from __future__ import annotations
 
 import csv
 import itertools
+import logging
 import os
+import socket
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
 
 from sim_backend.errors import ScenarioError
-from sim_backend.scenario import FIELDS, Scenario, validate
+from sim_backend.scenario import FIELDS, Scenario, check_seed, validate
+
+log = logging.getLogger(__name__)
+# how long to wait for a dask scheduler to answer before calling it unreachable
+CONNECT_TIMEOUT_S = 5.0
 
 ENGINES = ("vector", "reference")
 MEASURES = ["ticks", "found_tick", "converged_tick", "home_tick", "n_touches", "power",
@@ -40,10 +46,19 @@ class Point:
 
 def grid_points(grid: dict[str, Sequence[Any]], experiment: str = "grid") -> list[Point]:
     """The cartesian product of a grid {key: [values]}, in the grid's key order."""
-    for key in grid:
+    for key, values in grid.items():
         if key not in FIELDS:
             raise ScenarioError(f"--grid {key}: unknown scenario key; known keys: "
                                 f"{', '.join(sorted(FIELDS))}")
+        if not values:
+            raise ScenarioError(f"--grid {key}: no values; expected {key}=V1,V2,...")
+        seen: list[Any] = []
+        for v in values:
+            # a repeated value would run (and average) the same point twice
+            if v in seen:
+                raise ScenarioError(f"--grid {key}: value {v!r} is listed twice; "
+                                    "give each value once")
+            seen.append(v)
     keys = list(grid)
     return [Point(experiment, tuple(zip(keys, combo)))
             for combo in itertools.product(*(grid[k] for k in keys))]
@@ -112,20 +127,77 @@ def run_chunk(jobs: Sequence[tuple[dict, dict, int]], engine: str = "vector",
     return out
 
 
+def check_seeds(seeds: Sequence[int]) -> None:
+    """ScenarioError unless seeds is a non-empty list of distinct valid seeds."""
+    if not seeds:
+        raise ScenarioError("seeds: none given; expected at least one seed")
+    seen: set[int] = set()
+    for s in seeds:
+        check_seed(s, "seed")
+        if s in seen:
+            # a repeated seed is the same run again: it would inflate the sample
+            raise ScenarioError(f"seed {s} is listed twice; give each seed once")
+        seen.add(s)
+
+
+def _dask_address(spec: str) -> tuple[str, str, int]:
+    """("tcp://HOST:PORT", HOST, PORT) of a dask://HOST:PORT spec."""
+    hostport = spec.split("://", 1)[1].rstrip("/")
+    host, colon, port = hostport.rpartition(":")
+    if not colon or not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise ValueError(f"executor {spec!r}: expected dask://HOST:PORT with a port "
+                         "1..65535, e.g. dask://127.0.0.1:8786")
+    return f"tcp://{host}:{port}", host.strip("[]"), int(port)
+
+
 def executor_from_spec(spec: str | None):
-    """(executor, closer) for "processes[:N]", "inline" or "dask://HOST:PORT"."""
+    """(executor, closer) for "processes[:N]", "inline" or "dask://HOST:PORT".
+
+    A dask scheduler is reached within CONNECT_TIMEOUT_S or refused with a
+    ValueError naming the address, before any run is submitted."""
     if spec is None or spec == "processes" or spec.startswith("processes:"):
-        n = int(spec.split(":", 1)[1]) if spec and ":" in spec else (os.cpu_count() or 1)
+        n = os.cpu_count() or 1
+        if spec and ":" in spec:
+            text = spec.split(":", 1)[1]
+            if not text.isdigit() or int(text) < 1:
+                raise ValueError(f"executor {spec!r}: expected processes:N with N >= 1 "
+                                 "worker processes")
+            n = int(text)
         ex = ProcessPoolExecutor(max_workers=n)
         return ex, ex.shutdown
     if spec == "inline":
         return None, (lambda: None)
     if spec.startswith("dask://") or spec.startswith("tcp://"):
+        address, host, port = _dask_address(spec)
+        # dask's own connect retries for 30 s and then raises from deep inside;
+        # a plain TCP connect tells a wrong address at once
+        try:
+            with socket.create_connection((host, port), timeout=CONNECT_TIMEOUT_S):
+                pass
+        except OSError as err:
+            raise ValueError(f"executor {spec}: no dask scheduler reachable at {host}:{port} "
+                             f"({err.strerror or err}); start one with `dask scheduler` or "
+                             "use --executor processes") from None
         from distributed import Client
-        address = "tcp://" + spec.split("://", 1)[1]
-        client = Client(address)
+        try:
+            client = Client(address, timeout=CONNECT_TIMEOUT_S)
+        except (OSError, TimeoutError) as err:
+            raise ValueError(f"executor {spec}: {host}:{port} answers but is not a dask "
+                             f"scheduler ({err})") from None
+        log.info("connected to dask scheduler %s", address)
         return client.get_executor(), client.close
     raise ValueError(f"executor: expected processes[:N], inline or dask://HOST:PORT, got {spec!r}")
+
+
+def validate_points(points: Sequence[Point], base: Scenario | None = None,
+                    overrides: dict[str, Any] | None = None) -> None:
+    """ScenarioError for the first point that is not a valid scenario."""
+    if not points:
+        raise ScenarioError("sweep: no grid points; expected at least one")
+    base_d = (base or Scenario()).to_dict()
+    base_d.update(overrides or {})
+    for pt in points:
+        _scenario(base_d, pt.as_dict())
 
 
 def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None = None,
@@ -140,7 +212,12 @@ def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None =
     """
     if engine not in ENGINES:
         raise ValueError(f"engine: expected one of {ENGINES}, got {engine!r}")
+    if isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or chunk_size < 1:
+        raise ValueError(f"chunk_size: expected at least 1 run per chunk, got {chunk_size!r}")
     seeds = list(seeds)
+    check_seeds(seeds)
+    if not points:
+        raise ScenarioError("sweep: no grid points; expected at least one")
     base_d = (base or Scenario()).to_dict()
     base_d.update(overrides or {})
     jobs: list[tuple[dict, dict, int]] = []

@@ -4,15 +4,30 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 
 def register(sub) -> None:
-    p = sub.add_parser("replay", help="replay a recorded run against the firmware and host",
-                       description="Re-run every robot's firmware on its recorded sensor "
-                                   "stream and the coordinator on the recorded reports; report "
-                                   "each decision that differs. Exit 1 on any divergence.")
-    p.add_argument("file", type=Path, help="a recording made by `touchswarm run --record`")
+    from bridge.record.formats import FORMATS
+    p = sub.add_parser(
+        "replay", help="replay a recorded run against the firmware and host",
+        description="Re-run every robot's firmware on its recorded sensor stream and the "
+                    "coordinator on the recorded reports; report each decision that differs, "
+                    "and any difference from the run summary in the sidecar FILE.json. "
+                    "Before replaying, the recording is checked against its sidecar: a "
+                    "truncated, corrupt or mismatched recording is refused. Exit status 0 "
+                    "when every decision matches, 1 on any divergence, 2 when the recording "
+                    "or its sidecar is missing, unreadable, truncated or mismatched.",
+        epilog="examples:\n"
+               "  touchswarm run --link can --record run.blf && touchswarm replay run.blf\n"
+               "  touchswarm replay --json hil_tests/data/golden_ant.blf\n"
+               "\nA sidecar without a frame count (written by another tool) is replayed "
+               "with a warning:\ntruncation cannot be detected then.",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("file", type=Path, metavar="FILE",
+                   help="a recording made by `touchswarm run --record` (%s), with its "
+                        "sidecar FILE.json beside it" % ", ".join(FORMATS))
     p.add_argument("--realtime", action="store_true",
                    help="pace by the recorded timestamps (default: as fast as possible)")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
@@ -22,6 +37,8 @@ def register(sub) -> None:
 def cmd_replay(args: argparse.Namespace) -> int:
     from bridge.record.replay import replay
     s = replay(args.file, realtime=args.realtime)
+    for w in s["warnings"]:
+        print(f"touchswarm: warning: {w}", file=sys.stderr)
     if args.json:
         print(json.dumps(s, sort_keys=True))
     else:

@@ -11,13 +11,18 @@ from bridge.errors import UsageError
 
 
 def add_scenario_args(p: argparse.ArgumentParser) -> None:
+    from sim_backend.scenario import SEED_MAX, SEED_MIN
     p.add_argument("--scenario", default="default", metavar="NAME|FILE",
                    help="built-in scenario name (see `touchswarm scenarios`) or a TOML file "
                         "(default: %(default)s)")
-    p.add_argument("--seed", type=int, default=1, help="run seed (default: %(default)s)")
-    p.add_argument("--robots", type=int, metavar="N", help="override the scenario's agents")
+    p.add_argument("--seed", type=int, default=1,
+                   help=f"run seed, {SEED_MIN}..{SEED_MAX:,}; the same seed gives the same "
+                        "run (default: %(default)s)")
+    p.add_argument("--robots", type=int, metavar="N",
+                   help="number of robots; overrides the scenario's agents")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                   help="override any scenario key, e.g. --set fieldDefiance=4 (repeatable)")
+                   help="override any scenario key, e.g. --set fieldDefiance=4 (repeatable, "
+                        "one per key; `touchswarm scenarios` lists keys and ranges)")
 
 
 def parse_value(text: str):
@@ -45,47 +50,83 @@ def parse_overrides(items: list[str]) -> dict:
     changes = {}
     for item in items:
         key, eq, value = item.partition("=")
-        if not eq:
+        key = key.strip()
+        if not eq or not key or not value.strip():
             raise UsageError(f"--set {item!r}: expected KEY=VALUE, e.g. --set sigRadius=6")
-        changes[key.strip()] = parse_value(value.strip())
+        if key in changes:
+            # the last one would silently win: say which value was meant
+            raise UsageError(f"--set {key} given twice ({changes[key]!r} and "
+                             f"{parse_value(value.strip())!r}); give each key once")
+        changes[key] = parse_value(value.strip())
     return changes
 
 
 def scenario_from_args(args: argparse.Namespace):
+    """The scenario and seed the command line asks for, both validated."""
     from sim_backend import scenario
+    scenario.check_seed(args.seed, "--seed")
     sc = scenario.load(args.scenario)
     changes = parse_overrides(args.set)
     if args.robots is not None:
+        if "agents" in changes and changes["agents"] != args.robots:
+            raise UsageError(f"--robots {args.robots} and --set agents={changes['agents']} "
+                             "disagree; give one of them")
         changes["agents"] = args.robots
     return sc.replace(**changes) if changes else sc
 
 
 def register(sub) -> None:
+    from bridge.record.formats import FORMATS
     p = sub.add_parser(
         "run", help="run the whole mission in the simulated world",
         description="Run one scenario to the end with no hardware: robots search, touch, "
-                    "converge, and carry the object home. Prints a summary.")
+                    "converge, and carry the object home. Prints a summary. Exit status 0 "
+                    "when the object was delivered home, 1 when it was not, 2 on bad input "
+                    "(checked before the run starts, output paths included).",
+        epilog="examples:\n"
+               "  touchswarm run                                  # the default scenario\n"
+               "  touchswarm run --scenario ant --seed 7 --out ant7/\n"
+               "  touchswarm run --robots 12 --set fieldDefiance=4 --json\n"
+               "  touchswarm run --link can --record run.blf      # then: touchswarm replay "
+               "run.blf",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
     add_scenario_args(p)
     p.add_argument("--out", type=Path, metavar="DIR",
-                   help="write world.png and the thesis-style CSV records here")
+                   help="directory (created if missing) for world.png, summary.json and the "
+                        "thesis-style CSV records")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
     p.add_argument("--link", choices=["inproc", "can"], default="inproc",
                    help="how robots reach the host coordinator: in-process lists, or CAN "
                         "frames over a python-can virtual channel (default: %(default)s)")
     p.add_argument("--record", type=Path, metavar="FILE",
-                   help="record all traffic, SENSOR and ACTION capture frames included, "
-                        "as a python-can log (.blf, .asc, .log by suffix) plus FILE.json")
+                   help="record all traffic, SENSOR and ACTION capture frames included, as a "
+                        "python-can log plus FILE.json (scenario, seed, frame count, summary); "
+                        "the suffix picks the format: " + ", ".join(FORMATS))
     p.set_defaults(func=cmd_run)
+
+
+def check_outputs(args: argparse.Namespace) -> None:
+    """Refuse unusable --out and --record paths before the run, not after it."""
+    from bridge.commands.paths import check_out_dir, check_out_file
+    from bridge.record.formats import meta_path, record_format
+    if args.out is not None:
+        check_out_dir(args.out, "--out")
+    if args.record is not None:
+        record_format(args.record)
+        check_out_file(args.record, "--record", "run.blf")
+        check_out_file(meta_path(args.record), "--record (its sidecar)", "run.blf.json")
 
 
 def cmd_run(args: argparse.Namespace) -> int:
     from sim_backend.engine import Engine
 
     sc = scenario_from_args(args)
+    if args.link == "can":
+        check_link_limits(sc, "CAN")
+    check_outputs(args)
     nodes = list(range(1, sc.agents + 1))
     link = None
     if args.link == "can":
-        check_link_limits(sc, "CAN")
         from bridge.links.canlink import CanLink
         link = CanLink(nodes)
     recorder = None
@@ -116,6 +157,7 @@ def _run(args: argparse.Namespace, sc, engine, recorder) -> int:
     summary = result.summary()
     if recorder is not None:
         recorder.close(summary)
+    converged_power = power_at_convergence(result.coordinator)
     if args.out:
         from sim_backend.records import write_records
         from sim_backend.render import render
@@ -124,7 +166,7 @@ def _run(args: argparse.Namespace, sc, engine, recorder) -> int:
     if args.json:
         print(json.dumps(summary, sort_keys=True))
     else:
-        print(format_summary(summary))
+        print(format_summary(summary, converged_power))
         if args.out:
             print(f"records and world.png written to {args.out}/")
         if args.record:
@@ -132,17 +174,32 @@ def _run(args: argparse.Namespace, sc, engine, recorder) -> int:
     return 0 if summary["delivered"] else 1
 
 
-def format_summary(s: dict) -> str:
+def power_at_convergence(coord) -> float | None:
+    """The power held when the holders first matched the weight: the summary's
+    power is the final one, which later touches may have raised."""
+    if coord.converged_tick < 0:
+        return None
+    return sum(t.power for t in coord.touches if t.tick <= coord.converged_tick) / 100
+
+
+def format_summary(s: dict, converged_power: float | None = None) -> str:
     def t(v):
         return "never" if v is None else f"tick {v}"
+    if s["converged_tick"] is None:
+        held = f"(power {s['power']:g} held at the end)"
+    elif converged_power is None:
+        held = ""
+    else:
+        held = f"(power {converged_power:g} held then)"
     lines = [
         f"scenario {s['scenario']}: {s['robots']} {s['movementModel']} robots, "
         f"object {s['object']}, seed {s['seed']}",
         f"  first touch      {t(s['found_tick'])}",
-        f"  converged        {t(s['converged_tick'])}  (power {s['power']:g})",
+        f"  converged        {t(s['converged_tick'])}  {held}".rstrip(),
         f"  delivered home   {t(s['home_tick'])}",
         f"  leader           robot {s['leader']}",
-        f"  touches          {len(s['touches'])} robots hold the object",
+        f"  touches          {len(s['touches'])} robots hold the object, power "
+        f"{s['power']:g}",
         f"  shape IoU        {s['shape_iou']:.3f}",
         f"  result           {'DELIVERED' if s['delivered'] else 'NOT delivered'}"
         f" after {s['ticks']} ticks",

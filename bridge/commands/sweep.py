@@ -21,17 +21,23 @@ def register(sub) -> None:
                "  touchswarm sweep --grid fieldDefiance=0,2,4,8 --grid movementModel=firefly,ant "
                "--seeds 150\n"
                "  touchswarm sweep --thesis --out thesis-out\n"
-               "  touchswarm sweep --grid sigRadius=3,5,7 --executor dask://10.0.0.5:8786",
+               "  touchswarm sweep --grid sigRadius=3,5,7 --seeds 101-200 --executor "
+               "dask://10.0.0.5:8786\n"
+               "\nEverything is checked before the first run: keys and values, seeds (distinct, "
+               "0..1000002),\nthe output directory and the executor. Exit 0 when every run "
+               "finished, 2 on bad input.",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--scenario", default="default", metavar="NAME|FILE",
                    help="base scenario every point starts from (default: %(default)s)")
     p.add_argument("--grid", action="append", default=[], metavar="KEY=V1,V2,...",
-                   help="a scenario key and its values (repeatable; the grid is their product)")
+                   help="a scenario key and its distinct values (repeatable, once per key; "
+                        "the grid is their product)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a scenario key for every point (repeatable)")
+                   help="override a scenario key for every point (repeatable, once per key, "
+                        "not a --grid key)")
     p.add_argument("--seeds", default=None, metavar="N|A-B|A,B,...",
-                   help="seeds: a count N (1..N), a range A-B or a list (default: 20; "
-                        "--thesis: 150)")
+                   help="seeds: a count N (seeds 1..N), a range A-B (A <= B) or a list of "
+                        "distinct seeds, each in 0..1000002 (default: 20; --thesis: 150)")
     p.add_argument("--thesis", action="store_true",
                    help="reproduce every graph and figure of the thesis's chapter 5 "
                         "(150 seeds per point, both movement models, until convergence)")
@@ -44,27 +50,50 @@ def register(sub) -> None:
                    help="processes[:N] (default: one per core), inline, or dask://HOST:PORT "
                         "(a dask.distributed scheduler)")
     p.add_argument("--chunk", type=int, default=None, metavar="RUNS",
-                   help="runs per task (default: spread evenly, at most 512)")
+                   help="runs per task, at least 1 (default: spread evenly, at most 512)")
     p.add_argument("--out", type=Path, default=Path("sweep-out"), metavar="DIR",
-                   help="where sweep.csv and the PNGs go (default: %(default)s)")
+                   help="directory (created if missing) for sweep.csv and the PNGs "
+                        "(default: %(default)s)")
     p.add_argument("--no-plots", action="store_true", help="write the CSV only")
     p.add_argument("--json", action="store_true", help="print a JSON summary line")
     p.set_defaults(func=cmd_sweep)
 
 
 def _seeds(text: str) -> list[int]:
+    """--seeds as a list of distinct seeds in the valid range."""
+    from sim_backend.scenario import SEED_MAX, SEED_MIN
+    form = "expected a count N, a range A-B or a list A,B,... of seeds in " \
+           f"{SEED_MIN}..{SEED_MAX}"
     try:
         if "," in text:
-            return [int(v) for v in text.split(",") if v.strip()]
-        if "-" in text.strip()[1:]:
-            a, b = text.split("-", 1)
-            return list(range(int(a), int(b) + 1))
-        n = int(text)
-    except ValueError:
-        raise UsageError(f"--seeds {text!r}: expected a count, A-B or a comma list") from None
-    if n < 1:
-        raise UsageError(f"--seeds {text!r}: expected at least 1")
-    return list(range(1, n + 1))
+            seeds = [int(v) for v in text.split(",") if v.strip()]
+        elif "-" in text.strip()[1:]:
+            a, b = (int(v) for v in text.split("-", 1))
+            if a > b:
+                raise UsageError(f"--seeds {text}: the range is empty (A > B); "
+                                 f"expected A-B with A <= B, e.g. {b}-{a}")
+            seeds = list(range(a, b + 1))
+        else:
+            n = int(text)
+            if not 1 <= n <= SEED_MAX:
+                raise UsageError(f"--seeds {text}: a count must be 1..{SEED_MAX} "
+                                 f"(seeds 1..N); {form}")
+            seeds = list(range(1, n + 1))
+    except ValueError as err:
+        if isinstance(err, UsageError):
+            raise
+        raise UsageError(f"--seeds {text!r}: {form}") from None
+    if not seeds:
+        raise UsageError(f"--seeds {text!r}: no seeds; {form}")
+    for s in seeds:
+        if not SEED_MIN <= s <= SEED_MAX:
+            raise UsageError(f"--seeds {text}: seed {s} is outside {SEED_MIN}..{SEED_MAX} "
+                             "(the firmware RNG takes seeds modulo 1000003)")
+    dup = next((s for i, s in enumerate(seeds) if s in seeds[:i]), None)
+    if dup is not None:
+        raise UsageError(f"--seeds {text}: seed {dup} is listed twice; a repeated seed is "
+                         "the same run again, give each seed once")
+    return seeds
 
 
 def _grid(items: list[str]) -> dict:
@@ -72,10 +101,14 @@ def _grid(items: list[str]) -> dict:
     grid: dict = {}
     for item in items:
         key, eq, values = item.partition("=")
-        if not eq or not values.strip():
+        key = key.strip()
+        if not eq or not key or not values.strip():
             raise UsageError(f"--grid {item!r}: expected KEY=V1,V2,..., "
                              "e.g. --grid fieldDefiance=0,2,4")
-        grid[key.strip()] = [parse_value(v.strip()) for v in values.split(",") if v.strip()]
+        if key in grid:
+            raise UsageError(f"--grid {key} given twice; put all its values in one "
+                             f"--grid {key}=V1,V2,...")
+        grid[key] = [parse_value(v.strip()) for v in values.split(",") if v.strip()]
     return grid
 
 
@@ -95,9 +128,20 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     else:
         if not args.grid:
             raise UsageError("give at least one --grid KEY=V1,V2,... (or --thesis)")
-        points = sweep.grid_points(_grid(args.grid))
+        grid = _grid(args.grid)
+        both = sorted(set(grid) & set(overrides))
+        if both:
+            raise UsageError(f"--set {both[0]} and --grid {both[0]} both given; the grid "
+                             "would override --set: give the key in one of them")
+        points = sweep.grid_points(grid)
         seeds = _seeds(args.seeds) if args.seeds else list(range(1, 21))
         until = args.until or "delivered"
+    if args.chunk is not None and args.chunk < 1:
+        raise UsageError(f"--chunk {args.chunk}: expected at least 1 run per task")
+    # every check that can refuse the sweep runs before the first run
+    sweep.validate_points(points, base, overrides)
+    from bridge.commands.paths import check_out_dir
+    check_out_dir(args.out, "--out")
     try:
         executor, close = sweep.executor_from_spec(args.executor)
     except ValueError as err:
@@ -123,7 +167,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         if args.thesis:
             pngs = plots.thesis_plots(rows, args.out)
         else:
-            pngs = plots.grid_plots(rows, list(_grid(args.grid)), args.out)
+            pngs = plots.grid_plots(rows, list(grid), args.out)
     info = {"runs": len(rows), "points": len(points), "seeds": len(seeds), "engine": args.engine,
             "executor": args.executor, "until": until, "wall_s": round(wall, 3),
             "csv": str(csv_path), "plots": [str(p) for p in pngs]}

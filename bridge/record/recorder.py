@@ -5,7 +5,9 @@ File layout, per tick: for each robot in node order its SENSOR frames then its
 ACTION frames, then the robots' reports, then the host's commands. Frame
 timestamps are EPOCH + tick * TICK_SECONDS (+ 1 us per frame within a tick),
 so the files are reproducible and `--realtime` replay paces by them. A
-sidecar FILE.json keeps what the frames cannot: the scenario and the seed.
+sidecar FILE.json keeps what the frames cannot: the scenario and the seed,
+plus the number of frames written and the run's summary, so that replay can
+tell a truncated or mismatched recording from a diverging one.
 
 Sensor query codes (SENSOR.query; the codes are firmware_logic/hal.py's): 1 probe(arg=heading), 2 field_ahead(heading),
 3 field_here, 4 uphill, 5 holding, 6 recv (arg = kind received, 0 none; the
@@ -26,18 +28,17 @@ import can
 from bridge.links.codec import Message, encode
 from firmware_logic import hal
 from bridge.errors import UsageError
+from bridge.record.formats import FORMATS, SUFFIXES, meta_path, record_format  # noqa: F401
 from firmware_logic import messages as msg
 
 log = logging.getLogger(__name__)
 
 EPOCH = 1_700_000_000.0
+# sidecar format; "frames" is written on every close, "summary" when the run
+# finished (an interrupted run leaves a sidecar without it)
+FORMAT = 1
 TICK_SECONDS = 0.01
-SUFFIXES = (".blf", ".asc", ".log", ".csv", ".trc")
 Q_RECV, Q_X, Q_Y = hal.RECV, hal.POS_X, hal.POS_Y
-
-
-def meta_path(path: Path) -> Path:
-    return Path(str(path) + ".json")
 
 
 class RecordingLink:
@@ -87,13 +88,15 @@ class Recorder:
 
     def __init__(self, path: Path, scenario: Any, seed: int, link: str = "inproc") -> None:
         path = Path(path)
-        if not any(str(path).endswith(s) or str(path).endswith(s + ".gz") for s in SUFFIXES):
-            raise UsageError(f"--record {path}: unknown format; expected a file ending "
-                                f"in one of {', '.join(SUFFIXES)} (optionally + .gz)")
+        record_format(path)
         self.path = path
         self.meta = {"scenario": scenario.to_dict(), "seed": seed, "link": link,
-                     "tick_seconds": TICK_SECONDS, "epoch": EPOCH, "format": 1}
-        self.writer = can.Logger(str(path))
+                     "tick_seconds": TICK_SECONDS, "epoch": EPOCH, "format": FORMAT}
+        try:
+            self.writer = can.Logger(str(path))
+        except OSError as err:
+            raise UsageError(f"--record {path}: cannot write ({err.strerror or err})") \
+                from None
         self.frames = 0
         self._closed = False
 

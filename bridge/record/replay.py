@@ -12,8 +12,10 @@ from __future__ import annotations
 
 import json
 import logging
+import struct
 import time
 from collections import defaultdict, deque
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -21,15 +23,19 @@ import can
 
 from bridge.errors import UsageError
 from bridge.links.codec import HOST_KINDS, BadFrames, Decoder, Message
-from bridge.record.recorder import Q_RECV, Q_X, Q_Y, meta_path
+from bridge.record.formats import meta_path, record_format
+from bridge.record.recorder import Q_RECV, Q_X, Q_Y
 from firmware_logic import messages as msg
 from firmware_logic.behaviours.thesis.coordinator import Coordinator
 from firmware_logic import hal
 from firmware_logic.hal import Hal
 from firmware_logic.behaviours.thesis.robot import Robot
+from sim_backend.scenario import check_seed
 
 log = logging.getLogger(__name__)
 
+# what replay compares between the sidecar's summary and its own outcome
+SUMMARY_KEYS = ("robots", "ticks", "touches", "home_tick")
 QUERY_NAMES = dict(enumerate(hal.QUERY_NAMES))
 
 
@@ -49,43 +55,129 @@ class Recording:
     down: dict[int, list[Message]] = field(default_factory=lambda: defaultdict(list))
     frames: int = 0
     bad: dict[str, int] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+
+
+def _sidecar(path: Path) -> dict:
+    """The sidecar's JSON, checked for the keys replay needs; UsageError naming
+    the sidecar and what is wrong with it."""
+    mp = meta_path(path)
+    redo = f"record again with `touchswarm run --record {path.name}`"
+    if not mp.is_file():
+        raise UsageError(f"replay: {path} has no sidecar {mp.name} (scenario and seed); "
+                         f"{redo}")
+    try:
+        meta = json.loads(mp.read_text())
+    except (OSError, UnicodeDecodeError) as err:
+        raise UsageError(f"replay: sidecar {mp} cannot be read ({err}); {redo}") from None
+    except json.JSONDecodeError as err:
+        raise UsageError(f"replay: sidecar {mp} is not valid JSON ({err}); {redo}") from None
+    if not isinstance(meta, dict):
+        raise UsageError(f"replay: sidecar {mp} holds a JSON {type(meta).__name__}; expected "
+                         f"an object with scenario and seed; {redo}")
+    missing = [k for k in ("scenario", "seed") if k not in meta]
+    if missing:
+        raise UsageError(f"replay: sidecar {mp} is incomplete: no {' and no '.join(missing)}; "
+                         f"{redo}")
+    if not isinstance(meta["scenario"], dict):
+        raise UsageError(f"replay: sidecar {mp}: scenario must be a JSON object of scenario "
+                         f"keys, got {meta['scenario']!r:.40}")
+    check_seed(meta["seed"], f"replay: sidecar {mp}: seed")
+    frames = meta.get("frames")
+    if frames is not None and (isinstance(frames, bool) or not isinstance(frames, int)
+                               or frames < 0):
+        raise UsageError(f"replay: sidecar {mp}: frames must be a count >= 0, got {frames!r}")
+    summary = meta.get("summary")
+    if summary is not None and not (isinstance(summary, dict)
+                                    and all(k in summary for k in SUMMARY_KEYS)):
+        raise UsageError(f"replay: sidecar {mp}: summary must be the run's summary object "
+                         f"with {', '.join(SUMMARY_KEYS)}; {redo}")
+    return meta
+
+
+@contextmanager
+def _quiet_python_can():
+    """python-can logs a warning per line it cannot parse; replay's own checks
+    say what is wrong in one line, so hold them back unless asked (-v)."""
+    lg = logging.getLogger("can")
+    old = lg.level
+    if not lg.isEnabledFor(logging.INFO):
+        lg.setLevel(logging.ERROR)
+    try:
+        yield
+    finally:
+        lg.setLevel(old)
 
 
 def load(path: Path) -> Recording:
+    """Read a recording and its sidecar. UsageError (bad input: the CLI exits 2)
+    for a missing, unreadable, corrupt, truncated or mismatched recording."""
     path = Path(path)
     if not path.exists():
         raise UsageError(f"replay: no such recording {path}")
-    mp = meta_path(path)
-    if not mp.exists():
-        raise UsageError(f"replay: {path} has no sidecar {mp.name} (scenario and seed); "
-                         f"record with `touchswarm run --record {path.name}`")
-    rec = Recording(meta=json.loads(mp.read_text()))
+    if path.is_dir():
+        raise UsageError(f"replay: {path} is a directory; expected a recording file made "
+                         "by `touchswarm run --record`")
+    fmt = record_format(path, "replay")
+    if path.stat().st_size == 0:
+        raise UsageError(f"replay: {path} is empty (0 bytes); expected a recording made by "
+                         "`touchswarm run --record`")
+    rec = Recording(meta=_sidecar(path))
     dec = Decoder("host", BadFrames("replay"))
     tick = 0
-    for frame in can.LogReader(str(path)):
-        if frame.is_error_frame:
-            continue
-        rec.frames += 1
-        m = dec.decode_capture(frame)
-        if m is None:
-            continue
-        node, kind, f = m
-        if kind in (msg.SENSOR, msg.ACTION):
-            t = tick + ((f[0] - tick) & 0xFFFF)   # 16-bit tick field, unwrapped
-            if t != tick:
-                tick = t
-                rec.ticks.append(t)
-                rec.stamps[t] = frame.timestamp
-            table = rec.sensors if kind == msg.SENSOR else rec.actions
-            table[node].setdefault(t, []).append(tuple(f[2:]))
-        elif kind in HOST_KINDS:
-            rec.down[tick].append((node, kind, tuple(f)))
-        else:
-            rec.up[tick].append((node, kind, tuple(f)))
+    try:
+        with _quiet_python_can():
+            for frame in can.LogReader(str(path)):
+                if frame.is_error_frame:
+                    continue
+                rec.frames += 1
+                m = dec.decode_capture(frame)
+                if m is None:
+                    continue
+                node, kind, f = m
+                if kind in (msg.SENSOR, msg.ACTION):
+                    t = tick + ((f[0] - tick) & 0xFFFF)   # 16-bit tick field, unwrapped
+                    if t != tick:
+                        tick = t
+                        rec.ticks.append(t)
+                        rec.stamps[t] = frame.timestamp
+                    table = rec.sensors if kind == msg.SENSOR else rec.actions
+                    table[node].setdefault(t, []).append(tuple(f[2:]))
+                elif kind in HOST_KINDS:
+                    rec.down[tick].append((node, kind, tuple(f)))
+                else:
+                    rec.up[tick].append((node, kind, tuple(f)))
+    except struct.error as err:
+        # the .blf reader unpacks fixed-size headers: a short read is a cut file
+        raise UsageError(f"replay: {path} is truncated or damaged: a {fmt} header ends "
+                         f"early ({err}, after {rec.frames} frames)") from None
+    except EOFError:
+        raise UsageError(f"replay: {path} is truncated: its compressed stream ends early "
+                         f"(after {rec.frames} frames)") from None
+    except Exception as err:  # noqa: BLE001
+        # python-can's readers fail on a damaged file with whatever their parser
+        # hits (struct.error, UnicodeDecodeError, BLFParseError, zlib.error, ...)
+        why = (str(err).splitlines() or [""])[0][:120]
+        raise UsageError(f"replay: {path} is not a readable {fmt} recording "
+                         f"({type(err).__name__}: {why})") from None
     rec.bad = dict(dec.bad.counts)
+    want = rec.meta.get("frames")
+    if want is None:
+        rec.warnings.append(f"sidecar {meta_path(path).name} has no frame count, so a "
+                            "truncated recording cannot be told apart; replaying anyway")
+    elif rec.frames < want:
+        raise UsageError(f"replay: {path} is truncated: it holds {rec.frames} of the {want} "
+                         f"frames its sidecar {meta_path(path).name} records")
+    elif rec.frames > want:
+        raise UsageError(f"replay: {path} holds {rec.frames} frames but its sidecar "
+                         f"{meta_path(path).name} records {want}: the two belong to "
+                         "different recordings")
     if not rec.ticks:
         raise UsageError(f"replay: {path} holds no SENSOR/ACTION capture frames, so there is "
                          f"no sensor stream to replay; record with `touchswarm run --record`")
+    if "summary" not in rec.meta:
+        rec.warnings.append(f"sidecar {meta_path(path).name} has no run summary (the run "
+                            "was interrupted?), so the outcome is not checked")
     return rec
 
 
@@ -239,6 +331,19 @@ def replay(path: Path, realtime: bool = False, limit: int = 50) -> dict:
             for n in (nodes if node == 0 else [node]):
                 if n in inbox:
                     inbox[n].append((kind, f))
+    recorded = rec.meta.get("summary")
+    if recorded is not None:
+        # the frames are all there, so a different outcome means the sidecar
+        # describes another run, or the firmware decides differently now
+        replayed = {"robots": len(nodes), "ticks": len(rec.ticks),
+                    "touches": len(coord.touches),
+                    "home_tick": coord.delivered_tick if coord.delivered_tick >= 0 else None}
+        for key, got in replayed.items():
+            want = recorded[key]
+            if key == "touches":
+                want = len(want) if isinstance(want, list) else want
+            if got != want:
+                diverge(f"summary: {key} {got} replayed, {want} in the sidecar's run summary")
     return {
         "recording": str(path),
         "scenario": sc.name,
@@ -252,4 +357,5 @@ def replay(path: Path, realtime: bool = False, limit: int = 50) -> dict:
         "divergences": len(divergences),
         "differences": divergences[:limit],
         "bad_frames": rec.bad,
+        "warnings": rec.warnings,
     }
