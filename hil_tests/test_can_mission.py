@@ -77,7 +77,11 @@ def check_exactly_once(out, faults=False):
 def test_whole_mission_exactly_once(seed):
     out = mission(scenario.load("default"), seed)
     check_exactly_once(out)
-    assert out["robots"]["halted"] and out["host"]["duplicates"] == 0
+    # The guarantee is exactly once, not "no retransmission": on a loaded
+    # machine the 2 ms wall-clock ticks let a robot retransmit before its ACK
+    # arrives (issue 8 §6); such duplicates are ACKed and never counted,
+    # which check_exactly_once asserts.
+    assert out["robots"]["halted"]
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
