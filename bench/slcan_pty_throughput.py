@@ -11,8 +11,8 @@ Three loads, each of HEARTBEAT frames (8 data bytes, the longest kind):
   flood   N frames as fast as the face can write them (it waits while the pty
           is full rather than drop): the path's ceiling;
   paced   4,500 frames/s (a saturated 500 kbit/s bus) and 9,000 frames/s for
-          2 s each, sent in 1 ms bursts: is every frame read, and how far
-          behind is the reader at the end.
+          2 s each, sent in 1 ms bursts (every frame due by then): is every
+          frame read, and how far behind is the reader at the end.
 Also the longest `poll(0.01)` call seen (a poll must return by its deadline).
 Prints one JSON object. Reference: 500 kbit/s carries about 4,500 such frames/s.
 """
@@ -70,26 +70,31 @@ def face(path: str, mode: str, arg: float, cpu: int) -> None:
         while not bus.is_open and time.monotonic() < end:   # the host's O command
             bus.recv(0.01)
         sys.stdin.readline()                                  # go
+        t_first = time.monotonic()
         if mode == "flood":
             for f in frames(int(arg)):
                 bus.send(f)
                 wait_writable(bus)
+            t_last = time.monotonic()
         else:
             rate = arg
             fs = frames(int(rate * PACED_S))
-            burst = max(1, int(rate / 1000))
             t0 = time.monotonic()
-            for i in range(0, len(fs), burst):
-                for f in fs[i:i + burst]:
+            i = 0
+            while i < len(fs):
+                due = min(len(fs), int((time.monotonic() - t0) * rate) + 1)
+                for f in fs[i:due]:        # every frame due by now, as a bus would deliver
                     bus.send(f)
+                t_last = time.monotonic()
+                i = max(i, due)
                 wait_writable(bus)
-                due = t0 + (i // burst + 1) / 1000.0
-                while time.monotonic() < due:
-                    bus.recv(max(0.0, due - time.monotonic()))
+                bus.recv(0.001)            # 1 ms between bursts (also takes host commands)
         while bus.pending:
             select.select([], [bus.master], [], 1.0)
             bus._flush_out()
-        print(json.dumps({"dropped": bus.dropped}), flush=True)
+        # CLOCK_MONOTONIC is system-wide: the host compares it with its own
+        print(json.dumps({"dropped": bus.dropped, "t_first": t_first,
+                          "t_last": t_last}), flush=True)
         sys.stdin.readline()                                  # the host has read all
 
 
@@ -133,8 +138,12 @@ def measure(mode: str, arg: float, cpu: int, tmp: Path) -> dict:
             child.kill()
             child.wait(10)
     span = (last - first) if first is not None and last is not None and last > first else 0.0
+    sent_span = face_report["t_last"] - face_report["t_first"]
     return {"expected": expected, "received": got, "dropped_by_face": face_report["dropped"],
             "frames_per_s": round(got / span) if span else None,
+            "offered_frames_per_s": round(expected / sent_span) if sent_span > 0 else None,
+            "last_frame_read_ms_after_sent": round((last - face_report["t_last"]) * 1000, 1)
+            if last is not None else None,
             "zero_loss": got == expected,
             "worst_poll_ms": round(worst_poll * 1000, 2)}
 

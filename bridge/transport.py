@@ -8,14 +8,20 @@ kind, logs each kind once, and drops them.
 
 from __future__ import annotations
 
+import logging
 from typing import Protocol
+
+from bridge.errors import BridgeError
+
+log = logging.getLogger(__name__)
 
 Message = tuple[int, int, tuple]   # (node, kind, fields) as in firmware_logic.messages
 
 
 class RobotTransport(Protocol):
     def poll(self, timeout: float) -> list[Message]:
-        """Messages received within `timeout` seconds (may be empty)."""
+        """Messages received within `timeout` seconds (may be empty); returns by
+        then even when more keep coming (the rest wait for the next poll)."""
 
     def send(self, node: int, kind: int, fields: tuple) -> None:
         """Send one message to `node` (0: every robot on this transport)."""
@@ -24,7 +30,8 @@ class RobotTransport(Protocol):
         """Dropped frames so far, by kind of fault."""
 
     def close(self) -> None:
-        """Release the port or bus; safe to call twice."""
+        """Release the port or bus; safe to call twice; never raises (a lost
+        link fails to close as well, and must not mask why it was lost)."""
 
 
 class FanIn:
@@ -44,9 +51,11 @@ class FanIn:
 
     def poll(self, timeout: float) -> list[Message]:
         out: list[Message] = []
+        # each part gets its share of the deadline (a zero share would give a
+        # busy part one frame per poll and starve it behind the others)
         share = timeout / max(1, len(self.parts))
         for part in self.parts:
-            got = part.poll(share if not out else 0.0)
+            got = part.poll(share)
             for m in got:
                 self.heard_on[m[0]] = part
             out.extend(got)
@@ -66,4 +75,7 @@ class FanIn:
 
     def close(self) -> None:
         for part in self.parts:
-            part.close()
+            try:
+                part.close()
+            except (BridgeError, OSError) as err:   # close the others all the same
+                log.warning("closing %r failed: %s", part, err)

@@ -1,11 +1,14 @@
-"""The host and robots commands end to end in one process (virtual bus)."""
+"""The host and robots commands end to end in one process (the robots' SLCAN
+face on a pty: python-can's virtual bus is refused by both commands, since it
+does not cross processes)."""
 
 import json
 import threading
+import time
 
 from bridge.cli import main
 from bridge.host.journal import Journal
-from bridge.links.canlink import private_channel
+from bridge.links import open_bus
 from firmware_logic.behaviours.thesis.coordinator import Touch
 
 
@@ -15,8 +18,10 @@ def test_host_gives_up_without_robots_and_resumes_into_a_new_journal(tmp_path, c
         j.add_node(2, 1, 100)
         j.add_touch(Touch(2, 1, 3, 3, 4, 3, 100, 9))
     new = tmp_path / "new.sqlite"
-    rc = main(["host", "--bus", f"virtual://{private_channel()}", "--resume", str(old),
-               "--journal", str(new), "--max-ticks", "3", "--tick-ms", "1", "--json"])
+    with open_bus(f"slcan-pty://{tmp_path / 'ada'}"):        # an adapter, no robots
+        rc = main(["host", "--bus", f"slcan://{tmp_path / 'ada'}?settle_ms=0", "--resume",
+                   str(old), "--journal", str(new), "--max-ticks", "3", "--tick-ms", "1",
+                   "--json"])
     cap = capsys.readouterr()
     assert rc == 1
     s = json.loads(cap.out)
@@ -27,17 +32,20 @@ def test_host_gives_up_without_robots_and_resumes_into_a_new_journal(tmp_path, c
     assert main(["host", "--bus", "virtual://x", "--resume", str(tmp_path / "none")]) == 2
 
 
-def test_robots_and_host_commands_on_one_virtual_channel(tmp_path, capsys):
-    ch = private_channel()
+def test_robots_and_host_commands_over_the_slcan_pty_face(tmp_path, capsys):
+    ada = tmp_path / "ada"
     res = {}
     jp = tmp_path / "j.sqlite"
     # robots repeat HELLO until acknowledged, so start-up order does not matter
     th = threading.Thread(target=lambda: res.update(rc=main(
-        ["host", "--bus", f"virtual://{ch}", "--journal", str(jp), "--tick-ms", "2",
-         "--max-ticks", "5000"])))
+        ["robots", "--bus", f"slcan-pty://{ada}", "--tick-ms", "2", "--linger-ms", "50",
+         "--json", "--loss", "0.1", "--reorder", "3"])))
     th.start()
-    rc = main(["robots", "--bus", f"virtual://{ch}", "--tick-ms", "2", "--linger-ms", "50",
-               "--json", "--loss", "0.1", "--reorder", "3"])
+    end = time.monotonic() + 20
+    while not ada.is_symlink() and th.is_alive() and time.monotonic() < end:
+        time.sleep(0.005)                       # wait for the face (a condition, not a delay)
+    rc = main(["host", "--bus", f"slcan://{ada}?settle_ms=0", "--journal", str(jp),
+               "--tick-ms", "2", "--max-ticks", "5000"])
     th.join(60)
     out = capsys.readouterr().out
     assert rc == 0 and res["rc"] == 0
@@ -45,3 +53,11 @@ def test_robots_and_host_commands_on_one_virtual_channel(tmp_path, capsys):
     robots = json.loads([line for line in out.splitlines() if line.startswith("{")][-1])
     with Journal(jp) as j:
         assert sorted([t.node, t.seq] for t in j.touches()) == sorted(robots["reported"])
+
+
+def test_host_and_robots_refuse_the_in_process_virtual_bus(capsys):
+    for cmd in ("host", "robots"):
+        assert main([cmd, "--bus", "virtual://x"]) == 2
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+        assert "does not cross processes" in err and "slcan-pty://" in err

@@ -11,15 +11,28 @@ from pathlib import Path
 
 from bridge.commands.run import add_scenario_args, scenario_from_args
 
+# Silence limits (seconds). A robot sends at least one frame every 64 of its
+# ticks (HEARTBEAT; TOUCH retransmissions back off to 64 ticks too): 0.64 s at
+# the 10 ms tick, 6.4 s at 100 ms. The node limit leaves room for slow robot
+# ticks; the bus limit also covers robots being switched on after the host.
+NODE_TIMEOUT = 20.0
+BUS_TIMEOUT = 60.0
+EXIT_SILENT = 3          # the host gave up: robots went silent
+
 
 def register(sub) -> None:
     p = sub.add_parser("host", help="run the host coordinator against a CAN bus and/or serial ports",
                        description="Collect touch reports from robots on a bus, journal each "
                                    "before acknowledging it, and command the transport home. "
-                                   "Runs until the object is home or it is stopped.")
+                                   "Runs until the object is home, it is stopped, or the "
+                                   "robots fall silent (--node-timeout, --bus-timeout). Exit "
+                                   "status: 0 delivered, 1 not delivered or a link or journal "
+                                   "failure, 2 a usage error, 3 gave up on silent robots.")
     p.add_argument("--bus", metavar="URL",
-                   help="virtual://CHANNEL, socketcan://can0, slcan:///dev/ttyACM0?bitrate=500000"
-                        " or can://INTERFACE/CHANNEL?bitrate=...")
+                   help="socketcan://can0, slcan:///dev/ttyACM0?bitrate=500000 (or the "
+                        "robots' slcan-pty face: slcan:///tmp/adapter?settle_ms=0) or "
+                        "can://INTERFACE/CHANNEL?bitrate=...; not virtual://, which does "
+                        "not cross processes")
     p.add_argument("--serial", action="append", default=[], metavar="PORT",
                    help="robots on a framed serial port: device path, "
                         "serial:///dev/ttyUSB0?baud=115200 or any pyserial URL (repeatable; "
@@ -35,6 +48,13 @@ def register(sub) -> None:
     p.add_argument("--tick-ms", type=float, default=10.0, metavar="MS",
                    help="host tick period (default: %(default)s)")
     p.add_argument("--max-ticks", type=int, metavar="N", help="give up after N host ticks")
+    p.add_argument("--node-timeout", type=float, default=NODE_TIMEOUT, metavar="S",
+                   help="give up (exit 3) when a carrier, a robot whose touch was accepted, "
+                        "is silent this long; robots send a HEARTBEAT at least every 64 of "
+                        "their ticks (0: never; default: %(default)s)")
+    p.add_argument("--bus-timeout", type=float, default=BUS_TIMEOUT, metavar="S",
+                   help="give up (exit 3) when no robot at all is heard this long, start-up "
+                        "included (0: never; default: %(default)s)")
     p.add_argument("--json", action="store_true",
                    help="progress on stderr, one JSON summary on stdout")
     p.set_defaults(func=cmd_host)
@@ -45,14 +65,21 @@ def cmd_host(args: argparse.Namespace) -> int:
     from bridge.host.journal import Journal, JournalError
     from bridge.host.process import HostProcess
     from bridge.host.transport import CanTransport
-    from bridge.links import LinkError, open_bus
+    from bridge.links import LinkError, open_bus, parse_url, refuse_in_process
     from bridge.transport import FanIn
 
     sc = scenario_from_args(args)
     if not args.bus and not args.serial:
         raise UsageError("host: give --bus URL and/or --serial PORT (where the robots are)")
+    if args.bus:
+        parse_url(args.bus)
+        refuse_in_process(args.bus, "host")
     if args.tick_ms <= 0:
         raise UsageError(f"--tick-ms {args.tick_ms}: expected a positive period")
+    for name in ("node_timeout", "bus_timeout"):
+        if getattr(args, name) < 0:
+            raise UsageError(f"--{name.replace('_', '-')} {getattr(args, name)}: expected "
+                             f"seconds >= 0 (0: never give up)")
     if args.resume is not None and not args.resume.exists():
         raise UsageError(f"--resume {args.resume}: no such journal")
     out = sys.stderr if args.json else sys.stdout
@@ -64,6 +91,18 @@ def cmd_host(args: argparse.Namespace) -> int:
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, lambda *a: stopping.append(1))
     journal_path = args.journal or args.resume
+    journal = None
+    # the journal first: a wrong path is found before any port is touched
+    try:
+        if journal_path:
+            journal = Journal(journal_path)
+            if args.resume is not None and args.resume.resolve() != Path(journal_path).resolve():
+                with Journal(args.resume) as old:     # carry it over, then go on there
+                    journal.copy_from(old)
+    except JournalError as err:
+        if journal is not None:
+            journal.close()
+        raise UsageError(str(err)) from err
     parts: list = []
     try:
         if args.bus:
@@ -74,29 +113,26 @@ def cmd_host(args: argparse.Namespace) -> int:
     except BaseException:
         for part in parts:
             part.close()
+        if journal is not None:
+            journal.close()
         raise
     where = " + ".join(([args.bus] if args.bus else []) + args.serial)
     with (parts[0] if len(parts) == 1 else FanIn(parts)) as transport:
-        try:
-            journal = Journal(journal_path) if journal_path else None
-        except JournalError as err:
-            raise UsageError(str(err)) from err
         try:
             host = HostProcess(transport, sc.weight_centi, sc.homeX, sc.homeY, journal=journal,
                                tick_seconds=args.tick_ms / 1000.0, on_event=event)
             if args.resume is not None:
                 assert journal is not None      # journal_path defaults to the resumed one
-                if args.resume.resolve() != Path(journal_path).resolve():
-                    with Journal(args.resume) as old:     # carry it over, then go on there
-                        for n, (m, pw) in old.nodes().items():
-                            journal.add_node(n, m, pw)
-                        for t in old.touches():
-                            journal.add_touch(t)
-                host.resume(journal)
+                try:
+                    host.resume(journal)
+                except JournalError as err:
+                    raise UsageError(f"--resume {args.resume}: {err}") from err
             event(f"host on {where}: object weight {sc.weight_centi}, home "
                   f"({sc.homeX},{sc.homeY}), journal {journal_path or 'none'}")
             try:
-                summary = host.run(stop=lambda: bool(stopping), max_ticks=args.max_ticks)
+                summary = host.run(stop=lambda: bool(stopping), max_ticks=args.max_ticks,
+                                   node_timeout=args.node_timeout or None,
+                                   bus_timeout=args.bus_timeout or None)
             except LinkError as err:
                 if not host.coord.delivered_tick >= 0:
                     raise
@@ -112,4 +148,9 @@ def cmd_host(args: argparse.Namespace) -> int:
               f"{len(summary['touches'])} touches, power {summary['power']:g}, "
               f"leader {summary['leader']}, home at tick {summary['home_tick']}, "
               f"{summary['duplicates']} duplicates ignored, bad frames {summary['bad_frames']}")
+    if summary["gave_up"]:
+        limit = {"bus": "--bus-timeout", "node": "--node-timeout"}[summary["gave_up_on"]]
+        print(f"touchswarm: host gave up at tick {summary['ticks']}: {summary['gave_up']} "
+              f"({limit})", file=sys.stderr, flush=True)
+        return EXIT_SILENT
     return 0 if summary["delivered"] else 1

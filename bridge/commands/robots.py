@@ -19,8 +19,9 @@ def register(sub) -> None:
                                    "swarm as an SLCAN adapter on a pseudo-terminal linked at "
                                    "PATH, for a host on slcan://PATH.")
     p.add_argument("--bus", required=True, metavar="URL",
-                   help="virtual://CHANNEL, socketcan://can0, slcan://..., can://..., or "
-                        "slcan-pty:///tmp/adapter")
+                   help="socketcan://can0, slcan://..., can://..., or "
+                        "slcan-pty:///tmp/adapter; not virtual://, which does not cross "
+                        "processes")
     add_scenario_args(p)
     p.add_argument("--tick-ms", type=float, default=10.0, metavar="MS",
                    help="robot tick period (default: %(default)s)")
@@ -37,9 +38,11 @@ def register(sub) -> None:
 def cmd_robots(args: argparse.Namespace) -> int:
     from bridge.errors import UsageError
     from bridge.host.swarm import run_swarm, swarm_engine
-    from bridge.links import open_bus
+    from bridge.links import open_bus, parse_url, refuse_in_process
     from bridge.links.canlink import Faults
 
+    parse_url(args.bus)
+    refuse_in_process(args.bus, "robots")
     sc = scenario_from_args(args)
     check_link_limits(sc, "CAN")
     if args.tick_ms <= 0:

@@ -28,6 +28,7 @@ from typing import Any
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+from bridge.errors import BridgeError
 from bridge.firmware import mp_runner
 from bridge.firmware.subset_check import firmware_files, package_dir
 
@@ -48,7 +49,7 @@ def behaviour_spec(module: str) -> Any:
 SMALL_INT_LIMIT = 1 << 30   # a 32-bit board's small ints are below this
 
 
-class ConformanceError(RuntimeError):
+class ConformanceError(BridgeError, RuntimeError):
     """A tool is missing, fails, times out or disagrees with the other."""
 
 

@@ -1,15 +1,26 @@
-"""SQLite journal of the host: announced nodes and accepted touches.
+"""SQLite journal of the host: announced nodes, accepted touches, and every
+decision the host acts on.
 
 Opened in WAL mode with synchronous=FULL; every write is committed before the
-call returns, and the host calls it before sending the ACK, so a touch that
-was acknowledged survives a SIGKILL (and a power cut) of the host process.
+call returns. The host writes a touch before it sends the touch's ACK, and a
+decision (convergence, each transport step, delivery, each HALT) before it
+sends the decision's command, so whatever a robot was told survives a SIGKILL
+(and a power cut) of the host process, and a resumed host goes on from the
+last decision instead of starting the transport again.
+
+A decision row holds the state the host needs to go on from there, as JSON
+(`HostProcess.snapshot`): the coordinator's scalar attributes (step, dx, dy,
+converged_tick, delivered_tick, ...) and the host's tick and HALT count.
 """
 
 from __future__ import annotations
 
+import json
 import sqlite3
 from pathlib import Path
+from typing import Any, NamedTuple
 
+from bridge.errors import BridgeError
 from firmware_logic.behaviours.thesis.coordinator import Touch
 
 SCHEMA = """
@@ -18,58 +29,108 @@ CREATE TABLE IF NOT EXISTS nodes (node INTEGER PRIMARY KEY, model INTEGER NOT NU
 CREATE TABLE IF NOT EXISTS touches (node INTEGER NOT NULL, seq INTEGER NOT NULL,
     rx INTEGER NOT NULL, ry INTEGER NOT NULL, sx INTEGER NOT NULL, sy INTEGER NOT NULL,
     power INTEGER NOT NULL, tick INTEGER NOT NULL, PRIMARY KEY (node, seq));
+CREATE TABLE IF NOT EXISTS decisions (id INTEGER PRIMARY KEY AUTOINCREMENT,
+    tick INTEGER NOT NULL, kind TEXT NOT NULL, state TEXT NOT NULL);
 """
 
 
-class JournalError(Exception):
-    pass
+class JournalError(BridgeError):
+    """The journal cannot be opened, read or written (names the file)."""
+
+
+class Decision(NamedTuple):
+    tick: int
+    kind: str               # converged, step, delivered, halt
+    state: dict[str, Any]   # HostProcess.snapshot() after the decision
 
 
 class Journal:
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
+        self.db: sqlite3.Connection | None = None
         try:
-            self.db: sqlite3.Connection | None = sqlite3.connect(
-                str(self.path), isolation_level=None, timeout=5.0,
-                check_same_thread=False)
+            self.db = sqlite3.connect(str(self.path), isolation_level=None, timeout=5.0,
+                                      check_same_thread=False)
             mode = self.db.execute("PRAGMA journal_mode=WAL").fetchone()[0]
             if mode.lower() != "wal":
                 raise JournalError(f"{self.path}: SQLite refused WAL mode ({mode})")
             self.db.execute("PRAGMA synchronous=FULL")
             self.db.executescript(SCHEMA)
-        except sqlite3.Error as err:
+        except (sqlite3.Error, JournalError) as err:
+            self.close()
+            if isinstance(err, JournalError):
+                raise
             raise JournalError(f"cannot open journal {self.path}: {err}") from err
 
-    def _conn(self) -> sqlite3.Connection:
+    def _sql(self, sql: str, args: tuple = ()) -> list[tuple]:
+        """Run one statement (committed on return: autocommit); every SQLite
+        error becomes a JournalError naming the file."""
         if self.db is None:
             raise JournalError(f"journal {self.path} is closed")
-        return self.db
+        try:
+            return self.db.execute(sql, args).fetchall()
+        except sqlite3.Error as err:
+            raise JournalError(f"journal {self.path}: {err}") from err
 
     def add_node(self, node: int, model: int, power: int) -> None:
-        self._conn().execute("INSERT OR REPLACE INTO nodes VALUES (?, ?, ?)",
-                             (node, model, power))
+        self._sql("INSERT OR REPLACE INTO nodes VALUES (?, ?, ?)", (node, model, power))
 
     def add_touch(self, t: Touch) -> None:
-        self._conn().execute("INSERT OR IGNORE INTO touches VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
-                             t.as_tuple())
+        self._sql("INSERT OR IGNORE INTO touches VALUES (?, ?, ?, ?, ?, ?, ?, ?)", t.as_tuple())
+
+    def add_decision(self, tick: int, kind: str, state: dict[str, Any]) -> None:
+        self._sql("INSERT INTO decisions (tick, kind, state) VALUES (?, ?, ?)",
+                  (tick, kind, json.dumps(state, sort_keys=True)))
 
     def nodes(self) -> dict[int, tuple[int, int]]:
         return {n: (m, p) for n, m, p in
-                self._conn().execute("SELECT node, model, power FROM nodes ORDER BY node")}
+                self._sql("SELECT node, model, power FROM nodes ORDER BY node")}
 
     def touches(self) -> list[Touch]:
-        rows = self._conn().execute(
-            "SELECT node, seq, rx, ry, sx, sy, power, tick FROM touches ORDER BY rowid")
+        rows = self._sql("SELECT node, seq, rx, ry, sx, sy, power, tick FROM touches "
+                         "ORDER BY rowid")
         return [Touch(*r) for r in rows]
 
+    def decisions(self) -> list[Decision]:
+        return [self._decision(r) for r in
+                self._sql("SELECT tick, kind, state FROM decisions ORDER BY id")]
+
+    def last_decision(self) -> Decision | None:
+        rows = self._sql("SELECT tick, kind, state FROM decisions ORDER BY id DESC LIMIT 1")
+        return self._decision(rows[0]) if rows else None
+
+    def _decision(self, row: tuple) -> Decision:
+        try:
+            state = json.loads(row[2])
+        except ValueError as err:
+            raise JournalError(f"journal {self.path}: unreadable decision at tick "
+                               f"{row[0]}: {err}") from err
+        return Decision(int(row[0]), str(row[1]), state)
+
     def last_tick(self) -> int:
-        v = self._conn().execute("SELECT MAX(tick) FROM touches").fetchone()[0]
+        """The latest host tick anything was journalled at."""
+        v = self._sql("SELECT MAX(t) FROM (SELECT MAX(tick) AS t FROM touches "
+                      "UNION ALL SELECT MAX(tick) FROM decisions)")[0][0]
         return int(v) if v is not None else 0
 
+    def copy_from(self, other: "Journal") -> None:
+        """Carry another journal's nodes, touches and decisions over (resume
+        into a new file); decisions keep their order."""
+        for n, (m, pw) in other.nodes().items():
+            self.add_node(n, m, pw)
+        for t in other.touches():
+            self.add_touch(t)
+        for d in other.decisions():
+            self.add_decision(d.tick, d.kind, d.state)
+
     def close(self) -> None:
-        if self.db is not None:
-            self.db.close()
-            self.db = None
+        """Idempotent; never raises."""
+        db, self.db = self.db, None
+        if db is not None:
+            try:
+                db.close()
+            except sqlite3.Error:
+                pass      # nothing uncommitted: every write committed on return
 
     def __enter__(self) -> "Journal":
         return self

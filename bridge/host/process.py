@@ -6,6 +6,16 @@ journalled before its ACK is queued; a HELLO's node before its ACK), and at
 the tick the coordinator's commands go out. Frames from nodes that never
 announced themselves with HELLO (and are not in a resumed journal) are
 counted as bad frames and never reach the coordinator.
+
+Every decision the host acts on (convergence, each transport step, delivery,
+each HALT) is journalled with a snapshot of the state it leads to BEFORE its
+command is sent; `resume` restores the last snapshot, so a host killed at any
+moment goes on where it stopped: it never plans a step twice, never starts
+the transport again after delivery.
+
+Liveness: `run` gives up when no robot has been heard for `bus_timeout`
+seconds, or a carrier (a robot whose touch was accepted: the object cannot
+move without it) for `node_timeout` seconds; the summary then says why.
 """
 
 from __future__ import annotations
@@ -24,6 +34,35 @@ log = logging.getLogger(__name__)
 
 HALT_REPEATS = 10   # HALT is broadcast on this many ticks after delivery (it is not ACKed)
 
+# Coordinator attributes a snapshot leaves out: the configuration (from the
+# command line), what the journalled touches rebuild (power, leader,
+# found_tick), and this process's own counters.
+NOT_SNAPSHOT = frozenset(("weight", "home_x", "home_y", "home_r2", "power", "leader",
+                          "found_tick", "duplicates"))
+
+
+def coordinator_state(c: Coordinator) -> dict[str, Any]:
+    """The coordinator's scalar attributes (its transport state), JSON-ready."""
+    out: dict[str, Any] = {}
+    for k, v in vars(c).items():
+        if k in NOT_SNAPSHOT:
+            continue
+        if isinstance(v, (bool, int, float, str)):
+            out[k] = v
+        elif isinstance(v, tuple) and all(isinstance(x, (int, float)) for x in v):
+            out[k] = list(v)
+    return out
+
+
+def restore_coordinator(c: Coordinator, state: dict[str, Any]) -> None:
+    """Set the attributes of a `coordinator_state` snapshot back (after the
+    touches were restored: the snapshot's pose overrides the first touch's)."""
+    for k, v in state.items():
+        if k in NOT_SNAPSHOT or not hasattr(c, k):
+            log.warning("journal snapshot: ignoring unknown coordinator attribute %r", k)
+            continue
+        setattr(c, k, tuple(v) if isinstance(getattr(c, k), tuple) else v)
+
 
 class HostProcess:
     def __init__(self, transport: RobotTransport, weight: int, home_x: int = -15,
@@ -40,20 +79,42 @@ class HostProcess:
         self.halts_sent = 0
         self.resumed = 0
         self.messages = 0
+        self.gave_up: str | None = None       # why run() stopped waiting for the robots
+        self.gave_up_on: str | None = None    # which limit: "bus" or "node"
 
     # -- journal ----------------------------------------------------------------
 
+    def snapshot(self) -> dict[str, Any]:
+        """What a resumed host needs to go on from this moment."""
+        return {"host": {"tick": self.tick, "halts_sent": self.halts_sent},
+                "coordinator": coordinator_state(self.coord)}
+
     def resume(self, journal: Journal) -> int:
-        """Adopt the nodes and touches of a journal; return the touches restored."""
+        """Adopt the nodes, touches and last decision of a journal; return the
+        touches restored."""
         for node, (model, power) in journal.nodes().items():
             self.coord.nodes[node] = (model, power)
         touches = journal.touches()
         self.coord.restore(touches)
         self.tick = max(self.tick, journal.last_tick())
         self.resumed = len(touches)
+        last = journal.last_decision()
+        if last is not None:
+            restore_coordinator(self.coord, last.state.get("coordinator", {}))
+            self.halts_sent = int(last.state.get("host", {}).get("halts_sent", 0))
         self._event(f"resumed {len(touches)} touches from {len(self.coord.nodes)} nodes "
-                    f"({journal.path}); power {self.coord.power}/{self.coord.weight}")
+                    f"({journal.path}); power {self.coord.power}/{self.coord.weight}; "
+                    f"{self.phase()}")
         return len(touches)
+
+    def phase(self) -> str:
+        c = self.coord
+        if c.delivered_tick >= 0:
+            return (f"delivered at tick {c.delivered_tick}, HALT sent "
+                    f"{self.halts_sent}/{HALT_REPEATS}")
+        if c.converged_tick >= 0:
+            return f"transport step {c.step} (leader done {c.leader_done})"
+        return "collecting touches"
 
     def _journal_touch(self, t: Touch) -> None:
         if self.journal is not None:
@@ -90,32 +151,51 @@ class HostProcess:
     # -- ticks --------------------------------------------------------------------------
 
     def step(self) -> None:
-        """One host tick: send the coordinator's commands."""
+        """One host tick: decide, journal the decision, then send the commands."""
         self.tick += 1
         c = self.coord
-        converged = c.converged_tick
-        for node, kind, fields in c.tick(self.tick):
-            self.transport.send(node, kind, fields)
-            if kind == msg.HALT:
-                self.halts_sent += 1
-        if converged < 0 <= c.converged_tick:
+        converged, step, delivered = c.converged_tick, c.step, c.delivered_tick
+        out = c.tick(self.tick)
+        if c.delivered_tick >= 0 and delivered >= 0 and self.halts_sent < HALT_REPEATS:
+            out.append((msg.HOST, msg.HALT, (0,)))          # a repeat: HALT is not ACKed
+        halts = sum(1 for m in out if m[1] == msg.HALT)
+        if c.delivered_tick != delivered:
+            kind = "delivered"
+        elif c.converged_tick != converged:
+            kind = "converged"
+        elif c.step != step:
+            kind = "step"
+        elif halts:
+            kind = "halt"
+        else:
+            kind = ""
+        self.halts_sent += halts
+        if kind and self.journal is not None:
+            # before anything is sent: a command on the bus is always journalled
+            self.journal.add_decision(self.tick, kind, self.snapshot())
+        for node, kind_, fields in out:
+            self.transport.send(node, kind_, fields)
+        if kind == "converged":
             self._event(f"tick {self.tick}: converged, power {c.power}/{c.weight}; "
                         f"leader robot {c.leader}; transport begins")
-        if c.delivered_tick >= 0:
-            if c.delivered_tick == self.tick:
-                self._event(f"tick {self.tick}: object home; HALT")
-            elif self.halts_sent < HALT_REPEATS:
-                self.transport.send(msg.HOST, msg.HALT, (0,))
-                self.halts_sent += 1
+        elif kind == "delivered":
+            self._event(f"tick {self.tick}: object home; HALT")
 
     def done(self) -> bool:
         return self.coord.delivered_tick >= 0 and self.halts_sent >= HALT_REPEATS
 
     def run(self, stop: Callable[[], bool] | None = None, max_ticks: int | None = None,
-            clock: Callable[[], float] = time.monotonic) -> dict[str, Any]:
-        """Run until the object is home (and HALT repeated), `stop()` or max_ticks."""
-        next_tick = clock() + self.tick_seconds
+            clock: Callable[[], float] = time.monotonic, node_timeout: float | None = None,
+            bus_timeout: float | None = None) -> dict[str, Any]:
+        """Run until the object is home (and HALT repeated), `stop()`, max_ticks,
+        or silence: no message from any robot for `bus_timeout` seconds, or from
+        one carrier for `node_timeout` seconds (None: wait for ever). Every wait
+        is on `clock`."""
+        started = clock()
+        next_tick = started + self.tick_seconds
         start_tick = self.tick
+        heard_bus = started
+        heard: dict[int, float] = {}      # node -> when last heard (this run)
         while not self.done():
             if stop is not None and stop():
                 self._event(f"tick {self.tick}: stopped")
@@ -125,13 +205,41 @@ class HostProcess:
                 break
             now = clock()
             while now < next_tick:
-                self.handle(self.transport.poll(next_tick - now))
+                got = self.transport.poll(next_tick - now)
                 now = clock()
+                if got:
+                    heard_bus = now
+                    for m in got:
+                        heard[m[0]] = now
+                    self.handle(got)
             self.step()
+            why = self._silence(now, started, heard, heard_bus, node_timeout, bus_timeout)
+            if why is not None:
+                self.gave_up_on, self.gave_up = why
+                self._event(f"tick {self.tick}: gave up: {self.gave_up}")
+                break
             next_tick += self.tick_seconds
             if next_tick < now:
                 next_tick = now + self.tick_seconds
         return self.summary()
+
+    def _silence(self, now: float, started: float, heard: dict[int, float],
+                 heard_bus: float, node_timeout: float | None,
+                 bus_timeout: float | None) -> tuple[str, str] | None:
+        """(limit, why) when the host should stop waiting for the robots."""
+        if self.coord.delivered_tick >= 0:
+            return None              # only HALTs left to send; halted robots may fall silent
+        if bus_timeout is not None and now - heard_bus >= bus_timeout:
+            return "bus", f"no message from any robot for {now - heard_bus:.1f} s"
+        if node_timeout is not None:
+            # only carriers: a searching robot that died costs nothing, but the
+            # object cannot move without every robot that holds it
+            for node in self.coord.carriers():
+                quiet = now - heard.get(node, started)
+                if quiet >= node_timeout:
+                    return "node", (f"robot {node} (a carrier: the object cannot move "
+                                    f"without it) silent for {quiet:.1f} s")
+        return None
 
     def bad_frames(self) -> dict[str, int]:
         out = dict(self.transport.bad_frames())
@@ -152,6 +260,9 @@ class HostProcess:
             "converged_tick": c.converged_tick if c.converged_tick >= 0 else None,
             "home_tick": c.delivered_tick if c.delivered_tick >= 0 else None,
             "delivered": c.delivered_tick >= 0,
+            "transport_step": c.step,
+            "gave_up": self.gave_up,
+            "gave_up_on": self.gave_up_on,
             "messages": self.messages,
             "bad_frames": self.bad_frames(),
         }

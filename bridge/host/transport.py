@@ -2,62 +2,65 @@
 
 from __future__ import annotations
 
+import time
+from typing import Callable
+
 import can
 
-from bridge.links.canbus import converted
+from bridge.links.canbus import converted, shutdown_quietly
 from bridge.links.codec import BadFrames, Decoder, Message, encode
+from bridge.links.errors import LinkOperationError
 
-BATCH = 4096
+BATCH = 4096       # at most this many frames per poll, so a flood cannot starve the tick
 MALFORMED = "malformed adapter line"
 
 
 class CanTransport:
     """Decoded robot messages from a bus; bad frames counted, never passed on."""
 
-    def __init__(self, bus: can.BusABC, bad: BadFrames | None = None) -> None:
+    def __init__(self, bus: can.BusABC, bad: BadFrames | None = None,
+                 clock: Callable[[], float] = time.monotonic) -> None:
         self.bus = bus
+        self.clock = clock          # what poll's deadline is measured on
         self.decoder = Decoder("host", bad or BadFrames("host"))
         self.frames_in = 0
         self.frames_out = 0
         self._closed = False
 
-    def _recv(self, timeout: float) -> can.Message | None:
-        try:
-            with converted("host recv"):
-                return self.bus.recv(timeout)
-        except (ValueError, IndexError):      # an adapter line python-can cannot parse
-            self.decoder.bad.add(MALFORMED)
-            return None
-
     def poll(self, timeout: float) -> list[Message]:
+        """Messages received within `timeout` seconds: waits up to `timeout` for
+        the first frame, then takes frames while they keep coming, and returns
+        by the deadline (one frame at most past it: a read under way is
+        finished, never cut), or after BATCH frames."""
+        if self._closed:
+            raise LinkOperationError("host recv: the transport is closed")
+        clock = self.clock
+        deadline = clock() + max(timeout, 0.0)
         out: list[Message] = []
-        frame = self._recv(max(timeout, 0.0))
-        if frame is None:
-            return out
         decode = self.decoder.decode
         recv = self.bus.recv
         append = out.append
         n = 0
-        # the hot loop calls python-can directly; errors are converted below
         try:
-            while frame is not None:
-                n += 1
-                m = decode(frame)
-                if m is not None:
-                    append(m)
-                if n >= BATCH:
-                    break
-                frame = recv(0.0)
-        except (ValueError, IndexError):
-            self.decoder.bad.add(MALFORMED)
-        except can.CanError:
-            self.frames_in += n
             with converted("host recv"):
-                raise
-        self.frames_in += n
+                frame = recv(max(timeout, 0.0))
+                while frame is not None:
+                    n += 1
+                    m = decode(frame)
+                    if m is not None:
+                        append(m)
+                    if n >= BATCH or clock() >= deadline:
+                        break
+                    frame = recv(0.0)
+        except (ValueError, IndexError):      # an adapter line python-can cannot parse
+            self.decoder.bad.add(MALFORMED)
+        finally:
+            self.frames_in += n
         return out
 
     def send(self, node: int, kind: int, fields: tuple) -> None:
+        if self._closed:
+            raise LinkOperationError("host send: the transport is closed")
         with converted("host send"):
             self.bus.send(encode(node, kind, fields))
         self.frames_out += 1
@@ -66,9 +69,10 @@ class CanTransport:
         return dict(self.decoder.bad.counts)
 
     def close(self) -> None:
+        """Idempotent; never raises (a lost link fails to close as well)."""
         if not self._closed:
             self._closed = True
-            self.bus.shutdown()
+            shutdown_quietly(self.bus, "host")
 
     def __enter__(self) -> "CanTransport":
         return self

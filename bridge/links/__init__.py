@@ -18,8 +18,8 @@ from urllib.parse import parse_qsl, urlsplit
 from bridge.links.errors import (LinkError, LinkInitError, LinkOperationError,
                                  LinkTimeoutError, LinkURLError)
 
-__all__ = ["REGISTRY", "open_bus", "parse_url", "LinkError", "LinkInitError",
-           "LinkOperationError", "LinkTimeoutError", "LinkURLError"]
+__all__ = ["REGISTRY", "open_bus", "parse_url", "refuse_in_process", "LinkError",
+           "LinkInitError", "LinkOperationError", "LinkTimeoutError", "LinkURLError"]
 
 REGISTRY: dict[str, str] = {
     "virtual": "bridge.links.canbus:open_virtual",
@@ -73,6 +73,19 @@ def parse_url(url: str) -> tuple[str, str, dict[str, int]]:
             raise LinkURLError(f"{url!r}: option {key}={value!r} is not an integer; "
                                f"expected {EXPECTED[scheme]}") from None
     return scheme, channel, opts
+
+
+def refuse_in_process(url: str, command: str) -> None:
+    """Refuse a link that cannot reach another process, for the commands that
+    exist to run host and robots as separate processes. python-can's virtual
+    bus lives inside one process: a host and a robots process on the same
+    virtual:// channel would each wait for ever on a bus of their own."""
+    if urlsplit(url).scheme == "virtual":
+        raise LinkURLError(
+            f"{command} --bus {url}: python-can's virtual bus does not cross processes, so "
+            f"the other side would never be heard; use the SLCAN face on a pty (robots "
+            f"--bus slcan-pty:///tmp/adapter, host --bus 'slcan:///tmp/adapter?settle_ms=0'; "
+            f"docs/protocol.md) or one process: touchswarm run --link can")
 
 
 def open_bus(url: str) -> Any:

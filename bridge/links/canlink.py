@@ -25,7 +25,7 @@ from typing import Any
 
 import can
 
-from bridge.links.canbus import converted
+from bridge.links.canbus import converted, shutdown_quietly
 from bridge.links.codec import BadFrames, Decoder, Message, encode
 from bridge.links.errors import LinkTimeoutError
 
@@ -214,8 +214,8 @@ class CanLink:
         self._closed = True
         if self.down:
             self.down = []
-        self.host_bus.shutdown()
-        self.robot_bus.shutdown()
+        shutdown_quietly(self.host_bus, "can link (host side)")
+        shutdown_quietly(self.robot_bus, "can link (robots' side)")
 
     def __enter__(self) -> "CanLink":
         return self
