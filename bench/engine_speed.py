@@ -1,10 +1,13 @@
-"""Robot-ticks per second of the reference and the vectorised engine, one core.
+"""Robot-ticks per second of the three engines, side by side, one core.
 
-Prints one JSON object. Each size runs the same scenario and seed in both
-engines for a fixed number of ticks (the vectorised engine's set-up is
-excluded, as is the reference's; both include the host coordinator), checks
-that both end with identical robot positions, and reports the ratio. "20x500"
-is 500 independent 20-robot runs stepped as one batch, the way sweeps use it.
+Prints one JSON object. Each size runs the same scenario and seeds in the
+per-robot reference engine (the per-agent Python baseline, Mesa-style), the
+hand-vectorised numpy engine (thesis only) and the batch engine compiled
+from the behaviour's own source, for a fixed number of ticks (set-up and
+compilation excluded from the rates and reported apart; every engine
+includes the host coordinators), checks that all end with identical robot
+positions, and reports the ratios. "20x500" is 500 independent 20-robot
+runs stepped as one batch, the way sweeps use it.
 
     .venv/bin/python bench/engine_speed.py [--quick]
 """
@@ -25,6 +28,9 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 
 from sim_backend.engine import Engine  # noqa: E402
 from sim_backend.scenario import validate  # noqa: E402
+from sim_backend.batch import body as B  # noqa: E402
+from sim_backend.batch.compiler import twins  # noqa: E402
+from sim_backend.batch.engine import BatchEngine  # noqa: E402
 from sim_backend.vector_engine import VectorEngine  # noqa: E402
 
 # robots -> (worldSize, ticks for the reference, ticks for the vector engine, runs)
@@ -66,9 +72,32 @@ def time_vector(sc, seeds, ticks):
     return dt, out
 
 
+def time_batch(sc, seeds, ticks):
+    t0 = time.perf_counter()
+    be = BatchEngine([(sc, s) for s in seeds])
+    be.step()                      # the first tick compiles the step function
+    setup = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    for _ in range(ticks - 1):
+        be.step()
+    dt = time.perf_counter() - t0
+    out = []
+    for r in range(len(seeds)):
+        if not be.rt[B.LIVE, r]:   # delivered early, the reference steps on
+            out.append(None)
+            continue
+        a, b = int(be.rt[B.LO, r]), int(be.rt[B.HI, r])
+        out.append((be.rb[B.XS, a:b].tolist(), be.rb[B.YS, a:b].tolist()))
+    return dt * ticks / (ticks - 1), out, setup
+
+
 def main():
     quick = "--quick" in sys.argv
     res = {"cores": 1, "sizes": {}}
+    t0 = time.perf_counter()
+    BatchEngine([(scenario(20, 18), 1)]).step()
+    res["batch_cold_start_s"] = round(time.perf_counter() - t0, 2)
+    res["batch_compile_s"] = round(twins().compile_seconds, 2)
     for name, (world, rt, vt, runs) in SIZES.items():
         robots = int(name.split("x")[0])
         if quick:
@@ -80,6 +109,9 @@ def main():
         ref_dt, ref_pos = time_reference(sc, seeds, ticks)
         vec_dt_same, vec_pos = time_vector(sc, seeds, ticks)
         vec_dt, _ = time_vector(sc, seeds, vt) if vt != ticks else (vec_dt_same, None)
+        bat_dt, bat_pos, bat_setup = time_batch(sc, seeds, vt)
+        if vt != ticks:
+            _, bat_pos, _ = time_batch(sc, seeds, ticks)
         n = robots * runs
         ref_rate = n * ticks / ref_dt
         vec_rate = n * vt / vec_dt
@@ -89,8 +121,13 @@ def main():
                           "robot_ticks_per_s": round(ref_rate)},
             "vector": {"ticks": vt, "seconds": round(vec_dt, 4),
                        "robot_ticks_per_s": round(vec_rate)},
-            "ratio": round(vec_rate / ref_rate, 2),
-            "identical_positions": all(v is None or v == r for r, v in zip(ref_pos, vec_pos)),
+            "batch": {"ticks": vt, "seconds": round(bat_dt, 4), "setup_s": round(bat_setup, 3),
+                      "robot_ticks_per_s": round(n * vt / bat_dt)},
+            "ratio_vector_to_reference": round(vec_rate / ref_rate, 2),
+            "ratio_batch_to_reference": round(n * vt / bat_dt / ref_rate, 2),
+            "ratio_batch_to_vector": round(n * vt / bat_dt / vec_rate, 2),
+            "identical_positions": all(v is None or v == r for r, v in zip(ref_pos, vec_pos))
+            and all(b is None or b == r for r, b in zip(ref_pos, bat_pos)),
         }
     print(json.dumps(res, indent=2))
 

@@ -19,12 +19,11 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, Callable, Protocol
 
-from firmware_logic import fixedpoint as fx
 from firmware_logic import perception
 from firmware_logic import registry
 from sim_backend.body import SimBody
 from sim_backend.scenario import Scenario
-from sim_backend.world import BLUE, FREE, YELLOW, World
+from sim_backend.world import World
 
 log = logging.getLogger(__name__)
 
@@ -74,6 +73,7 @@ class RunResult:
     coordinator: Any          # the behaviour's coordinator
     robots: list[Any]         # the behaviour's FSMs
     trajectories: list[tuple[list[int], list[int]]] = field(default_factory=list)
+    states: list[list[int]] = field(default_factory=list)   # every robot's state per tick
 
     @property
     def delivered(self) -> bool:
@@ -127,9 +127,9 @@ class Engine:
         self.bodies = [SimBody(self.world, i, n, self.link) for i, n in enumerate(nodes)]
         self.coordinator = self.behaviour.coordinator(sc)
         self.tick = 0
-        self.beacons: dict[int, tuple[int, int]] = {}   # node -> field source patch
         self.record = record_trajectories
         self.trajectories: list[tuple[list[int], list[int]]] = []
+        self.states: list[list[int]] = []
 
     # -- one tick --------------------------------------------------------------
 
@@ -142,6 +142,7 @@ class Engine:
         self.exchange()
         if self.record:
             self.trajectories.append((list(self.world.xs), list(self.world.ys)))
+            self.states.append([r.state for r in self.robots])
 
     def exchange(self) -> None:
         c = self.coordinator
@@ -151,86 +152,7 @@ class Engine:
             self.link.host_send(node, kind, fields)
 
     def _apply(self) -> None:
-        w = self.world
-        # claims: lowest node first wins a segment
-        for b in self.bodies:
-            k = b.claim_cell
-            if k >= 0 and w.obj[k] == YELLOW:
-                w.obj[k] = BLUE
-                w.owner[k] = b.node
-                b.held = k
-        # beacons: Signal on, and (our addition) its field removed when off
-        for b in self.bodies:
-            if b.beacon_set == 1 and b.node not in self.beacons:
-                src = (fx.patch(w.xs[b.i]), fx.patch(w.ys[b.i]))
-                self.beacons[b.node] = src
-                w.signal(*src)
-            elif b.beacon_set == 0 and b.node in self.beacons:
-                w.signal(*self.beacons.pop(b.node), sign=-1)
-        entered = self._carry_group()
-        # moves
-        for b in self.bodies:
-            if b.move is None:
-                continue
-            h, step = b.move
-            i = b.i
-            ox, oy = w.xs[i], w.ys[i]
-            nx, ny = ox + fx.dx(h, step), oy + fx.dy(h, step)
-            op = (fx.patch(ox), fx.patch(oy))
-            np_ = (fx.patch(nx), fx.patch(ny))
-            if np_ != op:
-                if not w.inside(*np_):
-                    continue
-                k = w.idx(*np_)
-                if w.obj[k] != FREE or w.occ[k] > 0 or k in entered:
-                    continue
-                entered.add(k)
-            w.xs[i], w.ys[i] = nx, ny
-        w.recount()
-
-    def _carry_group(self) -> set[int]:
-        """Move the object with its holders when all of them ask for the same
-        step; return the patches the group entered."""
-        w = self.world
-        holders = [b for b in self.bodies if b.held >= 0]
-        if not holders:
-            return set()
-        intents = {b.carry_intent for b in holders}
-        if len(intents) != 1 or None in intents:
-            return set()
-        ddx, ddy = intents.pop()
-        for b in holders:
-            b.carry_intent = None          # consumed, moved or blocked
-        hold_idx = {w.idx(fx.patch(w.xs[b.i]), fx.patch(w.ys[b.i])) for b in holders}
-        cells = list(w.object_cells)
-        robots_at = [(fx.patch(w.xs[b.i]), fx.patch(w.ys[b.i])) for b in holders]
-        for x, y in cells + robots_at:
-            nx, ny = x + ddx, y + ddy
-            if not w.inside(nx, ny):
-                return set()
-            k = w.idx(nx, ny)
-            if w.occ[k] > 0 and k not in hold_idx:
-                return set()                # a robot not holding is in the way
-        old = [(w.obj[w.idx(x, y)], w.owner[w.idx(x, y)]) for x, y in cells]
-        for x, y in cells:
-            w.obj[w.idx(x, y)] = FREE
-            w.owner[w.idx(x, y)] = 0
-        w.object_cells = [(x + ddx, y + ddy) for x, y in cells]
-        for (x, y), (o, own) in zip(w.object_cells, old):
-            w.obj[w.idx(x, y)] = o
-            w.owner[w.idx(x, y)] = own
-        entered = set()
-        for b in holders:
-            w.xs[b.i] += ddx * fx.ONE
-            w.ys[b.i] += ddy * fx.ONE
-            b.held = w.idx(*self._shift(b.held, ddx, ddy))
-            entered.add(w.idx(fx.patch(w.xs[b.i]), fx.patch(w.ys[b.i])))
-        entered.update(w.idx(x, y) for x, y in w.object_cells)
-        return entered
-
-    def _shift(self, k: int, ddx: int, ddy: int) -> tuple[int, int]:
-        w = self.world
-        return (k % w.n - w.w + ddx, k // w.n - w.w + ddy)
+        self.world.apply(self.tick)
 
     # -- a whole run -------------------------------------------------------------------
 
@@ -243,7 +165,7 @@ class Engine:
             if progress is not None:
                 progress(self.tick)
         return RunResult(self.sc, self.seed, self.tick, self.world, self.coordinator,
-                         self.robots, self.trajectories)
+                         self.robots, self.trajectories, self.states)
 
 
 def run(sc: Scenario, seed: int, **kw) -> RunResult:

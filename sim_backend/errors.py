@@ -7,3 +7,7 @@ class SimError(Exception):
 
 class ScenarioError(SimError, ValueError):
     """A scenario is malformed: names the key and what would be right."""
+
+
+class EngineError(SimError):
+    """An engine cannot run what it was given (names what and why)."""

@@ -28,7 +28,9 @@ log = logging.getLogger(__name__)
 # how long to wait for a dask scheduler to answer before calling it unreachable
 CONNECT_TIMEOUT_S = 5.0
 
-ENGINES = ("vector", "reference")
+# auto: the hand-vectorised thesis engine for the thesis behaviour (faster at
+# sweep sizes, docs/performance.md), the compiled batch engine for any other
+ENGINES = ("auto", "batch", "vector", "reference")
 MEASURES = ["ticks", "found_tick", "converged_tick", "home_tick", "n_touches", "power",
             "shape_iou", "leader", "delivered", "segments"]
 SCENARIO_KEYS = [k for k in Scenario.__dataclass_fields__ if k not in ("name", "description")]
@@ -101,7 +103,14 @@ def _scenario(base: dict[str, Any], params: dict[str, Any]) -> Scenario:
         f"{k}={v}" for k, v in params.items()))
 
 
-def run_chunk(jobs: Sequence[tuple[dict, dict, int]], engine: str = "vector",
+def pick_engine(engine: str, behaviour: str) -> str:
+    """The engine `auto` stands for, for runs of `behaviour`."""
+    if engine != "auto":
+        return engine
+    return "vector" if behaviour == "thesis" else "batch"
+
+
+def run_chunk(jobs: Sequence[tuple[dict, dict, int]], engine: str = "auto",
               until: str = "delivered") -> list[dict]:
     """Run (base scenario dict, point params, seed) jobs; return one summary each.
 
@@ -109,9 +118,21 @@ def run_chunk(jobs: Sequence[tuple[dict, dict, int]], engine: str = "vector",
     """
     scs = [_scenario(b, p) for b, p, _ in jobs]
     seeds = [s for _, _, s in jobs]
+    if engine == "auto":
+        out: list[dict | None] = [None] * len(jobs)
+        groups: dict[str, list[int]] = {}
+        for j, sc in enumerate(scs):
+            groups.setdefault(pick_engine(engine, sc.behaviour), []).append(j)
+        for eng, idx in groups.items():
+            for j, summ in zip(idx, run_chunk([jobs[j] for j in idx], eng, until)):
+                out[j] = summ
+        return out  # type: ignore[return-value]
     if engine == "vector":
         from sim_backend.vector_engine import run_batch
         return run_batch(scs, seeds, until=until)
+    if engine == "batch":
+        from sim_backend.batch.engine import run_batch as run_compiled
+        return run_compiled(scs, seeds, until=until)
     if engine != "reference":
         raise ValueError(f"engine: expected one of {ENGINES}, got {engine!r}")
     from sim_backend.engine import Engine, RunResult
@@ -201,7 +222,7 @@ def validate_points(points: Sequence[Point], base: Scenario | None = None,
 
 
 def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None = None,
-          engine: str = "vector", executor: Executor | None = None, until: str = "delivered",
+          engine: str = "auto", executor: Executor | None = None, until: str = "delivered",
           chunk_size: int = 256, overrides: dict[str, Any] | None = None,
           progress: Callable[[int], None] | None = None) -> list[dict]:
     """Run every point with every seed; return tidy rows in point, seed order.

@@ -39,6 +39,7 @@ from firmware_logic.behaviours.thesis.coordinator import Coordinator
 from firmware_logic.behaviours.thesis.robot import (ANT, CARRY, FIELD, FIREFLY, GRASP, HALT, HEARTBEAT_EVERY,
                                   HOLD, RETX_FIRST, RETX_MAX, SEARCH)
 from sim_backend.engine import RunResult
+from sim_backend.errors import EngineError
 from sim_backend.scenario import Scenario
 from sim_backend.world import BLUE, FREE, YELLOW, World, signal_table
 
@@ -91,6 +92,11 @@ class VectorEngine:
         if until not in UNTIL:
             raise ValueError(f"until: expected one of {UNTIL}, got {until!r}")
         self.until = until
+        other = sorted({str(sc.behaviour) for sc, _ in runs} - {"thesis"})
+        if other:
+            # a hand-written specialisation of one behaviour: never run another's scenario
+            raise EngineError(f"the vector engine runs the thesis behaviour only, not "
+                              f"{', '.join(other)}; use the batch engine")
         self.record = record_trajectories
         self.tick = 0
         self.runs = list(runs)
@@ -709,37 +715,14 @@ class VectorEngine:
         return list(self.results)  # type: ignore[arg-type]
 
 
-def _pairs(scenarios, seeds) -> list[tuple[Scenario, int]]:
-    if isinstance(scenarios, Scenario):
-        return [(scenarios, int(s)) for s in seeds]
-    scs = list(scenarios)
-    sds = list(seeds)
-    if len(scs) != len(sds):
-        raise ValueError("run_batch: a list of scenarios needs one seed per scenario")
-    return [(sc, int(s)) for sc, s in zip(scs, sds)]
-
-
 def run_batch_results(scenarios: Scenario | Sequence[Scenario], seeds: Iterable[int],
-                      record_trajectories: bool = False, until: str = "delivered",
-                      progress: Callable[[int], None] | None = None) -> list[RunResult]:
-    """RunResults of a batch: one scenario for every seed, or one scenario per seed."""
-    pairs = _pairs(scenarios, seeds)
-    if not pairs:
-        return []
-    return VectorEngine(pairs, record_trajectories=record_trajectories, until=until).run(progress)
+                      **kw) -> list[RunResult]:
+    """sim_backend.batch.engine.run_batch_results, stepped by this engine."""
+    from sim_backend.batch import engine as batch
+    return batch.run_batch_results(scenarios, seeds, engine=VectorEngine, **kw)
 
 
-def run_batch(scenarios: Scenario | Sequence[Scenario], seeds: Iterable[int],
-              trajectories: bool = False, until: str = "delivered",
-              progress: Callable[[int], None] | None = None):
-    """Summaries identical to RunResult.summary() of the reference engine.
-
-    With trajectories=True returns (summaries, trajectories), each trajectory a
-    list per tick of (xs, ys) as Engine(record_trajectories=True) records it.
-    """
-    res = run_batch_results(scenarios, seeds, record_trajectories=trajectories, until=until,
-                            progress=progress)
-    sums = [r.summary() for r in res]
-    if trajectories:
-        return sums, [r.trajectories for r in res]
-    return sums
+def run_batch(scenarios: Scenario | Sequence[Scenario], seeds: Iterable[int], **kw):
+    """sim_backend.batch.engine.run_batch, stepped by this engine."""
+    from sim_backend.batch import engine as batch
+    return batch.run_batch(scenarios, seeds, engine=VectorEngine, **kw)

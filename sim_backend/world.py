@@ -13,12 +13,9 @@ import math
 
 from firmware_logic import fixedpoint as fx
 from firmware_logic.rng import Rng
-from sim_backend import objects
+from sim_backend import kernel, objects
+from sim_backend.kernel import BLUE, FREE, YELLOW  # noqa: F401  (the cell values)
 from sim_backend.scenario import Scenario
-
-FREE = 0
-YELLOW = 1   # a free object segment
-BLUE = 2     # a segment a robot holds
 
 
 def signal_table(radius: int) -> list[tuple[int, int, int]]:
@@ -46,7 +43,11 @@ class World:
         self.owner = [0] * size          # node holding a BLUE patch
         self.field = [0] * size
         self.occ = [0] * size            # robots per patch at the tick's start
+        self.stamp = [-1] * size         # tick in which a patch was last entered
         self.table = signal_table(sc.sigRadius)
+        self.tdx = [t[0] for t in self.table]
+        self.tdy = [t[1] for t in self.table]
+        self.tv = [t[2] for t in self.table]
         setup = Rng(seed, 0)             # the observer's stream, as in setup
         # CreateWorld: objx, objy = random 10
         self.obj_x = sc.objectX if sc.objectX is not None else setup.below(10)
@@ -70,7 +71,38 @@ class World:
             taken.add(p)
             self.xs.append(x)
             self.ys.append(y)
+        # every robot's intents and holdings, as the kernel reads them
+        a = sc.agents
+        self.held = [-1] * a             # held cell, -1: none
+        self.mv_on = [0] * a             # a forward() this tick, of mv_step along mv_h
+        self.mv_h = [0] * a
+        self.mv_step = [0] * a
+        self.claim = [-1] * a            # cell claimed this tick
+        self.beacon_set = [-1] * a       # -1: no beacon() call this tick
+        self.beacon_on = [0] * a         # field source on, centred on (bsx, bsy)
+        self.bsx = [0] * a
+        self.bsy = [0] * a
+        self.carry_on = [0] * a          # a carry() asked and not yet consumed
+        self.carry_dx = [0] * a
+        self.carry_dy = [0] * a
         self.recount()
+
+    def cell_arrays(self) -> tuple[list[int], list[int], list[int], list[int]]:
+        """The object's cells as the kernel moves them: xs, ys and scratch."""
+        m = len(self.object_cells)
+        return [c[0] for c in self.object_cells], [c[1] for c in self.object_cells], \
+            [0] * m, [0] * m
+
+    def apply(self, tick: int) -> None:
+        """Apply the robots' intents of this tick (sim_backend/kernel.py)."""
+        cx, cy, cv, cw = self.cell_arrays()
+        kernel.apply_tick(self.obj, self.owner, self.field, self.occ, self.stamp, 0, self.w,
+                          self.n, self.tdx, self.tdy, self.tv, 0, len(self.tv), self.xs,
+                          self.ys, 0, len(self.xs), self.held, self.mv_on, self.mv_h,
+                          self.mv_step, self.claim, self.beacon_set, self.beacon_on,
+                          self.bsx, self.bsy, self.carry_on, self.carry_dx, self.carry_dy,
+                          cx, cy, cv, cw, 0, len(cx), tick)
+        self.object_cells = list(zip(cx, cy))
 
     def idx(self, px: int, py: int) -> int:
         return (py + self.w) * self.n + (px + self.w)
@@ -79,15 +111,9 @@ class World:
         return -self.w <= px <= self.w and -self.w <= py <= self.w
 
     def recount(self) -> None:
-        occ = [0] * (self.n * self.n)
-        for x, y in zip(self.xs, self.ys):
-            occ[self.idx(fx.patch(x), fx.patch(y))] += 1
-        self.occ = occ
+        kernel.recount(self.occ, 0, self.w, self.n, self.xs, self.ys, 0, len(self.xs))
 
     def signal(self, px: int, py: int, sign: int = 1) -> None:
         """Add (or, sign=-1, remove) one beacon's field centred on a patch."""
-        for ddx, ddy, v in self.table:
-            x = px + ddx
-            y = py + ddy
-            if self.inside(x, y):
-                self.field[self.idx(x, y)] += sign * v
+        kernel.signal(self.field, 0, self.w, self.n, self.tdx, self.tdy, self.tv, 0,
+                      len(self.tv), px, py, sign)

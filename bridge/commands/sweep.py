@@ -9,6 +9,7 @@ import time
 from pathlib import Path
 
 from bridge.errors import UsageError
+from sim_backend.sweep import ENGINES
 
 
 def register(sub) -> None:
@@ -44,8 +45,11 @@ def register(sub) -> None:
     p.add_argument("--until", choices=["delivered", "converged"], default=None,
                    help="stop each run when the object is home or when power first reaches "
                         "its weight (default: delivered; --thesis: converged)")
-    p.add_argument("--engine", choices=["vector", "reference"], default="vector",
-                   help="vectorised engine (default) or the per-robot reference engine")
+    p.add_argument("--engine", choices=ENGINES, default="auto",
+                   help="auto (default): the hand-vectorised engine for the thesis behaviour, "
+                        "the batch engine compiled from the behaviour's source for any other; "
+                        "batch: always the compiled engine (compiles for ~15 s per process); "
+                        "vector: thesis only; reference: the per-robot engine")
     p.add_argument("--executor", default="processes", metavar="SPEC",
                    help="processes[:N] (default: one per core), inline, or dask://HOST:PORT "
                         "(a dask.distributed scheduler)")

@@ -86,6 +86,11 @@ class Coordinator:
     def segments_now(self):
         return []
 
+    def quiet(self):
+        """True when tick() without a new message would neither send nor change
+        anything (a batch engine then skips the call)."""
+        return not self.outbox and (self.delivered_tick >= 0 or len(self.touches) < self.need)
+
     def tick(self, tick):
         if self.delivered_tick < 0 and len(self.touches) >= self.need:
             self.converged_tick = tick

@@ -145,6 +145,16 @@ class Coordinator:
             out.append((t.sx + self.moved_x, t.sy + self.moved_y))
         return out
 
+    def quiet(self):
+        """True when tick() without a new message would neither send nor change
+        anything (a batch engine then skips the call): before convergence
+        with power short of the weight, and after the HALT went out."""
+        if self.outbox:
+            return False
+        if self.delivered_tick >= 0:
+            return self.halted == 1
+        return self.converged_tick < 0 and not (self.touches and self.power >= self.weight)
+
     def tick(self, tick):
         """Advance the centralised phase; return and clear the commands to send."""
         if self.delivered_tick >= 0:

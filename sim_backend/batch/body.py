@@ -1,0 +1,222 @@
+"""Every robot's body in a batch of runs, as one HAL object over flat arrays.
+
+`BatchBody` implements firmware_logic/hal.py for robot `i` (set before each
+step) by calling the world's rules in sim_backend/kernel.py, the same
+functions the reference engine's SimBody calls; `tick_all` steps every live
+robot's FSM and applies the intents run by run. The batch engine compiles
+this file, the kernel and the behaviour's firmware modules with numba
+(sim_backend/batch/compiler.py); it stays plain Python so it can be read,
+and run uncompiled, like the rest.
+"""
+
+from sim_backend import kernel
+
+# rows of the per-robot table (int64[ROBOT_ROWS, robots])
+XS = 0
+YS = 1
+HELD = 2
+MV_ON = 3
+MV_H = 4
+MV_STEP = 5
+CLAIM = 6
+BEACON_SET = 7
+BEACON_ON = 8
+BSX = 9
+BSY = 10
+CARRY_ON = 11
+CARRY_DX = 12
+CARRY_DY = 13
+RUN = 14        # the robot's run
+IN_HEAD = 15    # inbox ring: next message to read
+IN_TAIL = 16    # inbox ring: next free slot
+ROBOT_ROWS = 17
+
+# rows of the per-run table (int64[RUN_ROWS, runs])
+BASE = 0        # first cell of the run's grids
+W = 1           # worldSize
+N = 2           # 2 * worldSize + 1
+LO = 3          # first robot (node 1)
+HI = 4          # one past the last robot
+T0 = 5          # the run's Signal table entries
+T1 = 6
+C0 = 7          # the run's object cells
+C1 = 8
+LIVE = 9        # 1 while the run goes on
+RUN_ROWS = 10
+
+# rows of the grids (int64[GRID_ROWS, runs * stride])
+OBJ = 0
+OWNER = 1
+FIELD = 2
+OCC = 3
+STAMP = 4
+GRID_ROWS = 5
+
+FIELDS = 6      # message fields a HAL send() carries
+
+
+class BatchBody:
+    def __init__(self, grids, robots, runs, cells, table, out_i, out_kind, out_f, out_n,
+                 in_kind, in_nf, in_f):
+        self.i = 0
+        self.obj = grids[OBJ]
+        self.owner = grids[OWNER]
+        self.field = grids[FIELD]
+        self.occ = grids[OCC]
+        self.stamp = grids[STAMP]
+        self.xs = robots[XS]
+        self.ys = robots[YS]
+        self.held = robots[HELD]
+        self.mv_on = robots[MV_ON]
+        self.mv_h = robots[MV_H]
+        self.mv_step = robots[MV_STEP]
+        self.claim_k = robots[CLAIM]
+        self.beacon_set = robots[BEACON_SET]
+        self.beacon_on = robots[BEACON_ON]
+        self.bsx = robots[BSX]
+        self.bsy = robots[BSY]
+        self.carry_on = robots[CARRY_ON]
+        self.carry_dx = robots[CARRY_DX]
+        self.carry_dy = robots[CARRY_DY]
+        self.run = robots[RUN]
+        self.in_head = robots[IN_HEAD]
+        self.in_tail = robots[IN_TAIL]
+        self.base = runs[BASE]
+        self.w = runs[W]
+        self.n = runs[N]
+        self.lo = runs[LO]
+        self.hi = runs[HI]
+        self.t0 = runs[T0]
+        self.t1 = runs[T1]
+        self.c0 = runs[C0]
+        self.c1 = runs[C1]
+        self.live = runs[LIVE]
+        self.cx = cells[0]
+        self.cy = cells[1]
+        self.cv = cells[2]
+        self.cw = cells[3]
+        self.tdx = table[0]
+        self.tdy = table[1]
+        self.tv = table[2]
+        self.out_i = out_i          # the robot that sent message j of this tick
+        self.out_kind = out_kind
+        self.out_f = out_f          # [messages, FIELDS]
+        self.out_n = out_n          # [count this tick, 1 if a send found the outbox full]
+        self.in_kind = in_kind      # [robots, ring size]
+        self.in_nf = in_nf          # fields each inbox message carries
+        self.in_f = in_f            # [robots, ring size, FIELDS]
+
+    # -- sensing ------------------------------------------------------------------
+
+    def x(self):
+        return self.xs[self.i]
+
+    def y(self):
+        return self.ys[self.i]
+
+    def probe(self, heading):
+        r = self.run[self.i]
+        return kernel.probe(self.obj, self.occ, self.base[r], self.w[r], self.n[r],
+                            self.xs[self.i], self.ys[self.i], heading)
+
+    def field_ahead(self, heading):
+        r = self.run[self.i]
+        return kernel.field_ahead(self.field, self.base[r], self.w[r], self.n[r],
+                                  self.xs[self.i], self.ys[self.i], heading)
+
+    def field_here(self):
+        r = self.run[self.i]
+        return kernel.field_here(self.field, self.base[r], self.w[r], self.n[r],
+                                 self.xs[self.i], self.ys[self.i])
+
+    def uphill(self):
+        r = self.run[self.i]
+        return kernel.uphill(self.field, self.base[r], self.w[r], self.n[r],
+                             self.xs[self.i], self.ys[self.i])
+
+    def holding(self):
+        r = self.run[self.i]
+        return kernel.holding(self.owner, self.base[r], self.held[self.i],
+                              self.i - self.lo[r] + 1)
+
+    # -- acting: intents ----------------------------------------------------------------
+
+    def forward(self, heading, step):
+        self.mv_on[self.i] = 1
+        self.mv_h[self.i] = heading
+        self.mv_step[self.i] = step
+
+    def claim(self, heading):
+        r = self.run[self.i]
+        self.claim_k[self.i] = kernel.cell(self.w[r], self.n[r],
+                                           kernel.ahead_x(self.xs[self.i], heading),
+                                           kernel.ahead_y(self.ys[self.i], heading))
+
+    def carry(self, dx, dy):
+        self.carry_on[self.i] = 1
+        self.carry_dx[self.i] = dx
+        self.carry_dy[self.i] = dy
+
+    def beacon(self, on):
+        self.beacon_set[self.i] = on
+
+    # -- messages ------------------------------------------------------------------------
+
+    def send(self, kind, a0, a1, a2, a3, a4, a5):
+        j = self.out_n[0]
+        if j >= len(self.out_kind):
+            self.out_n[1] = 1               # the engine stops with a named error
+            return
+        self.out_i[j] = self.i
+        self.out_kind[j] = kind
+        self.out_f[j, 0] = a0
+        self.out_f[j, 1] = a1
+        self.out_f[j, 2] = a2
+        self.out_f[j, 3] = a3
+        self.out_f[j, 4] = a4
+        self.out_f[j, 5] = a5
+        self.out_n[0] = j + 1
+
+    def recv(self, buf):
+        i = self.i
+        head = self.in_head[i]
+        if head == self.in_tail[i]:
+            return 0
+        slot = head % self.in_kind.shape[1]
+        for j in range(self.in_nf[i, slot]):
+            buf[j] = self.in_f[i, slot, j]
+        self.in_head[i] = head + 1
+        return self.in_kind[i, slot]
+
+    # -- the world's tick ------------------------------------------------------------------
+
+    def apply(self, r, tick):
+        kernel.apply_tick(self.obj, self.owner, self.field, self.occ, self.stamp,
+                          self.base[r], self.w[r], self.n[r], self.tdx, self.tdy, self.tv,
+                          self.t0[r], self.t1[r], self.xs, self.ys, self.lo[r], self.hi[r],
+                          self.held, self.mv_on, self.mv_h, self.mv_step, self.claim_k,
+                          self.beacon_set, self.beacon_on, self.bsx, self.bsy, self.carry_on,
+                          self.carry_dx, self.carry_dy, self.cx, self.cy, self.cv, self.cw,
+                          self.c0[r], self.c1[r], tick)
+
+
+def tick_all(robots, body, tick):
+    """One tick of every live run: each robot steps against the tick-start
+    world in node order, then each run's intents are applied."""
+    body.out_n[0] = 0
+    for i in range(len(robots)):
+        if body.live[body.run[i]] == 1:
+            body.i = i
+            body.mv_on[i] = 0
+            body.claim_k[i] = -1
+            body.beacon_set[i] = -1
+            robots[i].step(body)
+    for r in range(len(body.live)):
+        if body.live[r] == 1:
+            body.apply(r, tick)
+
+
+def states_of(robots, out):
+    """Every robot's FSM state, for traces."""
+    for i in range(len(robots)):
+        out[i] = robots[i].state

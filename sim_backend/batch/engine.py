@@ -1,0 +1,329 @@
+"""The batch engine: many runs stepped together by the behaviour's own
+firmware source, compiled.
+
+Every robot of every run is a numba jitclass compiled from the unmodified
+behaviour module (sim_backend/batch/compiler.py); their bodies are one
+`BatchBody` over flat arrays and the world's rules are sim_backend/kernel.py,
+the functions the reference engine runs. One compiled call steps a tick of
+every live run; the host coordinators stay the behaviour's Python objects,
+fed the same messages in the same order as the reference engine's in-process
+link feeds them, and asked to tick when they received a message or are not
+`quiet()` (a coordinator without `quiet` is asked every tick).
+
+A run stops where `Engine.run` stops it: delivered (or, with
+until="converged", converged) or at its maxTicks. The result is a RunResult
+with a World holding the run's final state, so every summary, record and
+picture is the reference's.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections import defaultdict
+from typing import Any, Callable, Iterable, Sequence
+
+import numpy as np
+
+from firmware_logic import messages as msg
+from firmware_logic import registry
+from sim_backend.batch import body as B
+from sim_backend.batch.compiler import twins
+from sim_backend.engine import RunResult
+from sim_backend.errors import EngineError
+from sim_backend.scenario import Scenario
+from sim_backend.world import World
+
+log = logging.getLogger(__name__)
+
+UNTIL = ("delivered", "converged")
+INBOX = 16            # messages a robot may have waiting (the host sends a few per tick)
+SENDS_PER_ROBOT = 8   # messages a robot may send in one tick
+
+
+def _nfields() -> list[int]:
+    top = max(msg.SCHEMA) + 1
+    return [len(msg.fields(k)) if k in msg.SCHEMA else 0 for k in range(top)]
+
+
+class BatchEngine:
+    """A batch of independent runs (scenario, seed) of one behaviour."""
+
+    def __init__(self, runs: Sequence[tuple[Scenario, int]], record_trajectories: bool = False,
+                 until: str = "delivered") -> None:
+        if until not in UNTIL:
+            raise ValueError(f"until: expected one of {UNTIL}, got {until!r}")
+        self.runs = list(runs)
+        if not self.runs:
+            raise EngineError("a batch needs at least one run")
+        names = {sc.behaviour for sc, _ in self.runs}
+        if len(names) != 1:
+            raise EngineError(f"a batch runs one behaviour, got {sorted(map(str, names))}")
+        self.behaviour = registry.load(names.pop())
+        self.until = until
+        self.record = record_trajectories
+        self.tick = 0
+        self.nfields = _nfields()
+        t0 = time.perf_counter()
+        self._build()
+        self.setup_seconds = time.perf_counter() - t0
+
+    # -- set-up -------------------------------------------------------------------------
+
+    def _build(self) -> None:
+        runs = self.runs
+        nr = len(runs)
+        self.worlds = [World(sc, seed) for sc, seed in runs]
+        agents = [sc.agents for sc, _ in runs]
+        starts = np.concatenate([[0], np.cumsum(agents)]).astype(np.int64)
+        nrob = int(starts[-1])
+        self.stride = max(w.n * w.n for w in self.worlds)
+        # per run
+        rt = np.zeros((B.RUN_ROWS, nr), dtype=np.int64)
+        tables = [(w.tdx, w.tdy, w.tv) for w in self.worlds]
+        tstarts = np.concatenate([[0], np.cumsum([len(t[0]) for t in tables])])
+        cells = [w.cell_arrays() for w in self.worlds]
+        cstarts = np.concatenate([[0], np.cumsum([len(c[0]) for c in cells])])
+        for r, w in enumerate(self.worlds):
+            rt[B.BASE, r] = r * self.stride
+            rt[B.W, r] = w.w
+            rt[B.N, r] = w.n
+            rt[B.LO, r] = starts[r]
+            rt[B.HI, r] = starts[r + 1]
+            rt[B.T0, r], rt[B.T1, r] = tstarts[r], tstarts[r + 1]
+            rt[B.C0, r], rt[B.C1, r] = cstarts[r], cstarts[r + 1]
+        rt[B.LIVE] = 1
+        table = np.zeros((3, max(1, int(tstarts[-1]))), dtype=np.int64)
+        cell = np.zeros((4, max(1, int(cstarts[-1]))), dtype=np.int64)
+        grids = np.zeros((B.GRID_ROWS, nr * self.stride), dtype=np.int64)
+        grids[B.STAMP] = -1
+        rb = np.zeros((B.ROBOT_ROWS, nrob), dtype=np.int64)
+        for r, w in enumerate(self.worlds):
+            a, b = int(rt[B.T0, r]), int(rt[B.T1, r])
+            table[:, a:b] = tables[r]
+            a, b = int(rt[B.C0, r]), int(rt[B.C1, r])
+            cell[:2, a:b] = cells[r][:2]
+            base, size = r * self.stride, w.n * w.n
+            for row, grid in ((B.OBJ, w.obj), (B.OWNER, w.owner), (B.FIELD, w.field),
+                              (B.OCC, w.occ)):
+                grids[row, base:base + size] = grid
+            lo, hi = int(starts[r]), int(starts[r + 1])
+            rb[B.XS, lo:hi] = w.xs
+            rb[B.YS, lo:hi] = w.ys
+            rb[B.RUN, lo:hi] = r
+        rb[B.HELD] = -1
+        rb[B.CLAIM] = -1
+        rb[B.BEACON_SET] = -1
+        self.rt, self.rb, self.grids, self.cells = rt, rb, grids, cell
+        cap = SENDS_PER_ROBOT * nrob + 16
+        self.out_i = np.zeros(cap, dtype=np.int64)
+        self.out_kind = np.zeros(cap, dtype=np.int64)
+        self.out_f = np.zeros((cap, B.FIELDS), dtype=np.int64)
+        self.out_n = np.zeros(2, dtype=np.int64)
+        self.in_kind = np.zeros((nrob, INBOX), dtype=np.int64)
+        self.in_nf = np.zeros((nrob, INBOX), dtype=np.int64)
+        self.in_f = np.zeros((nrob, INBOX, B.FIELDS), dtype=np.int64)
+        args = (grids, rb, rt, cell, table, self.out_i, self.out_kind, self.out_f, self.out_n,
+                self.in_kind, self.in_nf, self.in_f)
+
+        tw = twins()
+        c0 = time.perf_counter()
+        beh = self.behaviour
+        sc0, seed0 = runs[0]
+        Body = tw.jitclass_of(B.BatchBody(*args))
+        Robot = tw.jitclass_of(beh.make_robot(1, seed0, sc0))
+        self.body = Body(*args)
+        import numba.typed
+        self.robots = numba.typed.List.empty_list(Robot.class_type.instance_type)
+        for sc, seed in runs:
+            for node in range(1, sc.agents + 1):
+                self.robots.append(Robot(*beh.robot_args(node, seed, sc)))
+        self.robots[0:1]               # compiles the slice a result takes, now, not mid-run
+        self._tick_all = tw.function(B.tick_all)
+        self._states_of = tw.function(B.states_of)
+        self.coords = [beh.coordinator(sc) for sc, _ in runs]
+        self.busy = np.array([not _quiet(c) for c in self.coords], dtype=bool)
+        self.lo = starts[:-1].tolist()
+        self.run_of = rb[B.RUN].tolist()
+        self.max_ticks = np.array([sc.maxTicks for sc, _ in runs], dtype=np.int64)
+        self.results: list[RunResult | None] = [None] * nr
+        self.frames: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        self._step_once_compiled = False
+        tw.compile_seconds += time.perf_counter() - c0
+
+    # -- one tick ---------------------------------------------------------------------------
+
+    def step(self) -> None:
+        self.tick += 1
+        t = self.tick
+        if not self._step_once_compiled:
+            c0 = time.perf_counter()
+            self._tick_all(self.robots, self.body, t)
+            twins().compile_seconds += time.perf_counter() - c0
+            self._step_once_compiled = True
+        else:
+            self._tick_all(self.robots, self.body, t)
+        if self.out_n[1]:
+            raise EngineError(f"tick {t}: a robot sent more than {SENDS_PER_ROBOT} messages "
+                              "in one tick (the batch engine's outbox is full)")
+        if self.record:
+            st = np.zeros(len(self.robots), dtype=np.int64)
+            self._states_of(self.robots, st)
+            self.frames.append((self.rb[B.XS].copy(), self.rb[B.YS].copy(), st))
+        called = self._exchange(t)
+        self._finish(t, called)
+
+    def _exchange(self, t: int) -> set[int]:
+        n = int(self.out_n[0])
+        called: set[int] = set()
+        coords = self.coords
+        if n:
+            senders = self.out_i[:n].tolist()
+            kinds = self.out_kind[:n].tolist()
+            fields = self.out_f[:n].tolist()
+            for j in range(n):
+                i = senders[j]
+                r = self.run_of[i]
+                kind = kinds[j]
+                coords[r].on_message(i - self.lo[r] + 1, kind,
+                                     tuple(fields[j][:self.nfields[kind]]), t)
+                called.add(r)
+        live = self.rt[B.LIVE]
+        for r in np.flatnonzero(self.busy & (live == 1)).tolist():
+            called.add(r)
+        for r in sorted(called):
+            c = coords[r]
+            out = c.tick(t)
+            if out:
+                self._deliver(r, out)
+            self.busy[r] = not _quiet(c)
+        return called
+
+    def _deliver(self, r: int, out: Iterable[tuple[int, int, tuple]]) -> None:
+        lo = self.lo[r]
+        agents = int(self.rt[B.HI, r]) - lo
+        head, tail = self.rb[B.IN_HEAD], self.rb[B.IN_TAIL]
+        for node, kind, fields in out:
+            if node == msg.HOST:
+                targets = range(lo, lo + agents)
+            elif 1 <= node <= agents:
+                targets = (lo + node - 1,)
+            else:
+                raise EngineError(f"run {r}: the coordinator addressed node {node}, "
+                                  f"which is not one of its {agents} robots")
+            for i in targets:
+                if tail[i] - head[i] >= INBOX:
+                    raise EngineError(f"run {r}: robot {i - lo + 1} has {INBOX} unread messages")
+                slot = tail[i] % INBOX
+                self.in_kind[i, slot] = kind
+                self.in_nf[i, slot] = len(fields)
+                self.in_f[i, slot, :len(fields)] = fields
+                tail[i] += 1
+
+    # -- run ends -----------------------------------------------------------------------------
+
+    def _finish(self, t: int, called: set[int]) -> None:
+        live = self.rt[B.LIVE]
+        done = set(np.flatnonzero((live == 1) & (self.max_ticks <= t)).tolist())
+        for r in called:
+            c = self.coords[r]
+            if (c.delivered_tick if self.until == "delivered" else c.converged_tick) >= 0:
+                done.add(r)
+        for r in sorted(done):
+            if live[r] == 1:
+                self._result(r, t)
+                live[r] = 0
+
+    def _result(self, r: int, t: int) -> None:
+        """The run's final state into its World, as the reference engine leaves it."""
+        sc, seed = self.runs[r]
+        w = self.worlds[r]
+        lo, hi = int(self.rt[B.LO, r]), int(self.rt[B.HI, r])
+        base, size = r * self.stride, w.n * w.n
+        for row, name in ((B.OBJ, "obj"), (B.OWNER, "owner"), (B.FIELD, "field"),
+                          (B.OCC, "occ"), (B.STAMP, "stamp")):
+            getattr(w, name)[:] = self.grids[row, base:base + size].tolist()
+        w.xs[:] = self.rb[B.XS, lo:hi].tolist()
+        w.ys[:] = self.rb[B.YS, lo:hi].tolist()
+        w.held[:] = self.rb[B.HELD, lo:hi].tolist()
+        c0, c1 = int(self.rt[B.C0, r]), int(self.rt[B.C1, r])
+        w.object_cells = list(zip(self.cells[0, c0:c1].tolist(), self.cells[1, c0:c1].tolist()))
+        traj, states = [], []
+        for xs, ys, st in self.frames[:t]:
+            traj.append((xs[lo:hi].tolist(), ys[lo:hi].tolist()))
+            states.append(st[lo:hi].tolist())
+        res = RunResult(sc, seed, t, w, self.coords[r], list(self.robots[lo:hi]), traj)
+        res.states = states
+        self.results[r] = res
+
+    # -- a whole batch ----------------------------------------------------------------------------
+
+    def finished(self) -> bool:
+        return not bool(self.rt[B.LIVE].any())
+
+    def run(self, progress: Callable[[int], None] | None = None) -> list[RunResult]:
+        while not self.finished():
+            self.step()
+            if progress is not None:
+                progress(int((self.rt[B.LIVE] == 0).sum()))
+        return list(self.results)  # type: ignore[arg-type]
+
+
+def _quiet(c: Any) -> bool:
+    q = getattr(c, "quiet", None)
+    return bool(q()) if q is not None else False
+
+
+def _pairs(scenarios: Scenario | Sequence[Scenario], seeds: Iterable[int]
+           ) -> list[tuple[Scenario, int]]:
+    if isinstance(scenarios, Scenario):
+        return [(scenarios, int(s)) for s in seeds]
+    scs = list(scenarios)
+    sds = list(seeds)
+    if len(scs) != len(sds):
+        raise ValueError("run_batch: a list of scenarios needs one seed per scenario")
+    return [(sc, int(s)) for sc, s in zip(scs, sds)]
+
+
+def run_batch_results(scenarios: Scenario | Sequence[Scenario], seeds: Iterable[int],
+                      record_trajectories: bool = False, until: str = "delivered",
+                      progress: Callable[[int], None] | None = None,
+                      engine: Callable[..., Any] | None = None) -> list[RunResult]:
+    """RunResults in input order: one scenario for every seed, or one scenario
+    per seed; runs of different behaviours go in one batch each.
+
+    engine: the batch engine class (default BatchEngine; the thesis's
+    hand-vectorised VectorEngine takes the same arguments)."""
+    make = BatchEngine if engine is None else engine
+    pairs = _pairs(scenarios, seeds)
+    groups: dict[str, list[int]] = defaultdict(list)
+    for j, (sc, _) in enumerate(pairs):
+        groups[str(sc.behaviour)].append(j)
+    out: list[RunResult | None] = [None] * len(pairs)
+    done = 0
+    for idx in groups.values():
+        eng = make([pairs[j] for j in idx], record_trajectories=record_trajectories,
+                   until=until)
+        base = done
+        res = eng.run(None if progress is None else (lambda k: progress(base + k)))
+        for j, rr in zip(idx, res):
+            out[j] = rr
+        done += len(idx)
+    return out  # type: ignore[return-value]
+
+
+def run_batch(scenarios: Scenario | Sequence[Scenario], seeds: Iterable[int],
+              trajectories: bool = False, until: str = "delivered",
+              progress: Callable[[int], None] | None = None,
+              engine: Callable[..., Any] | None = None):
+    """Summaries identical to RunResult.summary() of the reference engine.
+
+    With trajectories=True returns (summaries, trajectories), each trajectory a
+    list per tick of (xs, ys) as Engine(record_trajectories=True) records it.
+    """
+    res = run_batch_results(scenarios, seeds, record_trajectories=trajectories, until=until,
+                            progress=progress, engine=engine)
+    sums = [r.summary() for r in res]
+    if trajectories:
+        return sums, [r.trajectories for r in res]
+    return sums

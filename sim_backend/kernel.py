@@ -1,0 +1,242 @@
+"""The world's rules, written once: sensing, claims, beacons, the carried
+group, moves and occupancy (docs/tick-semantics.md).
+
+Every function works on flat integer arrays: Python lists when the
+reference engine (sim_backend/engine.py) interprets them for one run,
+numpy arrays when the batch engine (sim_backend/batch/) compiles this very
+source with numba for many runs at once. So the code keeps to what both
+understand: ints, indexing, loops, calls to the functions here and in
+firmware_logic/fixedpoint.py; no sets, dicts, tuples of tuples or
+allocation.
+
+Layout of one run inside the arrays:
+    grids (obj, owner, field, occ, stamp): the run's n x n patches start at
+        `base`; a patch (px, py) is cell (py + w) * n + (px + w), where
+        w is the run's worldSize and n = 2w + 1; `held`, `claim` and the
+        object cells hold cells relative to `base`;
+    robots (xs, ys and every per-robot array): indices lo..hi-1, in node
+        order, so robot i is node i - lo + 1;
+    the object's cells: cx, cy from c0 to c1 (cv, cw are scratch);
+    the Signal table (tdx, tdy, tv): entries t0 to t1.
+"""
+
+from firmware_logic import fixedpoint as fx
+from firmware_logic.hal import CLAIMED, NOTHING, OBJECT, ROBOT, WALL
+
+FREE = 0
+YELLOW = 1   # a free object segment
+BLUE = 2     # a segment a robot holds
+
+# the neighbours `uphill` looks at, in the order it breaks ties
+UPHILL_H = (0, 45, 90, 135, 180, 225, 270, 315)
+UPHILL_DX = (0, 1, 1, 1, 0, -1, -1, -1)
+UPHILL_DY = (1, 1, 0, -1, -1, -1, 0, 1)
+
+
+def inside(w, px, py):
+    return -w <= px and px <= w and -w <= py and py <= w
+
+
+def cell(w, n, px, py):
+    return (py + w) * n + (px + w)
+
+
+def ahead_x(x, h):
+    """Patch column one patch ahead of Q8 x along heading h."""
+    return fx.patch(x + fx.dx(h, fx.ONE))
+
+
+def ahead_y(y, h):
+    return fx.patch(y + fx.dy(h, fx.ONE))
+
+
+# -- sensing: the world as it stood at the start of the tick ------------------
+
+def probe(obj, occ, base, w, n, x, y, h):
+    px = ahead_x(x, h)
+    py = ahead_y(y, h)
+    if not inside(w, px, py):
+        return WALL
+    k = base + cell(w, n, px, py)
+    o = obj[k]
+    if o == YELLOW:
+        return OBJECT
+    if o == BLUE:
+        return CLAIMED
+    c = occ[k]
+    if px == fx.patch(x) and py == fx.patch(y):
+        c -= 1               # the robot itself (a turn within its own patch)
+    if c > 0:
+        return ROBOT
+    return NOTHING
+
+
+def field_ahead(field, base, w, n, x, y, h):
+    px = ahead_x(x, h)
+    py = ahead_y(y, h)
+    if not inside(w, px, py):
+        return 0
+    return field[base + cell(w, n, px, py)]
+
+
+def field_here(field, base, w, n, x, y):
+    return field[base + cell(w, n, fx.patch(x), fx.patch(y))]
+
+
+def uphill(field, base, w, n, x, y):
+    """Heading to the strongest neighbour if stronger than here, else -1;
+    ties go to the first in N, NE, E, ... order."""
+    px = fx.patch(x)
+    py = fx.patch(y)
+    best = field[base + cell(w, n, px, py)]
+    out = -1
+    for j in range(8):
+        qx = px + UPHILL_DX[j]
+        qy = py + UPHILL_DY[j]
+        if inside(w, qx, qy):
+            v = field[base + cell(w, n, qx, qy)]
+            if v > best:
+                best = v
+                out = UPHILL_H[j]
+    return out
+
+
+def holding(owner, base, held, node):
+    if held >= 0 and owner[base + held] == node:
+        return 1
+    return 0
+
+
+# -- the field --------------------------------------------------------------------
+
+def signal(field, base, w, n, tdx, tdy, tv, t0, t1, px, py, sign):
+    """Add (sign 1) or remove (sign -1) one beacon's field centred on a patch."""
+    for t in range(t0, t1):
+        x = px + tdx[t]
+        y = py + tdy[t]
+        if inside(w, x, y):
+            field[base + cell(w, n, x, y)] += sign * tv[t]
+
+
+def recount(occ, base, w, n, xs, ys, lo, hi):
+    for k in range(base, base + n * n):
+        occ[k] = 0
+    for i in range(lo, hi):
+        occ[base + cell(w, n, fx.patch(xs[i]), fx.patch(ys[i]))] += 1
+
+
+# -- applying one tick's intents ---------------------------------------------------
+
+def apply_tick(obj, owner, field, occ, stamp, base, w, n, tdx, tdy, tv, t0, t1,
+               xs, ys, lo, hi, held, mv_on, mv_h, mv_step, claim, beacon_set,
+               beacon_on, bsx, bsy, carry_on, carry_dx, carry_dy,
+               cx, cy, cv, cw, c0, c1, tick):
+    """Apply every robot's intents of tick `tick` (>= 1) in the fixed order:
+    claims (lowest node wins a segment), beacons, the carried group, moves in
+    node order; then recount occupancy. `stamp` marks the patches entered
+    this tick with the tick number."""
+    for i in range(lo, hi):
+        k = claim[i]
+        if k >= 0 and obj[base + k] == YELLOW:
+            obj[base + k] = BLUE
+            owner[base + k] = i - lo + 1
+            held[i] = k
+    for i in range(lo, hi):
+        b = beacon_set[i]
+        if b == 1 and beacon_on[i] == 0:
+            bsx[i] = fx.patch(xs[i])
+            bsy[i] = fx.patch(ys[i])
+            beacon_on[i] = 1
+            signal(field, base, w, n, tdx, tdy, tv, t0, t1, bsx[i], bsy[i], 1)
+        elif b == 0 and beacon_on[i] == 1:
+            # our addition: a beacon switched off takes its field with it
+            signal(field, base, w, n, tdx, tdy, tv, t0, t1, bsx[i], bsy[i], -1)
+            beacon_on[i] = 0
+    carry_group(obj, owner, occ, stamp, base, w, n, xs, ys, lo, hi, held,
+                carry_on, carry_dx, carry_dy, cx, cy, cv, cw, c0, c1, tick)
+    for i in range(lo, hi):
+        if mv_on[i] == 0:
+            continue
+        nx = xs[i] + fx.dx(mv_h[i], mv_step[i])
+        ny = ys[i] + fx.dy(mv_h[i], mv_step[i])
+        px = fx.patch(nx)
+        py = fx.patch(ny)
+        if px != fx.patch(xs[i]) or py != fx.patch(ys[i]):
+            if not inside(w, px, py):
+                continue
+            k = base + cell(w, n, px, py)
+            if obj[k] != FREE or occ[k] > 0 or stamp[k] == tick:
+                continue
+            stamp[k] = tick
+        xs[i] = nx
+        ys[i] = ny
+    recount(occ, base, w, n, xs, ys, lo, hi)
+
+
+def _holder_at(w, n, xs, ys, lo, hi, held, k):
+    """1 if some holder of the run stands on cell k (relative)."""
+    for i in range(lo, hi):
+        if held[i] >= 0 and cell(w, n, fx.patch(xs[i]), fx.patch(ys[i])) == k:
+            return 1
+    return 0
+
+
+def carry_group(obj, owner, occ, stamp, base, w, n, xs, ys, lo, hi, held,
+                carry_on, carry_dx, carry_dy, cx, cy, cv, cw, c0, c1, tick):
+    """Move the object with its holders when all of them ask for the same
+    step; a holder's request stays until the group moves or is blocked."""
+    holders = 0
+    ddx = 0
+    ddy = 0
+    for i in range(lo, hi):
+        if held[i] < 0:
+            continue
+        if carry_on[i] == 0:
+            return                       # a holder that has not asked yet
+        if holders > 0 and (carry_dx[i] != ddx or carry_dy[i] != ddy):
+            return                       # holders disagree
+        ddx = carry_dx[i]
+        ddy = carry_dy[i]
+        holders += 1
+    if holders == 0:
+        return
+    for i in range(lo, hi):
+        if held[i] >= 0:
+            carry_on[i] = 0              # consumed: moved or blocked
+    for j in range(c0, c1):
+        if _blocked(occ, base, w, n, xs, ys, lo, hi, held, cx[j] + ddx, cy[j] + ddy):
+            return
+    for i in range(lo, hi):
+        if held[i] >= 0 and _blocked(occ, base, w, n, xs, ys, lo, hi, held,
+                                     fx.patch(xs[i]) + ddx, fx.patch(ys[i]) + ddy):
+            return
+    for j in range(c0, c1):
+        k = base + cell(w, n, cx[j], cy[j])
+        cv[j] = obj[k]
+        cw[j] = owner[k]
+        obj[k] = FREE
+        owner[k] = 0
+    for j in range(c0, c1):
+        cx[j] += ddx
+        cy[j] += ddy
+        k = base + cell(w, n, cx[j], cy[j])
+        obj[k] = cv[j]
+        owner[k] = cw[j]
+        stamp[k] = tick
+    for i in range(lo, hi):
+        if held[i] >= 0:
+            xs[i] += ddx * fx.ONE
+            ys[i] += ddy * fx.ONE
+            held[i] += ddy * n + ddx
+            stamp[base + cell(w, n, fx.patch(xs[i]), fx.patch(ys[i]))] = tick
+
+
+def _blocked(occ, base, w, n, xs, ys, lo, hi, held, px, py):
+    """Whether the carried group may not enter patch (px, py): off the arena,
+    or a robot that does not hold the object stands there."""
+    if not inside(w, px, py):
+        return 1
+    k = cell(w, n, px, py)
+    if occ[base + k] > 0 and not _holder_at(w, n, xs, ys, lo, hi, held, k):
+        return 1
+    return 0

@@ -1,0 +1,88 @@
+"""The batch engine runs the behaviour's own source, compiled, and equals the
+reference engine bit for bit.
+
+The differential harness runs every registered behaviour, both movement
+models and every object: every robot's pose and FSM state at every tick and
+the whole summary must match sim_backend.engine.Engine. The single-source
+test changes one rule in a copy of a behaviour and shows that both engines
+change, identically: there is no second copy of any rule to forget.
+"""
+
+import shutil
+from pathlib import Path
+
+import pytest
+
+from firmware_logic import registry
+from sim_backend import objects
+from sim_backend.batch.engine import BatchEngine, run_batch
+from sim_backend.errors import EngineError
+from sim_backend.scenario import validate
+from tests.harness import assert_same, mixed_scenarios, reference
+
+THESIS_DIR = Path(registry.load("thesis").folder)
+
+
+@pytest.mark.parametrize("behaviour", sorted(registry.names()))
+@pytest.mark.parametrize("model", ["firefly", "ant"])
+def test_every_behaviour_model_and_object_identical(behaviour, model):
+    scs, seeds = [], []
+    for obj in sorted(objects.SHAPES):
+        sc = validate({"behaviour": behaviour, "movementModel": model, "object": obj,
+                       "maxTicks": 3000})
+        for seed in (1, 2):
+            scs.append(sc)
+            seeds.append(seed)
+    got = assert_same(scs, seeds)
+    assert any(r.delivered for r in got), "no run reached its goal: a weak comparison"
+
+
+def test_many_seeds_and_mixed_parameters_in_one_batch():
+    """Runs of one batch stop at different ticks (delivered or at maxTicks)
+    while the others go on."""
+    scs, seeds = mixed_scenarios()
+    got = assert_same(scs, seeds)
+    assert len({r.ticks for r in got}) > 5
+
+
+def test_until_converged_stops_where_the_reference_stops():
+    sc = validate({"movementModel": "ant"})
+    got = assert_same([sc] * 4, [5, 6, 7, 8], until="converged")
+    assert all(r.coordinator.converged_tick == r.ticks for r in got if r.ticks < sc.maxTicks)
+
+
+def test_summaries_of_run_batch_keep_input_order_across_behaviours():
+    a = validate({"behaviour": "aggregate"})
+    t = validate({})
+    sums = run_batch([t, a, t], [3, 3, 4])
+    assert [s["seed"] for s in sums] == [3, 3, 4]
+    assert "largest" in sums[1] and "largest" not in sums[0]
+    assert sums[0] == reference(t, 3).summary()
+
+
+def test_bad_batches_get_a_named_error():
+    with pytest.raises(EngineError, match="at least one run"):
+        BatchEngine([])
+    with pytest.raises(EngineError, match="one behaviour"):
+        BatchEngine([(validate({}), 1), (validate({"behaviour": "aggregate"}), 1)])
+
+
+def test_one_rule_changed_in_the_source_changes_both_engines_identically(tmp_path):
+    """Single source: a copy of the thesis behaviour whose random heading is
+    drawn from 0..179 instead of 0..359. Both engines must follow the copy."""
+    mutant = tmp_path / "thesis_half_turns"
+    shutil.copytree(THESIS_DIR, mutant, ignore=shutil.ignore_patterns("__pycache__"))
+    robot = mutant / "robot.py"
+    src = robot.read_text()
+    rule = ("        if self.model == FIREFLY:\n"
+            "            self.heading = self.rng.below(360)\n"
+            "        self._head_carefully(hal)")
+    assert src.count(rule) == 1, "the rule this test mutates has moved; update the test"
+    robot.write_text(src.replace(rule, rule.replace("below(360)", "below(180)")))
+    original = validate({"maxTicks": 400})
+    changed = validate({"behaviour": str(mutant), "maxTicks": 400})
+    seeds = [1, 2]
+    got = assert_same([changed] * 2, seeds)           # batch == reference on the copy
+    for seed, b in zip(seeds, got):
+        before = reference(original, seed)
+        assert b.trajectories != before.trajectories[:len(b.trajectories)], seed
