@@ -196,3 +196,28 @@ def test_real_missions_pass_the_checks_with_the_object_known(scenario: str, seed
     r = e.run()
     assert r.delivered and r.coordinator.rejected == {}
     assert r.summary() == plain.summary()
+
+
+def test_a_poisoned_journal_never_crashes_or_fools_a_resumed_host(tmp_path: Path):
+    """Issue 8: the home touch was journalled first, so every --resume crashed
+    again. A journal an older host wrote with such touches in it (at home, off
+    the arena, with a forged power) is resumed without them."""
+    p = tmp_path / "old.sqlite"
+    with Journal(p) as j:
+        j.add_node(7, 1, 600)
+        j.add_touch(Touch(7, 1, -15, -16, -15, -15, 600, 2))      # at home
+        j.add_node(8, 1, 100)
+        j.add_touch(Touch(8, 1, 120, 119, 120, 120, 100, 3))      # outside
+        j.add_node(9, 1, 100)
+        j.add_touch(Touch(9, 1, 2, 2, 3, 2, 65535, 4))           # power
+        j.add_node(10, 1, 100)
+        j.add_touch(Touch(10, 1, 2, 3, 3, 3, 100, 5))            # a good one
+    with Journal(p) as j:
+        h = HostProcess(FakeTransport(), weight=600, journal=j, world_size=18)
+        assert h.resume(j) == 1
+        for _ in range(5):
+            h.step()
+        s = h.summary()
+        assert s["touches"] == [[10, 1]] and s["power"] == 1.0 and not s["delivered"]
+        assert s["converged_tick"] is None
+        assert s["rejected"] == {co.AT_HOME: 1, co.OUTSIDE: 1, co.WRONG_POWER: 1}

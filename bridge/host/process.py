@@ -103,17 +103,19 @@ class HostProcess:
         for node, (model, power) in journal.nodes().items():
             self.coord.nodes[node] = (model, power)
         touches = journal.touches()
-        self.coord.restore(touches)
+        self.coord.restore(touches)       # checked again: an older host's journal may hold poison
         self.tick = max(self.tick, journal.last_tick())
-        self.resumed = len(touches)
+        self.resumed = len(self.coord.touches)
         last = journal.last_decision()
         if last is not None:
             restore_coordinator(self.coord, last.state.get("coordinator", {}))
             self.halts_sent = int(last.state.get("host", {}).get("halts_sent", 0))
-        self._event(f"resumed {len(touches)} touches from {len(self.coord.nodes)} nodes "
+        dropped = len(touches) - self.resumed
+        self._event(f"resumed {self.resumed} touches from {len(self.coord.nodes)} nodes "
                     f"({journal.path}); power {self.coord.power}/{self.coord.weight}; "
-                    f"{self.phase()}")
-        return len(touches)
+                    f"{self.phase()}"
+                    + (f"; {dropped} journalled touches rejected" if dropped else ""))
+        return self.resumed
 
     def phase(self) -> str:
         c = self.coord
