@@ -45,8 +45,8 @@ CASES = [
 
 def snapshot(h):
     c = h.coord
-    return copy.deepcopy((c.nodes, [t.as_tuple() for t in c.touches], sorted(c.seen), c.power,
-                          c.leader, c.outbox, c.duplicates, c.rejected, c.step))
+    return copy.deepcopy((c.nodes, [t.as_tuple() for t in c.touches], sorted(c.by_node), c.power,
+                          c.leader, c.outbox, c.acks, c.duplicates, c.rejected, c.step))
 
 
 def announced_host():

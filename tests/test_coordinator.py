@@ -28,7 +28,9 @@ def test_duplicates_are_acknowledged_but_counted_once():
     touch(c, 2, 1, (5, 5), 10)
     touch(c, 2, 1, (5, 5), 11)
     assert c.power == 100 and len(c.touches) == 1 and c.duplicates == 1
-    assert c.tick(11) == [(2, msg.ACK, (1,)), (2, msg.ACK, (1,))]
+    assert c.tick(11) == [(2, msg.ACK, (1,))]        # one ACK per node per tick
+    touch(c, 2, 1, (5, 5), 12)
+    assert c.tick(12) == [(2, msg.ACK, (1,))] and c.duplicates == 2
 
 
 def test_journal_is_written_before_the_ack():
@@ -93,26 +95,42 @@ def test_restore_readopts_journalled_touches_without_double_counting():
     hello(a, 1)
     touch(a, 1, 1, (5, 5), 10)
     b = Coordinator(300)
+    hello(b, 1)
+    b.tick(1)
     b.restore(a.touches)
     b.restore(a.touches)
     assert b.power == 100 and len(b.touches) == 1 and b.leader == 1
 
 
-def test_a_touch_at_home_never_crashes_the_host() -> None:
+def test_a_touch_at_home_never_crashes_or_delivers() -> None:
     """Issue 8: a TOUCH at (-15,-15) raised ZeroDivisionError in step planning,
-    and since the touch was journalled first, every resume crashed again."""
-    c = Coordinator(600)
+    and since the touch was journalled first, every resume crashed again. It
+    is now rejected before the journal, and a journal that holds one (an
+    older host's) is rejected on restore."""
+    journalled = []
+    c = Coordinator(600, journal=journalled.append)
     hello(c, 7, power=600)
     c.tick(1)
     touch(c, 7, 1, (-15, -15), 2, power=600, robot=(-15, -16))
-    out = c.tick(2)          # converges and plans: must not raise
-    assert c.converged_tick == 2
-    assert c.delivered_tick >= 0
-    c.tick(3)
-    # a resumed host (touch restored from the journal) survives it too
+    out = c.tick(2) + c.tick(3)
+    assert journalled == [] and c.touches == [] and c.rejected == {"segment at home": 1}
+    assert c.converged_tick == -1 and c.delivered_tick == -1
+    assert (7, msg.ACK, (1,)) not in out           # rejected reports are not ACKed
+    from firmware_logic.behaviours.thesis.coordinator import Touch
     r = Coordinator(600)
     hello(r, 7, power=600)
-    r.restore(list(c.touches))
+    r.restore([Touch(7, 1, -15, -16, -15, -15, 600, 2)])
     r.tick(4)
-    assert r.delivered_tick >= 0
-    assert (msg.HOST, msg.HALT, (0,)) in out + c.tick(4) + r.tick(5)
+    r.tick(5)
+    assert r.touches == [] and r.delivered_tick == -1 and r.rejected == {"segment at home": 1}
+
+
+def test_step_planning_never_divides_by_zero() -> None:
+    """The guard behind the rule: a host with no home radius accepts a touch
+    exactly at home; planning finds no step closer and calls it delivered."""
+    c = Coordinator(600, home_radius=0)
+    hello(c, 7, power=600)
+    touch(c, 7, 1, (-15, -15), 2, power=600, robot=(-15, -16))
+    c.tick(2)
+    assert c.converged_tick == 2 and c.delivered_tick == 2
+    assert (msg.HOST, msg.HALT, (0,)) in c.tick(3)

@@ -87,3 +87,25 @@ def test_resume_restores_touches_and_nodes(tmp_path):
         assert tr.sent == [(5, msg.ACK, (1,))]
         assert h2.coord.power == 200 and h2.bad_frames() == {}
         assert len(j.touches()) == 2
+
+
+def test_a_journal_without_displacement_columns_is_migrated(tmp_path):
+    """Touches now keep the object's displacement at acceptance (mx, my); a
+    journal written before has no such columns and reads as displacement 0."""
+    p = tmp_path / "old.sqlite"
+    with sqlite3.connect(str(p)) as db:
+        db.executescript(
+            "CREATE TABLE nodes (node INTEGER PRIMARY KEY, model INTEGER NOT NULL,"
+            " power INTEGER NOT NULL);"
+            "CREATE TABLE touches (node INTEGER NOT NULL, seq INTEGER NOT NULL,"
+            " rx INTEGER NOT NULL, ry INTEGER NOT NULL, sx INTEGER NOT NULL,"
+            " sy INTEGER NOT NULL, power INTEGER NOT NULL, tick INTEGER NOT NULL,"
+            " PRIMARY KEY (node, seq));"
+            "INSERT INTO nodes VALUES (3, 1, 100);"
+            "INSERT INTO touches VALUES (3, 1, 2, 3, 3, 3, 100, 17);")
+    with Journal(p) as j:
+        (t,) = j.touches()
+        assert t.as_tuple() == (3, 1, 2, 3, 3, 3, 100, 17) and (t.mx, t.my) == (0, 0)
+        j.add_touch(Touch(4, 1, 2, 3, 3, 3, 100, 20, -2, -1))
+    with Journal(p) as j:
+        assert [(t.node, t.mx, t.my) for t in j.touches()] == [(3, 0, 0), (4, -2, -1)]

@@ -132,12 +132,57 @@ def test_report_is_retransmitted_with_backoff_until_acknowledged():
     assert not [s for s in hal.sent[n:] if s[0] == msg.TOUCH]
 
 
-def test_transport_command_moves_a_holder_and_halt_stops_it():
+def test_first_retransmission_is_retx_first_ticks_after_the_send():
+    """Issue 8 §6: the timer was set and decremented in the same tick, so the
+    first retry came after 3 ticks, not the documented RETX_FIRST (4)."""
+    r, hal = make(), FakeHal()
+    hal.probes = {0: R.OBJECT}
+    r.step(hal)                                  # claims
+    sent_at = []
+    for t in range(1, 300):                      # tick 1 confirms the grip and sends
+        n = len([s for s in hal.sent if s[0] == msg.TOUCH])
+        r.step(hal)
+        if len([s for s in hal.sent if s[0] == msg.TOUCH]) > n:
+            sent_at.append(t)
+    gaps = [b - a for a, b in zip(sent_at, sent_at[1:])]
+    assert sent_at[0] == 1
+    assert gaps[:7] == [R.RETX_FIRST, 8, 16, 32, R.RETX_MAX, R.RETX_MAX, R.RETX_MAX]
+
+
+def test_transport_before_the_touch_is_acknowledged_is_ignored():
+    """Issue 8 §1: the host ACKs a touch before it commands the carrier, so a
+    TRANSPORT before that ACK is not the host's (or not yet converged)."""
     r, hal = make(), FakeHal()
     hal.probes = {0: R.OBJECT}
     r.step(hal)
     r.step(hal)
     hal.inbox.append((msg.TRANSPORT, (1, -1, -1)))
+    r.step(hal)
+    assert r.state == R.HOLD and hal.calls("carry") == []
+    hal.inbox += [(msg.ACK, (1,)), (msg.TRANSPORT, (1, -1, -1))]
+    r.step(hal)
+    assert r.state == R.CARRY and hal.calls("carry") == [("carry", -1, -1)]
+
+
+def test_a_touch_ack_acknowledges_the_hello_too():
+    # the host sends one ACK per node per tick; a touch's wins over the HELLO's
+    r, hal = make(), FakeHal()
+    hal.probes = {0: R.OBJECT}
+    r.step(hal)
+    r.step(hal)
+    hal.inbox.append((msg.ACK, (1,)))
+    n = len(hal.sent)
+    for _ in range(20):
+        r.step(hal)
+    assert r.pending == 0 and not [s for s in hal.sent[n:] if s[0] in (msg.HELLO, msg.TOUCH)]
+
+
+def test_transport_command_moves_a_holder_and_halt_stops_it():
+    r, hal = make(), FakeHal()
+    hal.probes = {0: R.OBJECT}
+    r.step(hal)
+    r.step(hal)
+    hal.inbox += [(msg.ACK, (1,)), (msg.TRANSPORT, (1, -1, -1))]
     r.step(hal)
     assert r.state == R.CARRY and hal.calls("carry") == [("carry", -1, -1)]
     hal.inbox.append((msg.TRANSPORT, (1, -1, -1)))      # duplicate: ignored

@@ -119,8 +119,10 @@ def cmd_host(args: argparse.Namespace) -> int:
     where = " + ".join(([args.bus] if args.bus else []) + args.serial)
     with (parts[0] if len(parts) == 1 else FanIn(parts)) as transport:
         try:
+            # the host knows the arena, not the object: the robots may be real
             host = HostProcess(transport, sc.weight_centi, sc.homeX, sc.homeY, journal=journal,
-                               tick_seconds=args.tick_ms / 1000.0, on_event=event)
+                               tick_seconds=args.tick_ms / 1000.0, on_event=event,
+                               world_size=sc.worldSize)
             if args.resume is not None:
                 assert journal is not None      # journal_path defaults to the resumed one
                 try:

@@ -28,7 +28,8 @@ CREATE TABLE IF NOT EXISTS nodes (node INTEGER PRIMARY KEY, model INTEGER NOT NU
                                   power INTEGER NOT NULL);
 CREATE TABLE IF NOT EXISTS touches (node INTEGER NOT NULL, seq INTEGER NOT NULL,
     rx INTEGER NOT NULL, ry INTEGER NOT NULL, sx INTEGER NOT NULL, sy INTEGER NOT NULL,
-    power INTEGER NOT NULL, tick INTEGER NOT NULL, PRIMARY KEY (node, seq));
+    power INTEGER NOT NULL, tick INTEGER NOT NULL, mx INTEGER NOT NULL DEFAULT 0,
+    my INTEGER NOT NULL DEFAULT 0, PRIMARY KEY (node, seq));
 CREATE TABLE IF NOT EXISTS decisions (id INTEGER PRIMARY KEY AUTOINCREMENT,
     tick INTEGER NOT NULL, kind TEXT NOT NULL, state TEXT NOT NULL);
 """
@@ -56,11 +57,23 @@ class Journal:
                 raise JournalError(f"{self.path}: SQLite refused WAL mode ({mode})")
             self.db.execute("PRAGMA synchronous=FULL")
             self.db.executescript(SCHEMA)
+            self._migrate(self.db)
         except (sqlite3.Error, JournalError) as err:
             self.close()
             if isinstance(err, JournalError):
                 raise
             raise JournalError(f"cannot open journal {self.path}: {err}") from err
+
+    @staticmethod
+    def _migrate(db: sqlite3.Connection) -> None:
+        # journals from before touches kept the object's displacement at
+        # acceptance (mx, my) lack those columns; 0 is exact for a touch
+        # accepted before the transport began; for a later one only the
+        # recognition of its retransmissions as duplicates is lost
+        cols = {r[1] for r in db.execute("PRAGMA table_info(touches)")}
+        for c in ("mx", "my"):
+            if c not in cols:
+                db.execute(f"ALTER TABLE touches ADD COLUMN {c} INTEGER NOT NULL DEFAULT 0")
 
     def _sql(self, sql: str, args: tuple = ()) -> list[tuple]:
         """Run one statement (committed on return: autocommit); every SQLite
@@ -76,7 +89,8 @@ class Journal:
         self._sql("INSERT OR REPLACE INTO nodes VALUES (?, ?, ?)", (node, model, power))
 
     def add_touch(self, t: Touch) -> None:
-        self._sql("INSERT OR IGNORE INTO touches VALUES (?, ?, ?, ?, ?, ?, ?, ?)", t.as_tuple())
+        self._sql("INSERT OR IGNORE INTO touches (node, seq, rx, ry, sx, sy, power, tick, mx, my) "
+                  "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)", t.as_tuple() + (t.mx, t.my))
 
     def add_decision(self, tick: int, kind: str, state: dict[str, Any]) -> None:
         self._sql("INSERT INTO decisions (tick, kind, state) VALUES (?, ?, ?)",
@@ -87,7 +101,7 @@ class Journal:
                 self._sql("SELECT node, model, power FROM nodes ORDER BY node")}
 
     def touches(self) -> list[Touch]:
-        rows = self._sql("SELECT node, seq, rx, ry, sx, sy, power, tick FROM touches "
+        rows = self._sql("SELECT node, seq, rx, ry, sx, sy, power, tick, mx, my FROM touches "
                          "ORDER BY rowid")
         return [Touch(*r) for r in rows]
 

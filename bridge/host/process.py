@@ -37,8 +37,8 @@ HALT_REPEATS = 10   # HALT is broadcast on this many ticks after delivery (it is
 # Coordinator attributes a snapshot leaves out: the configuration (from the
 # command line), what the journalled touches rebuild (power, leader,
 # found_tick), and this process's own counters.
-NOT_SNAPSHOT = frozenset(("weight", "home_x", "home_y", "home_r2", "power", "leader",
-                          "found_tick", "duplicates"))
+NOT_SNAPSHOT = frozenset(("weight", "home_x", "home_y", "home_r2", "world_size", "power",
+                          "leader", "found_tick", "duplicates"))
 
 
 def coordinator_state(c: Coordinator) -> dict[str, Any]:
@@ -68,13 +68,21 @@ class HostProcess:
     def __init__(self, transport: RobotTransport, weight: int, home_x: int = -15,
                  home_y: int = -15, journal: Journal | None = None,
                  tick_seconds: float = 0.01,
-                 on_event: Callable[[str], None] | None = None) -> None:
+                 on_event: Callable[[str], None] | None = None,
+                 world_size: int | None = None,
+                 cells: list[tuple[int, int]] | None = None) -> None:
+        """world_size: the arena's half width in patches (None: what a byte
+        carries); cells: the object's cells when the host knows them (a
+        simulated swarm), else a touch need only be plausible."""
         self.transport = transport
         self.journal = journal
         self.tick_seconds = tick_seconds
         self.on_event = on_event
         self.bad = BadFrames("host")
-        self.coord = Coordinator(weight, home_x, home_y, journal=self._journal_touch)
+        self.rejects_logged: set[str] = set()
+        self.coord = Coordinator(weight, home_x, home_y, journal=self._journal_touch,
+                                 world_size=world_size, cells=cells,
+                                 journal_node=self._journal_node, on_reject=self._rejected)
         self.tick = 0
         self.halts_sent = 0
         self.resumed = 0
@@ -95,17 +103,19 @@ class HostProcess:
         for node, (model, power) in journal.nodes().items():
             self.coord.nodes[node] = (model, power)
         touches = journal.touches()
-        self.coord.restore(touches)
+        self.coord.restore(touches)       # checked again: an older host's journal may hold poison
         self.tick = max(self.tick, journal.last_tick())
-        self.resumed = len(touches)
+        self.resumed = len(self.coord.touches)
         last = journal.last_decision()
         if last is not None:
             restore_coordinator(self.coord, last.state.get("coordinator", {}))
             self.halts_sent = int(last.state.get("host", {}).get("halts_sent", 0))
-        self._event(f"resumed {len(touches)} touches from {len(self.coord.nodes)} nodes "
+        dropped = len(touches) - self.resumed
+        self._event(f"resumed {self.resumed} touches from {len(self.coord.nodes)} nodes "
                     f"({journal.path}); power {self.coord.power}/{self.coord.weight}; "
-                    f"{self.phase()}")
-        return len(touches)
+                    f"{self.phase()}"
+                    + (f"; {dropped} journalled touches rejected" if dropped else ""))
+        return self.resumed
 
     def phase(self) -> str:
         c = self.coord
@@ -123,6 +133,20 @@ class HostProcess:
                     f"({t.rx},{t.ry}) segment ({t.sx},{t.sy}); power "
                     f"{self.coord.power + t.power}/{self.coord.weight}")
 
+    def _journal_node(self, node: int, model: int, power: int) -> None:
+        # called by the coordinator for a valid HELLO of a new node, before its ACK
+        if self.journal is not None:
+            self.journal.add_node(node, model, power)
+        self._event(f"tick {self.tick}: robot {node} announced (model {model}, power {power})")
+
+    def _rejected(self, reason: str, node: int, fields: tuple) -> None:
+        # like a bad frame: the first of each reason is logged, the rest counted
+        # (`rejected` in the summary), so a flood cannot flood the log
+        if reason not in self.rejects_logged:
+            self.rejects_logged.add(reason)
+            log.warning("tick %d: rejected a report from robot %d (%s): %s; further ones "
+                        "for this reason are only counted", self.tick, node, reason, fields)
+
     def _event(self, text: str) -> None:
         log.info("%s", text)
         if self.on_event is not None:
@@ -137,13 +161,7 @@ class HostProcess:
         tick = self.tick
         self.messages += len(messages)
         for node, kind, f in messages:
-            if kind == msg.HELLO:
-                if node not in c.nodes:
-                    if self.journal is not None:
-                        self.journal.add_node(node, f[0], f[1])
-                    self._event(f"tick {self.tick}: robot {node} announced "
-                                f"(model {f[0]}, power {f[1]})")
-            elif node not in nodes:
+            if kind != msg.HELLO and node not in nodes:
                 self.bad.add(UNANNOUNCED, "%s from node %d" % (msg.SCHEMA[kind][0], node))
                 continue
             on_message(node, kind, f, tick)
@@ -257,6 +275,7 @@ class HostProcess:
             "leader": c.leader or None,
             "resumed": self.resumed,
             "duplicates": c.duplicates,
+            "rejected": dict(c.rejected),
             "converged_tick": c.converged_tick if c.converged_tick >= 0 else None,
             "home_tick": c.delivered_tick if c.delivered_tick >= 0 else None,
             "delivered": c.delivered_tick >= 0,

@@ -26,11 +26,12 @@ from bridge.links.codec import HOST_KINDS, BadFrames, Decoder, Message
 from bridge.record.formats import meta_path, record_format
 from bridge.record.recorder import Q_RECV, Q_X, Q_Y
 from firmware_logic import messages as msg
-from firmware_logic.behaviours.thesis.coordinator import Coordinator
+from firmware_logic.behaviours.thesis import make_coordinator
 from firmware_logic import hal
 from firmware_logic.hal import Hal
 from firmware_logic.behaviours.thesis.robot import Robot
 from sim_backend.scenario import check_seed
+from sim_backend.world import World
 
 log = logging.getLogger(__name__)
 
@@ -272,7 +273,9 @@ def replay(path: Path, realtime: bool = False, limit: int = 50) -> dict:
     inbox = {n: deque() for n in nodes}
     hals = {n: ReplayHal(n, inbox[n]) for n in nodes}
     stopped: set[int] = set()
-    coord = Coordinator(sc.weight_centi, sc.homeX, sc.homeY)
+    # the recorded run was a simulation: the host may check touches against
+    # the object's true cells
+    coord = make_coordinator(sc, cells=World(sc, seed).object_cells)
     coord_ok = True
     divergences: list[str] = []
     counts = {"sensor_readings": 0, "actions": 0, "robot_messages": 0, "host_commands": 0}

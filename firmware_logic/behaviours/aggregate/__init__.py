@@ -10,7 +10,10 @@ def robot_args(node, seed, sc):
     return (node, seed, sc.model, sc.robotVisionSpan, sc.fieldDefiance, sc.power_centi)
 
 
-def make_coordinator(sc, journal=None):
-    """The host coordinator: halt once `quorum` percent of the swarm stopped."""
+def make_coordinator(sc, journal=None, cells=None):
+    """The host coordinator: halt once `quorum` percent of the swarm stopped.
+
+    cells (the object's cells) is accepted like the thesis's and unused:
+    aggregation has no object."""
     from firmware_logic.behaviours.aggregate.coordinator import Coordinator
     return Coordinator(sc.agents, getattr(sc, "quorum", 80), journal=journal)

@@ -7,6 +7,12 @@ toward home and detects arrival. Only robots that hold the object are
 commanded (the thesis's flaw of 6.1.2, redirecting every robot, is fixed).
 
 Time is the caller's tick counter; nothing here reads a clock.
+
+Nothing a robot (or anything else on the bus) sends is trusted: a report is
+checked against what the host knows (docs/protocol.md, "Valid reports")
+BEFORE it is journalled, because a journalled report is replayed by every
+resumed host; a report that fails is dropped, counted in `rejected` by
+reason, passed to `on_reject` (the host process logs it) and not ACKed.
 """
 
 from firmware_logic import messages as msg
@@ -17,8 +23,29 @@ SUBSET_SETUP = ("Touch", "Coordinator")
 STEPS = ((-1, -1), (-1, 0), (0, -1), (1, -1), (-1, 1), (1, 0), (0, 1), (1, 1))
 
 
+# reasons a report is rejected (keys of Coordinator.rejected)
+UNANNOUNCED_TOUCH = "touch from unannounced node"
+UNANNOUNCED_HEARTBEAT = "heartbeat from unannounced node"
+OUTSIDE = "outside the arena"
+NOT_ADJACENT = "segment not next to the robot"
+NOT_OBJECT = "segment not on the object"
+AT_HOME = "segment at home"
+WRONG_POWER = "power differs from HELLO"
+SECOND_TOUCH = "second touch from node"
+BAD_HELLO = "hello out of range"
+CHANGED_HELLO = "hello changes model or power"
+MODELS = (1, 2)
+
+# a patch coordinate travels in one signed byte: the arena of a host that was
+# not told its size
+BYTE_ARENA = 127
+
+
 class Touch:
-    def __init__(self, node, seq, rx, ry, sx, sy, power, tick):
+    def __init__(self, node, seq, rx, ry, sx, sy, power, tick, mx=0, my=0):
+        """rx..sy in the object's frame; (mx, my) is how far the object had
+        moved when the touch was accepted, so the report as the robot sent it
+        (and retransmits it) is rx + mx, ... (`report`)."""
         self.node = node
         self.seq = seq
         self.rx = rx
@@ -27,27 +54,48 @@ class Touch:
         self.sy = sy
         self.power = power
         self.tick = tick
+        self.mx = mx
+        self.my = my
 
     def as_tuple(self):
         return (self.node, self.seq, self.rx, self.ry, self.sx, self.sy,
                 self.power, self.tick)
 
+    def report(self):
+        """The TOUCH fields (seq, rx, ry, sx, sy, power) as the robot sent them."""
+        return (self.seq, self.rx + self.mx, self.ry + self.my,
+                self.sx + self.mx, self.sy + self.my, self.power)
+
 
 class Coordinator:
-    def __init__(self, weight, home_x=-15, home_y=-15, home_radius=4, journal=None):
+    def __init__(self, weight, home_x=-15, home_y=-15, home_radius=4, journal=None,
+                 world_size=None, cells=None, journal_node=None, on_reject=None):
         """weight: the object's weight in hundredths (objectWeight * 100).
 
         journal: optional callable(touch) called for every newly accepted
-        touch BEFORE it is acknowledged (the host process makes it durable).
+        touch BEFORE it is acknowledged (the host process makes it durable);
+        journal_node: the same, callable(node, model, power), for a newly
+        announced node. on_reject: optional callable(reason, node, fields).
+        world_size: patches run from -world_size to +world_size (None: only
+        what a byte carries). cells: the object's cells where it starts, when
+        the host knows them (a simulation); None: any cell is plausible.
         """
         self.weight = weight
         self.home_x = home_x
         self.home_y = home_y
         self.home_r2 = home_radius * home_radius
         self.journal = journal
+        self.journal_node = journal_node
+        self.on_reject = on_reject
+        self.world_size = BYTE_ARENA if world_size is None else world_size
+        self.cells = None if cells is None else frozenset(cells)
         self.nodes = {}          # node -> (model, power)
         self.touches = []        # accepted, in order of acceptance
-        self.seen = {}           # (node, seq) -> Touch
+        # node -> its accepted Touch: one touch per node per object (a robot
+        # never releases the object), so the node identifies the touch and a
+        # retransmission is the same report again
+        self.by_node = {}
+        self.acks = {}           # node -> seq of the one ACK it gets this tick
         self.power = 0
         self.leader = 0
         self.found_tick = -1
@@ -73,34 +121,28 @@ class Coordinator:
     # -- input -------------------------------------------------------------
 
     def restore(self, touches):
-        """Re-adopt touches recovered from a journal (no ACKs are sent)."""
+        """Re-adopt touches recovered from a journal (no ACKs are sent).
+
+        They pass the same checks as on arrival (against the object's frame
+        they were stored in), so a journal written by an older, more trusting
+        host cannot crash or fool this one on every resume."""
         for t in touches:
-            if (t.node, t.seq) not in self.seen:
-                self._adopt(t)
+            if t.node in self.by_node:
+                continue
+            why = self._invalid_touch(t.node, t.report(), t.mx, t.my)
+            if why is not None:
+                self._reject(why, t.node, t.report())
+                continue
+            self._adopt(t)
 
     def on_message(self, node, kind, f, tick):
         if kind == msg.HELLO:
-            self.nodes[node] = (f[0], f[1])
-            self._send(node, msg.ACK, (0,))
+            self._hello(node, f)
         elif kind == msg.TOUCH:
-            if node not in self.nodes:
-                self._reject("touch from unannounced node")
-                return
-            key = (node, f[0])
-            if key in self.seen:
-                self.duplicates += 1
-                self._send(node, msg.ACK, (f[0],))  # the first ACK may be lost
-                return
-            # stored in the object's frame: it may have moved since the start
-            t = Touch(node, f[0], f[1] - self.moved_x, f[2] - self.moved_y,
-                      f[3] - self.moved_x, f[4] - self.moved_y, f[5], tick)
-            if self.journal is not None:
-                self.journal(t)
-            self._adopt(t)
-            self._send(node, msg.ACK, (f[0],))
+            self._touch(node, f, tick)
         elif kind == msg.HEARTBEAT:
             if node not in self.nodes:
-                self._reject("heartbeat from unannounced node")
+                self._reject(UNANNOUNCED_HEARTBEAT, node, f)
                 return
             if node == self.leader and self.step > 0:
                 self.leader_x = (f[1] + 128) >> 8
@@ -110,10 +152,80 @@ class Coordinator:
                 self.moved_x = self.leader_x - lead.rx
                 self.moved_y = self.leader_y - lead.ry
         else:
-            self._reject("unexpected kind %d from a robot" % kind)
+            self._reject("unexpected kind %d from a robot" % kind, node, f)
+
+    def _hello(self, node, f):
+        model, power = f[0], f[1]
+        known = self.nodes.get(node)
+        if known is None:
+            if model not in MODELS or power < 1:
+                self._reject(BAD_HELLO, node, f)
+                return
+            if self.journal_node is not None:
+                self.journal_node(node, model, power)
+            self.nodes[node] = (model, power)
+        elif known != (model, power):
+            # a robot's model and power do not change while it runs; taking
+            # the new values would re-weigh its touch, and the journal (which
+            # holds the first HELLO) and memory would disagree after a resume
+            self._reject(CHANGED_HELLO, node, f)
+            return
+        self._ack(node, 0)
+
+    def _touch(self, node, f, tick):
+        t = self.by_node.get(node)
+        if t is not None:
+            # before the checks: a retransmission repeats the report as it was
+            # sent, in the frame of a then unmoved object
+            if t.report() == tuple(f):
+                self.duplicates += 1
+                self._ack(node, f[0])        # the first ACK may have been lost
+            else:
+                # one touch per node: a second report (a new seq, or the same
+                # seq about another segment) is a forgery or a fault; it
+                # neither counts twice nor turns the real one into a duplicate
+                self._reject(SECOND_TOUCH, node, f)
+            return
+        why = self._invalid_touch(node, f, self.moved_x, self.moved_y)
+        if why is not None:
+            self._reject(why, node, f)
+            return
+        # stored in the object's frame: it may have moved since the start
+        t = Touch(node, f[0], f[1] - self.moved_x, f[2] - self.moved_y,
+                  f[3] - self.moved_x, f[4] - self.moved_y, f[5], tick,
+                  self.moved_x, self.moved_y)
+        if self.journal is not None:
+            self.journal(t)
+        self._adopt(t)
+        self._ack(node, f[0])
+
+    def _invalid_touch(self, node, f, mx, my):
+        """Why the TOUCH fields f (world frame, the object displaced by
+        (mx, my)) from `node` are not a valid report, or None."""
+        known = self.nodes.get(node)
+        if known is None:
+            return UNANNOUNCED_TOUCH      # its power is unknown: wait for HELLO
+        rx, ry, sx, sy = f[1], f[2], f[3], f[4]
+        w = self.world_size
+        if not (-w <= rx <= w and -w <= ry <= w and -w <= sx <= w and -w <= sy <= w):
+            return OUTSIDE
+        ddx = sx - rx
+        ddy = sy - ry
+        if ddx < -1 or ddx > 1 or ddy < -1 or ddy > 1 or (ddx == 0 and ddy == 0):
+            return NOT_ADJACENT
+        if self.cells is not None and (sx - mx, sy - my) not in self.cells:
+            return NOT_OBJECT
+        hx = sx - self.home_x
+        hy = sy - self.home_y
+        if hx * hx + hy * hy < self.home_r2:
+            # an object there is home already: no mission would have started
+            return AT_HOME
+        if f[5] != known[1]:
+            return WRONG_POWER
+        return None
 
     def _adopt(self, t):
-        self.seen[(t.node, t.seq)] = t
+        self.by_node[t.node] = t
         self.touches.append(t)
         self.power += t.power
         if self.found_tick < 0 or t.tick < self.found_tick:
@@ -123,8 +235,18 @@ class Coordinator:
             self.leader_x = t.rx
             self.leader_y = t.ry
 
-    def _reject(self, reason):
+    def _reject(self, reason, node=0, f=()):
         self.rejected[reason] = self.rejected.get(reason, 0) + 1
+        if self.on_reject is not None:
+            self.on_reject(reason, node, f)
+
+    def _ack(self, node, seq):
+        # at most one ACK per node per tick, however many frames it (or a
+        # forger using its id) sent: the host must not amplify a flood. A
+        # touch's ACK wins over the HELLO's: the robot takes any ACK as the
+        # HELLO's too (a touch is only accepted from an announced node).
+        if seq or node not in self.acks:
+            self.acks[node] = seq
 
     def _send(self, node, kind, fields):
         self.outbox.append((node, kind, fields))
@@ -157,6 +279,10 @@ class Coordinator:
 
     def tick(self, tick):
         """Advance the centralised phase; return and clear the commands to send."""
+        if self.acks:
+            for node, seq in self.acks.items():
+                self.outbox.append((node, msg.ACK, (seq,)))
+            self.acks = {}
         if self.delivered_tick >= 0:
             if not self.halted:
                 self.halted = 1

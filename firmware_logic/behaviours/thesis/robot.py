@@ -193,12 +193,17 @@ class Robot:
     def _on_message(self, hal, kind):
         b = self.rxbuf
         if kind == msg.ACK:
-            if b[0] == 0:
-                self.hello_acked = 1
-            elif self.pending and b[0] == self.seq:
+            # any ACK acknowledges the HELLO too: the host accepts a touch only
+            # from an announced node, and sends one ACK per node per tick
+            self.hello_acked = 1
+            if self.pending and b[0] == self.seq:
                 self.pending = 0
         elif kind == msg.TRANSPORT:
-            if self.state == HOLD or self.state == CARRY:
+            # The host commands only carriers whose touch it journalled, and
+            # ACKs the touch before its first TRANSPORT; one before that ACK
+            # cannot come from the host (or comes before convergence) and is
+            # ignored. A lost ACK costs a resend: the host repeats both.
+            if (self.state == HOLD or self.state == CARRY) and not self.pending:
                 if b[0] != self.last_step:
                     self.state = CARRY
                     self.last_step = b[0]
@@ -218,12 +223,15 @@ class Robot:
         if not self.hello_acked and (self.ticks % RETX_FIRST) == 1:
             hal.send(msg.HELLO, self.model, self.power, msg.FIRMWARE_VERSION, 0, 0, 0)
         if self.pending:
-            self.retx_timer -= 1
+            # due, then count down: the tick of a send (the first one in
+            # _grasp, earlier this tick) counts as its first tick, so the first
+            # retry goes RETX_FIRST ticks after the send, the next 2 x later
             if self.retx_timer <= 0:
                 self.retx_every = self.retx_every * 2
                 if self.retx_every > RETX_MAX:
                     self.retx_every = RETX_MAX
                 self._send_touch(hal)
+            self.retx_timer -= 1
         if self.state != CARRY and (self.ticks % HEARTBEAT_EVERY) == 0:
             hal.send(msg.HEARTBEAT, self.state, hal.x(), hal.y(), self.heading,
                      self.done_step, 0)
