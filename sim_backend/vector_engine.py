@@ -35,6 +35,7 @@ import numpy as np
 from firmware_logic import fixedpoint as fx
 from firmware_logic import messages as msg
 from firmware_logic import rng as _rng
+from firmware_logic import registry
 from firmware_logic.behaviours.thesis.coordinator import Coordinator
 from firmware_logic.behaviours.thesis.robot import (ANT, CARRY, FIELD, FIREFLY, GRASP, HALT, HEARTBEAT_EVERY,
                                   HOLD, RETX_FIRST, RETX_MAX, SEARCH)
@@ -137,7 +138,7 @@ class VectorEngine:
         start = 0
         for r, (sc, seed) in enumerate(self.runs):
             w = World(sc, seed)
-            self.coords.append(Coordinator(sc.weight_centi, sc.homeX, sc.homeY))
+            self.coords.append(registry.load("thesis").coordinator(sc, cells=list(w.object_cells)))
             self.cells.append(list(w.object_cells))
             base = r * stride
             for (cx, cy) in w.object_cells:

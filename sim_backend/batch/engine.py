@@ -141,7 +141,8 @@ class BatchEngine:
         self.robots[0:1]               # compiles the slice a result takes, now, not mid-run
         self._tick_all = tw.function(B.tick_all)
         self._states_of = tw.function(B.states_of)
-        self.coords = [beh.coordinator(sc) for sc, _ in runs]
+        self.coords = [beh.coordinator(sc, cells=list(w.object_cells))
+                       for (sc, _), w in zip(runs, self.worlds)]
         self.busy = np.array([not _quiet(c) for c in self.coords], dtype=bool)
         self.lo = starts[:-1].tolist()
         self.run_of = rb[B.RUN].tolist()

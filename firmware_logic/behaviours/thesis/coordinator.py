@@ -271,7 +271,7 @@ class Coordinator:
         """True when tick() without a new message would neither send nor change
         anything (a batch engine then skips the call): before convergence
         with power short of the weight, and after the HALT went out."""
-        if self.outbox:
+        if self.outbox or self.acks:
             return False
         if self.delivered_tick >= 0:
             return self.halted == 1
