@@ -8,6 +8,7 @@ records an intent, which the engine applies after every robot has decided
 from __future__ import annotations
 
 from firmware_logic import messages as msg
+from firmware_logic import hal
 from firmware_logic.hal import Hal
 from sim_backend import kernel
 from sim_backend.world import World
@@ -48,34 +49,34 @@ class SimBody(Hal):
         w = self.world
         r = kernel.probe(w.obj, w.occ, 0, w.w, w.n, w.xs[self.i], w.ys[self.i], heading)
         if self.tape is not None:
-            self.tape.append((1, heading, r))
+            self.tape.append((hal.PROBE, heading, r))
         return r
 
     def field_ahead(self, heading: int) -> int:
         w = self.world
         v = kernel.field_ahead(w.field, 0, w.w, w.n, w.xs[self.i], w.ys[self.i], heading)
         if self.tape is not None:
-            self.tape.append((2, heading, v))
+            self.tape.append((hal.FIELD_AHEAD, heading, v))
         return v
 
     def field_here(self) -> int:
         w = self.world
         v = kernel.field_here(w.field, 0, w.w, w.n, w.xs[self.i], w.ys[self.i])
         if self.tape is not None:
-            self.tape.append((3, 0, v))
+            self.tape.append((hal.FIELD_HERE, 0, v))
         return v
 
     def uphill(self) -> int:
         w = self.world
         out = kernel.uphill(w.field, 0, w.w, w.n, w.xs[self.i], w.ys[self.i])
         if self.tape is not None:
-            self.tape.append((4, 0, out))
+            self.tape.append((hal.UPHILL, 0, out))
         return out
 
     def holding(self) -> int:
         r = kernel.holding(self.world.owner, 0, self.world.held[self.i], self.node)
         if self.tape is not None:
-            self.tape.append((5, 0, r))
+            self.tape.append((hal.HOLDING, 0, r))
         return r
 
     # -- acting (intents, applied by World.apply) ----------------------------------
@@ -86,14 +87,14 @@ class SimBody(Hal):
         w.mv_h[self.i] = heading
         w.mv_step[self.i] = step
         if self.acts is not None:
-            self.acts.append((1, heading, step))
+            self.acts.append((hal.FORWARD, heading, step))
 
     def claim(self, heading: int) -> None:
         w = self.world
         w.claim[self.i] = kernel.cell(w.w, w.n, kernel.ahead_x(w.xs[self.i], heading),
                                       kernel.ahead_y(w.ys[self.i], heading))
         if self.acts is not None:
-            self.acts.append((2, heading, 0))
+            self.acts.append((hal.CLAIM, heading, 0))
 
     def carry(self, dx: int, dy: int) -> None:
         w = self.world
@@ -101,12 +102,12 @@ class SimBody(Hal):
         w.carry_dx[self.i] = dx
         w.carry_dy[self.i] = dy
         if self.acts is not None:
-            self.acts.append((3, dx, dy))
+            self.acts.append((hal.CARRY, dx, dy))
 
     def beacon(self, on: int) -> None:
         self.world.beacon_set[self.i] = on
         if self.acts is not None:
-            self.acts.append((4, on, 0))
+            self.acts.append((hal.BEACON, on, 0))
 
     # -- messages ------------------------------------------------------------------
 
@@ -118,11 +119,11 @@ class SimBody(Hal):
         m = self.link.robot_recv(self.node)
         if m is None:
             if self.tape is not None:
-                self.tape.append((6, 0, 0))
+                self.tape.append((hal.RECV, 0, 0))
             return 0
         kind, fields = m
         for j, v in enumerate(fields):
             buf[j] = v
         if self.tape is not None:
-            self.tape.append((6, kind, tuple(fields)))
+            self.tape.append((hal.RECV, kind, tuple(fields)))
         return kind

@@ -135,10 +135,12 @@ class BatchEngine:
         self.body = Body(*args)
         import numba.typed
         self.robots = numba.typed.List.empty_list(Robot.class_type.instance_type)
-        for sc, seed in runs:
-            for node in range(1, sc.agents + 1):
-                self.robots.append(Robot(*beh.robot_args(node, seed, sc)))
-        self.robots[0:1]               # compiles the slice a result takes, now, not mid-run
+        # a Python list too: reading the typed list from Python would compile
+        # its accessors mid-run
+        self.robot_objs = [Robot(*beh.robot_args(node, seed, sc))
+                           for sc, seed in runs for node in range(1, sc.agents + 1)]
+        for robot in self.robot_objs:
+            self.robots.append(robot)
         self._tick_all = tw.function(B.tick_all)
         self._states_of = tw.function(B.states_of)
         self.coords = [beh.coordinator(sc, cells=list(w.object_cells))
@@ -253,7 +255,7 @@ class BatchEngine:
         for xs, ys, st in self.frames[:t]:
             traj.append((xs[lo:hi].tolist(), ys[lo:hi].tolist()))
             states.append(st[lo:hi].tolist())
-        res = RunResult(sc, seed, t, w, self.coords[r], list(self.robots[lo:hi]), traj)
+        res = RunResult(sc, seed, t, w, self.coords[r], self.robot_objs[lo:hi], traj)
         res.states = states
         self.results[r] = res
 
