@@ -165,3 +165,30 @@ def test_the_mission_command_on_an_emulated_khepera(capsys) -> None:
     assert [0, 0] in s["touches"] and [1, 0] in s["segments"]
     assert f"robot {REAL}: Khepera II on {emu.path} at 115200 baud, put down at patch (0, 0) " \
            "facing 90 degrees" in err
+
+
+def test_a_moving_khepera_is_where_its_odometry_says_in_the_sim_world() -> None:
+    """Put down away from the object, the real robot searches like the
+    others: its place in the sim world follows its odometry tick by tick
+    (within 1/8 patch of where the emulated robot really is), and the
+    simulated robots see it there."""
+    sc = mission_scenario()
+    bench = World(sc, SEED)
+    bench.xs, bench.ys = [-6 * fx.ONE], [6 * fx.ONE]
+    bench.recount()
+    clock = SimClock()
+    with KheperaEmulator(bench, 0, baud=115200, heading=0, clock=clock) as emu:
+        url = f"khepera://{emu.path}?baud=115200&x=-6&y=6&heading=0"
+        with MixedMission(sc, SEED, {REAL: parse_body_url(url)}, tick_s=TICK_S,
+                          clock=clock) as m:
+            w = m.engine.world
+            far = 0
+            for _ in range(400):
+                m.run(max_ticks=m.engine.tick + 1)
+                assert abs(w.xs[REAL - 1] - bench.xs[0]) < fx.ONE // 8
+                assert abs(w.ys[REAL - 1] - bench.ys[0]) < fx.ONE // 8
+                assert w.occ[w.idx(fx.patch(w.xs[REAL - 1]), fx.patch(w.ys[REAL - 1]))] >= 1
+                far = max(far, abs(bench.xs[0] + 6 * fx.ONE) + abs(bench.ys[0] - 6 * fx.ONE))
+            assert far >= 2 * fx.ONE                 # it went somewhere
+            assert m.hosts[REAL].steps < m.engine.tick   # moves took more than a tick
+            assert m.hosts[REAL].failed_ticks == 0
