@@ -22,6 +22,7 @@ from bridge.errors import BridgeError, UsageError
 # imports (python-can, pyserial, numpy) inside its handler
 COMMANDS = [
     "bridge.commands.run",
+    "bridge.commands.mission",
     "bridge.commands.scenarios",
     "bridge.commands.behaviours",
     "bridge.firmware.cli",

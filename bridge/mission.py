@@ -1,0 +1,301 @@
+"""A mission in which chosen robots are real bodies and the rest simulated.
+
+The simulated swarm is the ordinary tick engine (sim_backend/engine.py),
+used as it is: the robots of the chosen nodes are swapped, in the engine's
+own `robots` and `bodies` lists, for a `HostNode` (the node's unchanged FSM,
+stepped on its real body) and a `Seat` (that body's place in the sim world).
+The engine's tick rule (docs/tick-semantics.md) is not rewritten; the real
+robots' intents go through it like any other robot's:
+
+- a real robot's pose in the sim world is its body's own odometry (Khepera)
+  or dead reckoning (GoGo), copied into the world after every tick, so the
+  simulated robots see it as a robot in that patch and do not enter it;
+- its beacon LED, claim and carry steps are also given to the engine as
+  intents: the LED adds the Signal field the simulated robots follow, a claim
+  marks the sim segment held, a carry step joins the carried group;
+- its senses are its own: it touches the real object and sees real light,
+  not the simulated robots or their beacons;
+- its messages go over the engine's link to the same host coordinator as
+  every simulated robot's, so the coordinator collects all touches.
+
+A real body's motion takes several ticks (bridge/serial/hostbody.py: the
+FSM steps only while the body is idle). The mission paces ticks on a clock:
+the wall clock on a bench, a SimClock shared with the device emulators in
+tests (then no test result depends on how loaded the machine is).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+from typing import Any, Callable
+
+from bridge.bodies import BodyContext, BodySpec, BodyURLError, OpenedBody, open_body
+from bridge.errors import BridgeError
+from firmware_logic import fixedpoint as fx
+from firmware_logic.hal import Hal
+
+log = logging.getLogger(__name__)
+
+DEFAULT_TICK_S = 0.05
+LOST_TICKS = 200                # a body silent this many ticks in a row ends the mission
+
+
+class MissionError(BridgeError):
+    """A real body failed for good during the mission (exit status 1)."""
+
+
+class Seat(Hal):
+    """A real body's place in the engine: the HAL the node's FSM is stepped
+    on (every call goes to the real body) and the intents the engine applies
+    for that node with its own rule. Attribute names are SimBody's, since the
+    engine reads them (claim_cell, beacon_set, move, held, carry_intent)."""
+
+    def __init__(self, host: Any, world: Any, index: int, node: int) -> None:
+        self.host = host                # a bridge.serial.hostbody.HostBody
+        self.world = world
+        self.i = index
+        self.node = node
+        self.held = -1
+        self.carry_intent: tuple[int, int] | None = None
+        self.reset_intents()
+
+    def reset_intents(self) -> None:
+        # move stays None: where a real robot is comes from its odometry
+        self.move: tuple[int, int] | None = None
+        self.claim_cell = -1
+        self.beacon_set = -1
+
+    def sync(self) -> None:
+        """Copy the body's pose into the world, clamped to the arena (odometry
+        may drift past a wall; the world's grids end there)."""
+        w = self.world
+        lim = w.w * fx.ONE + fx.ONE // 2 - 1
+        w.xs[self.i] = max(-lim, min(lim, self.host.x()))
+        w.ys[self.i] = max(-lim, min(lim, self.host.y()))
+
+    # -- sensing: the real body's own -------------------------------------------------
+
+    def x(self) -> int:
+        return self.host.x()
+
+    def y(self) -> int:
+        return self.host.y()
+
+    def probe(self, heading: int) -> int:
+        return self.host.probe(heading)
+
+    def field_ahead(self, heading: int) -> int:
+        return self.host.field_ahead(heading)
+
+    def field_here(self) -> int:
+        return self.host.field_here()
+
+    def uphill(self) -> int:
+        return self.host.uphill()
+
+    def holding(self) -> int:
+        return self.host.holding()
+
+    # -- acting: the real body moves; the engine hears the same intent ------------------
+
+    def forward(self, heading: int, step: int) -> None:
+        self.host.forward(heading, step)
+
+    def claim(self, heading: int) -> None:
+        self.host.claim(heading)
+        w = self.world
+        px = fx.patch(w.xs[self.i] + fx.dx(heading, fx.ONE))
+        py = fx.patch(w.ys[self.i] + fx.dy(heading, fx.ONE))
+        if w.inside(px, py):
+            self.claim_cell = w.idx(px, py)
+
+    def carry(self, dx: int, dy: int) -> None:
+        self.host.carry(dx, dy)
+        self.carry_intent = (dx, dy)
+
+    def beacon(self, on: int) -> None:
+        self.host.beacon(on)
+        self.beacon_set = 1 if on else 0
+
+    # -- messages: over the engine's link, to the host coordinator ----------------------
+
+    def send(self, kind: int, a0: int, a1: int, a2: int, a3: int, a4: int, a5: int) -> None:
+        self.host.send(kind, a0, a1, a2, a3, a4, a5)
+
+    def recv(self, buf: list) -> int:
+        return self.host.recv(buf)
+
+
+class HostNode:
+    """The engine's robot entry for a real body: the node's own FSM, stepped
+    only on ticks its body is idle (a move takes several ticks)."""
+
+    def __init__(self, fsm: Any, opened: OpenedBody) -> None:
+        self.fsm = fsm
+        self.opened = opened
+        self.steps = 0                  # ticks the FSM stepped
+        self.failed_ticks = 0           # ticks the device failed, over the mission
+        self.lost_streak = 0
+
+    def __getattr__(self, name: str) -> Any:
+        # plots and records read the FSM's state like any robot's
+        return getattr(self.fsm, name)
+
+    def step(self, seat: Seat) -> None:
+        from bridge.serial.errors import SerialLinkError
+        host = seat.host
+        try:
+            host.begin_tick()
+            if not host.busy():
+                self.fsm.step(seat)
+                self.steps += 1
+            seat.sync()
+        except SerialLinkError as err:
+            # the drivers leave the body consistent and reopen the port on the
+            # next call: a robot unplugged for a moment costs ticks, not the run
+            self.failed_ticks += 1
+            self.lost_streak += 1
+            if self.lost_streak == 1:
+                log.warning("node %d (%s): %s; retrying every tick", seat.node,
+                            self.opened.describe(), err)
+            if self.lost_streak >= LOST_TICKS:
+                raise MissionError(f"node {seat.node} ({self.opened.describe()}) failed "
+                                   f"{self.lost_streak} ticks in a row: {err}") from err
+            return
+        if self.lost_streak:
+            log.warning("node %d (%s) is back after %d ticks", seat.node,
+                        self.opened.describe(), self.lost_streak)
+            self.lost_streak = 0
+
+
+class MixedMission:
+    """One scenario with some nodes on real bodies; a context manager that
+    closes every body it opened (motors stopped, LEDs off).
+
+    `bodies`: node -> parsed body URL (sim:// nodes stay simulated).
+    `clock`: paces the ticks (`now()`, `sleep()`); None: the wall clock.
+    """
+
+    def __init__(self, sc: Any, seed: int, bodies: dict[int, BodySpec],
+                 tick_s: float = DEFAULT_TICK_S, clock: Any = None) -> None:
+        from bridge.serial.hostbody import WallClock
+        from sim_backend.engine import Engine
+
+        for node in bodies:
+            if not 1 <= node <= sc.agents:
+                raise BodyURLError(f"--body {node}=...: node {node} is not a robot of the "
+                                   f"scenario (1..{sc.agents})")
+        if tick_s <= 0:
+            raise BodyURLError(f"tick {tick_s} s: expected a positive period")
+        self.sc = sc
+        self.seed = seed
+        self.tick_s = tick_s
+        self.clock = clock if clock is not None else WallClock()
+        self.engine = Engine(sc, seed)
+        self.opened: dict[int, OpenedBody] = {}
+        self.hosts: dict[int, HostNode] = {}
+        self._stack = contextlib.ExitStack()
+        try:
+            for node, spec in sorted(bodies.items()):
+                self._attach(node, spec)
+        except BaseException:
+            self._stack.close()
+            raise
+
+    def _attach(self, node: int, spec: BodySpec) -> None:
+        eng = self.engine
+        i = node - 1
+        w = eng.world
+        ctx = BodyContext(node=node, x_patch=fx.patch(w.xs[i]), y_patch=fx.patch(w.ys[i]),
+                          arena=w.w, tick_s=self.tick_s, clock=self.clock, link=eng.link)
+        opened = self._stack.enter_context(open_body(spec, ctx))
+        self.opened[node] = opened
+        if opened.kind == "sim":
+            return
+        if opened.kind != "host":
+            raise BodyURLError(f"body {spec.url!r}: a {spec.scheme}:// body cannot join a "
+                               f"mixed mission yet")
+        seat = Seat(opened.hal, w, i, node)
+        seat.sync()
+        self._check_start(seat, spec.url)
+        eng.bodies[i] = seat
+        eng.robots[i] = self.hosts[node] = HostNode(eng.robots[i], opened)
+
+    def _check_start(self, seat: Seat, url: str) -> None:
+        """The patch where the real robot was put down must be free in the
+        sim world too, or the two worlds disagree from the first tick."""
+        w = self.engine.world
+        px, py = fx.patch(w.xs[seat.i]), fx.patch(w.ys[seat.i])
+        if w.obj[w.idx(px, py)]:
+            raise BodyURLError(f"body {url!r} (node {seat.node}): start patch ({px}, {py}) "
+                               f"is on the object; put the robot down elsewhere (x=, y=)")
+        for j, (x, y) in enumerate(zip(w.xs, w.ys)):
+            if j != seat.i and (fx.patch(x), fx.patch(y)) == (px, py):
+                raise BodyURLError(f"body {url!r} (node {seat.node}): start patch ({px}, {py}) "
+                                   f"is taken by "
+                                   f"simulated robot {j + 1}; put the robot down elsewhere "
+                                   f"(x=, y= in its URL) or pick another --seed")
+        w.recount()
+
+    # -- running ----------------------------------------------------------------------
+
+    def describe(self) -> dict[int, str]:
+        return {n: o.describe() for n, o in sorted(self.opened.items())}
+
+    def start_poses(self) -> dict[int, tuple[int, int, float]]:
+        """node -> (patch x, patch y, heading) where each real robot must be put down."""
+        w = self.engine.world
+        return {n: (fx.patch(w.xs[n - 1]), fx.patch(w.ys[n - 1]), h.opened.hal.theta)
+                for n, h in sorted(self.hosts.items())}
+
+    def step(self) -> None:
+        """One tick: the engine's, real nodes included (their FSMs step on
+        their bodies, their intents join the others')."""
+        self.engine.step()
+
+    def run(self, max_ticks: int | None = None,
+            until: Callable[["MixedMission"], bool] | None = None,
+            progress: Callable[[int], None] | None = None) -> Any:
+        """Tick until delivered, the scenario's maxTicks, `max_ticks` or
+        until(self); returns the engine's RunResult."""
+        from sim_backend.engine import RunResult
+        eng = self.engine
+        limit = min(max_ticks or eng.sc.maxTicks, eng.sc.maxTicks)
+        due = self.clock.now()
+        while not eng.finished() and eng.tick < limit:
+            if until is not None and until(self):
+                break
+            self.step()
+            if progress is not None:
+                progress(eng.tick)
+            # pace: a real robot's steering assumes one tick per tick_s; a
+            # tick that ran long is not caught up with a burst of short ones
+            due += self.tick_s
+            now = self.clock.now()
+            if now > due + self.tick_s:
+                due = now
+            self.clock.sleep(due - now)
+        return RunResult(eng.sc, eng.seed, eng.tick, eng.world, eng.coordinator, eng.robots,
+                         eng.trajectories)
+
+    def summary(self, result: Any) -> dict[str, Any]:
+        s = result.summary()
+        c = self.engine.coordinator
+        s["duplicates"] = getattr(c, "duplicates", 0)
+        s["bodies"] = {str(n): o.describe() for n, o in sorted(self.opened.items())}
+        s["real_touches"] = {str(n): sum(1 for t in c.touches if t.node == n)
+                             for n in sorted(self.hosts)}
+        s["real_failed_ticks"] = {str(n): h.failed_ticks for n, h in sorted(self.hosts.items())}
+        return s
+
+    # -- context manager -----------------------------------------------------------------
+
+    def close(self) -> None:
+        self._stack.close()
+
+    def __enter__(self) -> "MixedMission":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
