@@ -48,23 +48,26 @@ class MissionError(BridgeError):
 class Seat(Hal):
     """A real body's place in the engine: the HAL the node's FSM is stepped
     on (every call goes to the real body) and the intents the engine applies
-    for that node with its own rule. Attribute names are SimBody's, since the
-    engine reads them (claim_cell, beacon_set, move, held, carry_intent)."""
+    for that node with its own rule (sim_backend/kernel.py), written where
+    SimBody writes them: the world's per-robot intent arrays at index i."""
 
     def __init__(self, host: Any, world: Any, index: int, node: int) -> None:
         self.host = host                # a bridge.serial.hostbody.HostBody
         self.world = world
         self.i = index
         self.node = node
-        self.held = -1
-        self.carry_intent: tuple[int, int] | None = None
         self.reset_intents()
 
+    @property
+    def held(self) -> int:
+        return self.world.held[self.i]
+
     def reset_intents(self) -> None:
-        # move stays None: where a real robot is comes from its odometry
-        self.move: tuple[int, int] | None = None
-        self.claim_cell = -1
-        self.beacon_set = -1
+        # never a forward move: where a real robot is comes from its odometry
+        w = self.world
+        w.mv_on[self.i] = 0
+        w.claim[self.i] = -1
+        w.beacon_set[self.i] = -1
 
     def sync(self) -> None:
         """Copy the body's pose into the world, clamped to the arena (odometry
@@ -108,15 +111,18 @@ class Seat(Hal):
         px = fx.patch(w.xs[self.i] + fx.dx(heading, fx.ONE))
         py = fx.patch(w.ys[self.i] + fx.dy(heading, fx.ONE))
         if w.inside(px, py):
-            self.claim_cell = w.idx(px, py)
+            w.claim[self.i] = w.idx(px, py)
 
     def carry(self, dx: int, dy: int) -> None:
         self.host.carry(dx, dy)
-        self.carry_intent = (dx, dy)
+        w = self.world
+        w.carry_on[self.i] = 1
+        w.carry_dx[self.i] = dx
+        w.carry_dy[self.i] = dy
 
     def beacon(self, on: int) -> None:
         self.host.beacon(on)
-        self.beacon_set = 1 if on else 0
+        self.world.beacon_set[self.i] = 1 if on else 0
 
     # -- messages: over the engine's link, to the host coordinator ----------------------
 

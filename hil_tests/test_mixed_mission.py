@@ -87,7 +87,8 @@ def check_exactly_once(m: MixedMission, s: dict) -> None:
     assert (fx.patch(w.xs[REAL - 1]), fx.patch(w.ys[REAL - 1])) == (0, 0)
     assert s["real_failed_ticks"] == {str(REAL): 0}
     # its beacon LED is a field source for the simulated robots
-    assert m.engine.beacons.get(REAL) == (0, 0)
+    i = REAL - 1
+    assert (w.beacon_on[i], w.bsx[i], w.bsy[i]) == (1, 0, 0)
 
 
 PUT_DOWN = "x=0&y=0&heading=90"
