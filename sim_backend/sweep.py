@@ -285,6 +285,12 @@ def make_row(pt: Point, sc: Scenario, seed: int, s: dict, until: str) -> dict:
     row["leader"] = s["leader"]
     row["delivered"] = s["delivered"]
     row["segments"] = " ".join(f"{x}:{y}" for x, y in s["segments"])
+    # the measures the behaviour declares (spec.MEASURES) that the columns
+    # above do not already hold, e.g. aggregation's stopped/clusters/largest
+    from firmware_logic import registry
+    for name, _ in registry.load(sc.behaviour).spec.MEASURES:
+        if name not in row:
+            row[name] = s.get(name)
     return row
 
 
@@ -293,7 +299,9 @@ def write_csv(rows: Sequence[dict], path: Path) -> Path:
     with path.open("w", newline="") as f:
         if not rows:
             return path
-        wr = csv.DictWriter(f, fieldnames=list(rows[0]), lineterminator="\n")
+        # rows of different behaviours carry different measures: every column once
+        names = list(dict.fromkeys(k for r in rows for k in r))
+        wr = csv.DictWriter(f, fieldnames=names, lineterminator="\n")
         wr.writeheader()
         for r in rows:
             wr.writerow({k: ("" if v is None else v) for k, v in r.items()})

@@ -76,3 +76,21 @@ def test_cli_usage_errors(capsys):
     assert main(["sweep"]) == 2
     assert main(["sweep", "--grid", "nope=1,2"]) == 2
     assert main(["sweep", "--grid", "agents=5", "--seeds", "x"]) == 2
+
+
+def test_a_grid_over_behaviours_reports_each_behaviours_measures(tmp_path):
+    """auto picks an engine per behaviour; every row equals the reference's
+    and carries the measures its behaviour declares (spec.MEASURES)."""
+    pts = sweep.grid_points({"behaviour": ["thesis", "aggregate"]})
+    rows = sweep.sweep(pts, [1, 2], overrides=OVR)
+    ref = sweep.sweep(pts, [1, 2], overrides=OVR, engine="reference")
+    assert rows == ref
+    agg = [r for r in rows if r["behaviour"] == "aggregate"]
+    the = [r for r in rows if r["behaviour"] == "thesis"]
+    assert len(agg) == len(the) == 2
+    assert all(r["largest"] >= 1 and r["stopped"] >= r["largest"] for r in agg)
+    assert all("largest" not in r for r in the)
+    text = sweep.write_csv(rows, tmp_path / "b.csv").read_text().splitlines()
+    header = text[0].split(",")
+    assert header.count("largest") == 1 and "shape_iou" in header
+    assert len(text) == 5
