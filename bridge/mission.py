@@ -175,6 +175,111 @@ class HostNode:
             self.lost_streak = 0
 
 
+class TetherNode:
+    """The engine's robot entry for a board running its own FSM: nothing to
+    step here (the board ticks itself; its SENSOR / ACTION frames are served
+    by the tether)."""
+
+    def __init__(self, fsm: Any, opened: OpenedBody) -> None:
+        self.fsm = fsm                  # the host's copy, never stepped
+        self.opened = opened
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.fsm, name)
+
+    def step(self, body: Any) -> None:
+        pass
+
+
+def tether_seat(world: Any, index: int, node: int, link: Any) -> Any:
+    """A SimBody whose intents come from a board over the tether. They are
+    held back until the board ends its tick (ACTION END), then applied by the
+    engine's own rule (MixedLink's apply); the engine's tick neither resets
+    nor applies them half-way through a board tick."""
+    from sim_backend.body import SimBody
+
+    class TetherSeat(SimBody):
+        def __init__(self) -> None:
+            self.pending: list[tuple[Any, tuple[int, ...]]] = []
+            super().__init__(world, index, node, link)
+
+        def forward(self, heading: int, step: int) -> None:
+            self.pending.append((SimBody.forward, (heading, step)))
+
+        def claim(self, heading: int) -> None:
+            self.pending.append((SimBody.claim, (heading,)))
+
+        def carry(self, dx: int, dy: int) -> None:
+            self.pending.append((SimBody.carry, (dx, dy)))
+
+        def beacon(self, on: int) -> None:
+            self.pending.append((SimBody.beacon, (on,)))
+
+        def activate(self) -> None:
+            for act, args in self.pending:
+                act(self, *args)
+            self.pending.clear()
+
+    return TetherSeat()
+
+
+class MixedLink:
+    """The engine's link: in-process for the nodes stepped here (simulated
+    and host-side real ones), a tether (sim_backend/emulators/tether.py)
+    over each MicroPython board's serial port for the others. The tether is
+    given this object as its engine: `bodies` are the engine's, `_apply`
+    applies only the boards' held-back intents."""
+
+    def __init__(self, engine_nodes: list[int]) -> None:
+        from sim_backend.engine import InprocLink
+        self.inner = InprocLink(engine_nodes)
+        self.engine: Any = None
+        self.tethers: dict[int, Any] = {}          # node -> TetherTransport
+        self.inbox: list[tuple[int, int, tuple]] = []
+
+    @property
+    def bodies(self) -> list[Any]:
+        return self.engine.bodies
+
+    def _apply(self) -> None:
+        eng = self.engine
+        for b in eng.bodies:
+            b.reset_intents()           # what the engine's tick already applied
+        for b in eng.bodies:
+            if hasattr(b, "activate"):
+                b.activate()
+        eng._apply()
+
+    def robot_send(self, node: int, kind: int, fields: tuple) -> None:
+        self.inner.robot_send(node, kind, fields)
+
+    def robot_recv(self, node: int) -> tuple[int, tuple] | None:
+        return self.inner.robot_recv(node)
+
+    def pump(self, timeout: float) -> None:
+        """Serve the boards for up to `timeout` s (every read has a timeout)."""
+        for t in self.tethers.values():
+            self.inbox += t.poll(timeout / max(1, len(self.tethers)))
+
+    def host_recv(self) -> list[tuple[int, int, tuple]]:
+        self.pump(0.0)
+        out, self.inbox = self.inner.host_recv() + self.inbox, []
+        return out
+
+    def host_send(self, node: int, kind: int, fields: tuple) -> None:
+        if node in self.tethers:
+            self.tethers[node].send(node, kind, fields)
+            return
+        self.inner.host_send(node, kind, fields)
+        if node == 0:
+            for n, t in self.tethers.items():
+                self.inner.down[n].clear()      # nobody here reads a board's queue
+                t.send(node, kind, fields)
+
+    def close(self) -> None:
+        pass                            # the tethers' ports belong to their bodies
+
+
 class MixedMission:
     """One scenario with some nodes on real bodies; a context manager that
     closes every body it opened (motors stopped, LEDs off).
@@ -198,9 +303,12 @@ class MixedMission:
         self.seed = seed
         self.tick_s = tick_s
         self.clock = clock if clock is not None else WallClock()
-        self.engine = Engine(sc, seed)
+        self.link = MixedLink(list(range(1, sc.agents + 1)))
+        self.engine = Engine(sc, seed, link=self.link)
+        self.link.engine = self.engine
         self.opened: dict[int, OpenedBody] = {}
         self.hosts: dict[int, HostNode] = {}
+        self.tethered: dict[int, TetherNode] = {}
         self._stack = contextlib.ExitStack()
         try:
             for node, spec in sorted(bodies.items()):
@@ -219,9 +327,17 @@ class MixedMission:
         self.opened[node] = opened
         if opened.kind == "sim":
             return
-        if opened.kind != "host":
-            raise BodyURLError(f"body {spec.url!r}: a {spec.scheme}:// body cannot join a "
-                               f"mixed mission yet")
+        if opened.kind == "tether":
+            from sim_backend.emulators.tether import TetherTransport
+            if "x" in spec.options or "y" in spec.options:
+                w.xs[i] = int(round(spec.get("x", ctx.x_patch) * fx.ONE))
+                w.ys[i] = int(round(spec.get("y", ctx.y_patch) * fx.ONE))
+            seat = tether_seat(w, i, node, eng.link)
+            self._check_start(seat, spec.url)
+            eng.bodies[i] = seat
+            eng.robots[i] = self.tethered[node] = TetherNode(eng.robots[i], opened)
+            self.link.tethers[node] = TetherTransport(opened.transport, self.link, [node])
+            return
         seat = Seat(opened.hal, w, i, node)
         seat.sync()
         self._check_start(seat, spec.url)
@@ -259,6 +375,9 @@ class MixedMission:
         """One tick: the engine's, real nodes included (their FSMs step on
         their bodies, their intents join the others')."""
         self.engine.step()
+        # applied: a board's END must not apply them a second time
+        for b in self.engine.bodies:
+            b.reset_intents()
 
     def run(self, max_ticks: int | None = None,
             until: Callable[["MixedMission"], bool] | None = None,
@@ -281,9 +400,24 @@ class MixedMission:
             now = self.clock.now()
             if now > due + self.tick_s:
                 due = now
-            self.clock.sleep(due - now)
+            self._wait(due - now)
         return RunResult(eng.sc, eng.seed, eng.tick, eng.world, eng.coordinator, eng.robots,
                          eng.trajectories)
+
+    def _wait(self, seconds: float) -> None:
+        """Let the rest of the tick pass; boards are served meanwhile (a board
+        tick is a dozen request / answer round trips)."""
+        if not self.tethered:
+            self.clock.sleep(seconds)
+            return
+        end = self.clock.now() + seconds
+        while True:
+            self.link.pump(min(0.01, max(0.0, end - self.clock.now())))
+            if self.clock.now() >= end:
+                return
+            if not self.clock.wire_time:        # a SimClock: serve once, then move on
+                self.clock.sleep(end - self.clock.now())
+                return
 
     def summary(self, result: Any) -> dict[str, Any]:
         s = result.summary()
@@ -291,7 +425,7 @@ class MixedMission:
         s["duplicates"] = getattr(c, "duplicates", 0)
         s["bodies"] = {str(n): o.describe() for n, o in sorted(self.opened.items())}
         s["real_touches"] = {str(n): sum(1 for t in c.touches if t.node == n)
-                             for n in sorted(self.hosts)}
+                             for n in sorted({*self.hosts, *self.tethered})}
         s["real_failed_ticks"] = {str(n): h.failed_ticks for n, h in sorted(self.hosts.items())}
         return s
 

@@ -193,3 +193,34 @@ def test_a_moving_khepera_is_where_its_odometry_says_in_the_sim_world() -> None:
             assert far >= 2 * fx.ONE                 # it went somewhere
             assert m.hosts[REAL].steps < m.engine.tick   # moves took more than a tick
             assert m.hosts[REAL].failed_ticks == 0
+
+
+def test_a_micropython_robot_joins_a_simulated_swarm(micropython_device) -> None:
+    """mpy://PORT: the firmware deployed on MicroPython (the unix port behind
+    a pty) runs its own ticks; the mission serves its senses from the sim
+    world through the tether and its reports reach the same coordinator as
+    the simulated robots'. Wall clock (the board ticks on its own); bounded
+    in ticks, waiting on the touch, never on a sleep."""
+    from bridge.serial.deploy import Deployer
+    dev = micropython_device
+    Deployer(dev.path).deploy({"NODE": REAL, "SEED": SEED, "MODEL": 1, "MAX_TICKS": 5000,
+                               "LINGER": 2})
+    Deployer(dev.path).start()
+    sc = mission_scenario()
+    with MixedMission(sc, SEED, {REAL: parse_body_url(f"mpy://{dev.path}?x=0&y=0")},
+                      tick_s=0.02) as m:
+        c = m.engine.coordinator
+        m.run(max_ticks=1500, until=lambda mm: any(t.node == REAL for t in c.touches))
+        assert any(t.node == REAL for t in c.touches), (m.engine.tick, c.rejected)
+        # the board sees its ACK and stops retransmitting; a duplicate would count
+        m.run(max_ticks=m.engine.tick + 100)
+        s = m.summary(m.run(max_ticks=m.engine.tick))
+    keys = Counter((t.node, t.seq) for t in c.touches)
+    assert all(n == 1 for n in keys.values()), keys
+    assert s["real_touches"] == {str(REAL): 1}
+    t = next(t for t in c.touches if t.node == REAL)
+    w = m.engine.world
+    # a bar segment next to where it stood; held in the world by the engine's rule
+    assert (t.sx, t.sy) in w.object_cells and abs(t.sx - t.rx) + abs(t.sy - t.ry) == 1
+    assert w.owner[w.idx(t.sx, t.sy)] == REAL
+    assert s["bodies"][str(REAL)].startswith("MicroPython robot on ")

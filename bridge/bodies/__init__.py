@@ -60,7 +60,7 @@ OPTIONS: dict[str, dict[str, Callable[[str], Any]]] = {
                 "light_step": int},
     "gogo": {"baud": int, **POSE, "mm_s_per_level": float, "wheel_base_mm": float,
              "power": int, "dark": int, "light_step": int, "touch_threshold": int},
-    "mpy": {"baud": int},
+    "mpy": {"baud": int, "x": float, "y": float},   # where its simulated body starts
 }
 
 BAUDS = {"khepera": (9600, 19200, 38400, 57600, 115200)}
