@@ -88,9 +88,59 @@ for _m in MESSAGES:
     SCHEMA[_m[0]] = (_m[1], tuple(_f))
 
 
+# kind codes a behaviour may give messages of its own (spec.MESSAGES, in the
+# format of MESSAGES); the link's messages above hold the others
+FREE_KINDS = (7, 8, 9, 12, 13, 14, 15)
+DECLARED = []   # rows behaviours declared, in declaration order
+
+
+def declare(rows):
+    """Add a behaviour's own messages to the schema (start-up, host and board).
+
+    Each row is in MESSAGES' format; its kind must be one of FREE_KINDS,
+    its direction UP or DOWN, its fields of 1 or 2 bytes, at most 6 of them
+    and 8 bytes in all. Declaring the same row again is a no-op; a kind
+    declared twice differently raises SchemaError naming both.
+    """
+    for m in rows:
+        kind = m[0]
+        if kind not in FREE_KINDS:
+            raise SchemaError("message %s: kind %d is taken by the link; a behaviour's "
+                              "messages use one of 7-9, 12-15" % (m[1], kind))
+        if m[2] != UP and m[2] != DOWN:
+            raise SchemaError("message %s: direction must be up or down" % m[1])
+        size = 0
+        for x in m[4]:
+            if x[1] != 1 and x[1] != 2:
+                raise SchemaError("message %s: field %s has %d bytes; 1 or 2 fit the "
+                                  "link" % (m[1], x[0], x[1]))
+            size += x[1]
+        if size > 8 or len(m[4]) > 6:
+            raise SchemaError("message %s: %d fields, %d bytes; at most 6 fields in "
+                              "8 bytes fit a CAN frame" % (m[1], len(m[4]), size))
+        old = None
+        for d in DECLARED:
+            if d[0] == kind:
+                old = d
+        if old is not None:
+            if old != m:
+                raise SchemaError("kind %d is declared twice: %s and %s" % (kind, old[1], m[1]))
+            continue
+        DECLARED.append(m)
+        f = []
+        for x in m[4]:
+            f.append((x[0], x[1], x[2]))
+        SCHEMA[kind] = (m[1], tuple(f))
+
+
+def rows():
+    """Every declared message: the link's, then the behaviours'."""
+    return MESSAGES + tuple(DECLARED)
+
+
 def spec(kind):
-    """The full declaration of a message kind (a row of MESSAGES)."""
-    for m in MESSAGES:
+    """The full declaration of a message kind (a row of rows())."""
+    for m in rows():
         if m[0] == kind:
             return m
     raise SchemaError("unknown message kind %d" % kind)
@@ -99,7 +149,7 @@ def spec(kind):
 FIRMWARE_VERSION = 1
 
 # host-side helpers exempt from the step-path allocation rules (docs/subset.md)
-SUBSET_SETUP = ("split_id", "spec")
+SUBSET_SETUP = ("split_id", "spec", "declare", "rows")
 
 
 class SchemaError(ValueError):

@@ -5,7 +5,9 @@ bridge/firmware/subset_check.py).
 A behaviour is a package of firmware-subset modules:
 
     spec.py         its declaration: NAME, TITLE, STATES, MODELS,
-                    PARAMS, MEASURES (see behaviours/thesis/spec.py)
+                    PARAMS, MEASURES (see behaviours/thesis/spec.py), and
+                    optionally MESSAGES, its own message kinds in the
+                    format of messages.MESSAGES (kinds 7-9, 12-15)
     robot.py        the FSM class named by ROBOT, stepped as `robot.step(hal)`
     coordinator.py  its host-side coordinator (portable, may allocate)
     __init__.py     the wiring: ROBOT = "module:Class", and
@@ -147,4 +149,9 @@ def load(ref: str | Path | None = None) -> Behaviour:
     except ImportError as err:
         raise BehaviourError(f"behaviour {where}: no spec.py ({err})") from err
     _check(mod, spec, where)
+    from firmware_logic import messages
+    try:
+        messages.declare(getattr(spec, "MESSAGES", ()))
+    except messages.SchemaError as err:
+        raise BehaviourError(f"behaviour {where}: spec.py MESSAGES: {err}") from err
     return Behaviour(spec.NAME, mod, spec)

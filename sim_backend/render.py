@@ -29,7 +29,9 @@ def render(result: RunResult, path: Path) -> Path:
     rgba[obj == BLUE] = (0.1, 0.3, 0.9, 1.0)
     ax1.imshow(rgba, origin="lower", extent=ext)
     ax1.add_patch(Circle((w.sc.homeX, w.sc.homeY), 2, color="c", alpha=0.5))
-    carriers = set(result.coordinator.carriers())
+    # the robots the coordinator counts: carriers for the thesis; any
+    # behaviour's reporters otherwise (the seam asks only for `touches`)
+    carriers = {t.node for t in result.coordinator.touches}
     leader = result.coordinator.leader
     for r, x, y in zip(result.robots, w.xs, w.ys):
         colour = "red" if r.node == leader else ("green" if r.node in carriers else "dimgray")
@@ -50,8 +52,7 @@ def render(result: RunResult, path: Path) -> Path:
         ax2.add_patch(plt.Rectangle((x - .5, y - .5), 1, 1, color=(1, .85, 0), alpha=.6))
     for (x, y) in seen:
         ax2.add_patch(plt.Rectangle((x - .5, y - .5), 1, 1, fill=False, ec="blue", lw=2))
-    for t in result.coordinator.touches:
-        sx, sy = t.sx + result.coordinator.moved_x, t.sy + result.coordinator.moved_y
+    for sx, sy in result.coordinator.segments_now():   # where the touched cells are now
         ax2.plot(sx, sy, "x", color="navy")
     ax2.set_xlim(min(xs) - 1.5, max(xs) + 1.5)
     ax2.set_ylim(min(ys) - 1.5, max(ys) + 1.5)

@@ -24,7 +24,7 @@ def frame(ident, data, **kw):
 
 
 CASES = [
-    (codec.UNKNOWN_ID, frame(msg.can_id(7, 3), b"\x00")),
+    (codec.UNKNOWN_ID, frame(msg.can_id(12, 3), b"\x00")),   # a free kind nobody declared
     (codec.UNKNOWN_ID, frame(msg.can_id(15, 3), b"")),
     (codec.UNKNOWN_ID, frame(0, b"")),
     (codec.WRONG_DLC, frame(msg.can_id(msg.TOUCH, 3), b"\x01\x02")),

@@ -76,3 +76,49 @@ def test_aggregation_on_micropython_matches_cpython_with_zero_heap() -> None:
         assert m.identical, m.divergence
         assert m.heap_bytes == 0 and m.heap_locked_ok
         assert set(m.states_visited) == set(rep.states)
+
+
+def test_a_behaviours_own_message_travels_and_counts() -> None:
+    """aggregate's LEAVE (declared in its spec.py, kind 7): a robot that walks
+    away from its stop sends it, the CAN codec carries it like a link message,
+    and the coordinator drops that stop (and only that one) at once."""
+    from bridge.links import codec
+    from firmware_logic import messages as msg
+    agg = registry.load("aggregate")
+    leave = agg.spec.LEAVE
+    assert msg.fields(leave) == (("seq", 1, 0), ("x", 2, 1), ("y", 2, 1))
+    frame = codec.encode(4, leave, (3, 512, -256))
+    assert codec.Decoder("host").decode(frame) == (4, leave, (3, 512, -256))
+    assert codec.Decoder("robot").decode(frame) is None      # a report, not a command
+    c = agg.coordinator(load("default"))
+    c.on_message(4, msg.HELLO, (1, 100, 1), 1)
+    c.on_message(4, msg.TOUCH, (3, 0, 0, 1, 0, 100), 2)
+    c.on_message(4, leave, (2, 0, 0), 3)                     # a stale seq: ignored
+    assert [t.node for t in c.touches] == [4]
+    c.on_message(4, leave, (3, 0, 0), 4)
+    assert c.touches == []
+
+
+def test_robots_leave_over_a_long_aggregation() -> None:
+    """In a mission with a quorum it cannot reach soon, robots do leave their
+    stops and the host's count follows their LEAVE messages."""
+    sc = load("default").replace(behaviour="aggregate", quorum=100, maxTicks=600)
+    e = Engine(sc, 2)
+    leaves = []
+    orig = e.coordinator.on_message
+
+    def spy(node, kind, f, tick):
+        if kind == e.behaviour.spec.LEAVE:
+            leaves.append(node)
+        orig(node, kind, f, tick)
+    e.coordinator.on_message = spy
+    r = e.run()
+    assert leaves, "no robot left its stop in 600 ticks: the test proves nothing"
+    stay = e.behaviour.spec.STAY
+    assert {t.node for t in r.coordinator.touches} == \
+        {rb.node for rb in r.robots if rb.state == stay}
+
+
+def test_run_of_another_behaviour_writes_records_and_picture(tmp_path: Path) -> None:
+    assert main(["run", "--set", "behaviour=aggregate", "--out", str(tmp_path)]) == 0
+    assert (tmp_path / "world.png").stat().st_size > 1000

@@ -22,9 +22,10 @@ log = logging.getLogger(__name__)
 
 Message = tuple[int, int, tuple]   # (node, kind, fields)
 
-HOST_KINDS = frozenset(m[0] for m in msg.MESSAGES if m[2] == msg.DOWN)
-ROBOT_KINDS = frozenset(m[0] for m in msg.MESSAGES if m[2] == msg.UP)
-CAPTURE_KINDS = frozenset(m[0] for m in msg.MESSAGES if m[2] == msg.CAPTURE)
+# by direction; grown by refresh() when a behaviour declares messages
+HOST_KINDS: set[int] = set()
+ROBOT_KINDS: set[int] = set()
+CAPTURE_KINDS: set[int] = set()
 
 # fault kinds, the keys of BadFrames.counts
 EXTENDED = "extended id"
@@ -85,8 +86,8 @@ def validator(kind: int, tables: dict[str, dict[int, str]]) -> Callable[[tuple],
 
 
 # field ranges beyond what the byte sizes already bound (docs/protocol.md),
-# derived from messages.MESSAGES and the default behaviour's value tables
-VALID: dict[int, Callable[[tuple], bool]] = {k: validator(k, value_tables()) for k in msg.SCHEMA}
+# derived from messages.rows() and the default behaviour's value tables
+VALID: dict[int, Callable[[tuple], bool]] = {}
 
 
 def struct_for(kind: int) -> struct.Struct:
@@ -95,11 +96,30 @@ def struct_for(kind: int) -> struct.Struct:
                                        for _, size, signed in msg.fields(kind)))
 
 
-_STRUCTS = {k: struct_for(k) for k in msg.SCHEMA}
-_DLC = {k: msg.dlc(k) for k in msg.SCHEMA}
+_STRUCTS: dict[int, struct.Struct] = {}
+_DLC: dict[int, int] = {}
 # arbitration id -> (node, kind, Struct, dlc)
-_TABLE = {msg.can_id(k, n): (n, k, _STRUCTS[k], _DLC[k])
-          for k in msg.SCHEMA for n in range(msg.MAX_NODE + 1)}
+_TABLE: dict[int, tuple[int, int, struct.Struct, int]] = {}
+
+
+def refresh() -> None:
+    """Take in every kind of messages.rows() not known yet: the link's at
+    import, a behaviour's once it declared them (registry.load does)."""
+    tables = None
+    for m in msg.rows():
+        k = m[0]
+        if k in _STRUCTS:
+            continue
+        tables = tables or value_tables()
+        {msg.DOWN: HOST_KINDS, msg.UP: ROBOT_KINDS, msg.CAPTURE: CAPTURE_KINDS}[m[2]].add(k)
+        VALID[k] = validator(k, tables)
+        _STRUCTS[k] = struct_for(k)
+        _DLC[k] = msg.dlc(k)
+        for n in range(msg.MAX_NODE + 1):
+            _TABLE[msg.can_id(k, n)] = (n, k, _STRUCTS[k], _DLC[k])
+
+
+refresh()
 
 
 def encode(node: int, kind: int, fields: tuple, timestamp: float = 0.0) -> can.Message:
@@ -138,6 +158,7 @@ class Decoder:
     """
 
     def __init__(self, side: str, bad: BadFrames | None = None) -> None:
+        refresh()
         if side not in ("host", "robot"):
             raise ValueError(f"side must be 'host' or 'robot', not {side!r}")
         self.side = side

@@ -13,23 +13,29 @@ from typing import Any
 
 from firmware_logic import messages as msg
 
-from bridge.links.codec import HOST_KINDS, value_tables
+from bridge.links.codec import HOST_KINDS, refresh, value_tables
 
 def build(max_node: int = msg.MAX_NODE, behaviour: Any = None):
-    """A cantools Database of every message of messages.MESSAGES: physical
+    """A cantools Database of the link's messages and the behaviour's own: physical
     units and scaling, value tables (the behaviour's states and models,
     default the thesis's), comments."""
     from cantools.database.can import Database, Message, Node, Signal
     from cantools.database.conversion import BaseConversion
 
-    tables = value_tables(behaviour)
+    from firmware_logic import registry
+    b = behaviour if behaviour is not None else registry.load()
+    tables = value_tables(b)
+    refresh()                     # the behaviour's own messages, if it declares any
+    # the link's messages and this behaviour's own: never what other behaviours
+    # loaded in the same process declared
+    rows = msg.MESSAGES + tuple(getattr(b.spec, "MESSAGES", ()))
 
     if not 1 <= max_node <= msg.MAX_NODE:
         raise ValueError(f"max_node must be 1..{msg.MAX_NODE}, not {max_node}")
     names = ["HOST"] + [f"R{n}" for n in range(1, max_node + 1)]
     nodes = [Node(name, comment=None) for name in names]
     messages = []
-    for kind, kname, _direction, comment, spec in sorted(msg.MESSAGES):
+    for kind, kname, _direction, comment, spec in sorted(rows):
         first = 0 if kind in HOST_KINDS else 1
         for node in range(first, max_node + 1):
             signals = []

@@ -7,7 +7,7 @@ link and the host process drive it unchanged.
 """
 
 from firmware_logic import messages as msg
-from firmware_logic.behaviours.aggregate.spec import STAY
+from firmware_logic.behaviours.aggregate.spec import LEAVE, STAY
 
 SUBSET_SETUP = ("Stop", "Coordinator")
 
@@ -66,6 +66,10 @@ class Coordinator:
                     self.found_tick = tick
                     self.leader = node
             self.outbox.append((node, msg.ACK, (f[0],)))
+        elif kind == LEAVE:
+            # only the stop it reported: a stale LEAVE cannot undo a newer stop
+            if node in self.stopped and self.stopped[node].seq == f[0]:
+                self._leave(node)
         elif kind == msg.HEARTBEAT:
             if node in self.stopped and f[0] != STAY:
                 self._leave(node)

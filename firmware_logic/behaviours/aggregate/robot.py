@@ -6,7 +6,7 @@ movement request, as docs/tick-semantics.md requires; nothing allocates.
 
 from firmware_logic import fixedpoint as fx
 from firmware_logic import messages as msg
-from firmware_logic.behaviours.aggregate.spec import CLIMB, HALT, SEARCH, STAY, WALK
+from firmware_logic.behaviours.aggregate.spec import CLIMB, HALT, LEAVE, SEARCH, STAY, WALK
 from firmware_logic.hal import NOTHING, ROBOT
 from firmware_logic.rng import Rng
 
@@ -56,7 +56,7 @@ class Robot:
             # the robot it touched has walked away: leave, and say so at once
             self.state = SEARCH
             hal.beacon(0)
-            hal.send(msg.HEARTBEAT, SEARCH, hal.x(), hal.y(), self.heading, 0, 0)
+            hal.send(LEAVE, self.seq, hal.x(), hal.y(), 0, 0, 0)
         self._housekeeping(hal)
 
     def _move(self, hal):

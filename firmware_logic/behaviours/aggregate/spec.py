@@ -7,6 +7,8 @@ stopped and halts the swarm once `quorum` percent of it has aggregated.
 Same HAL and link messages as the thesis; a different FSM and coordinator.
 """
 
+from firmware_logic.messages import UP
+
 NAME = "aggregate"
 TITLE = "Aggregation: touch a robot, stop, light the beacon; clusters grow uphill"
 
@@ -25,6 +27,16 @@ PARAMS = (
     ("robotVisionSpan", 45, 0, 360, "ant turn range, degrees either side"),
     ("fieldDefiance", 2, 0, 50, "random steps between two uphill steps in a field"),
     ("quorum", 80, 1, 100, "percent of the swarm that must have stopped"),
+)
+
+# The behaviour's own message (messages.declare adds it to the link's schema;
+# the codec, the DBC, recordings and replay then know it like any other).
+LEAVE = 7    # robot -> host: left its stop; the host drops it from its cluster at once
+MESSAGES = (
+    (LEAVE, "LEAVE", UP, "robot -> host: left the stop reported with seq, now at x, y",
+     (("seq", 1, 0, 1, "", 1, None, ""),
+      ("x", 2, 1, 256, "patch", None, None, ""),
+      ("y", 2, 1, 256, "patch", None, None, ""))),
 )
 
 MEASURES = (
