@@ -4,8 +4,10 @@ inherits every clause. A body that cannot honour a clause names it in
 `CANNOT`, with the reason; the clause then asserts that the reason is
 given, never skips silently.
 
-Bodies here: the simulated body (SimBody over a World), the scripted body
-(the conformance fixture that also runs on MicroPython). The serial bodies
+Bodies here: the simulated body (SimBody over a World), the batch engine's
+body (BatchBody over flat arrays, here run by CPython: the batch engine
+compiles this very class), the scripted body (the conformance fixture that
+also runs on MicroPython). The serial bodies
 (Khepera, GoGo) are held to the same promises by hil_tests/test_serial_*.py
 and hil_tests/test_mixed_mission.py; their subclasses here are still to be
 written (docs/architecture.md, "The HAL contract").
@@ -13,6 +15,7 @@ written (docs/architecture.md, "The HAL contract").
 
 from __future__ import annotations
 
+from numbers import Integral
 from typing import Callable
 
 import pytest
@@ -21,8 +24,11 @@ from firmware_logic import fixedpoint as fx
 from firmware_logic import hal as H
 from firmware_logic import messages as msg
 from firmware_logic.scripted import ScriptHal
+from sim_backend.batch.body import BatchBody
+from sim_backend.batch.engine import BatchArrays
 from sim_backend.engine import Engine
 from sim_backend.scenario import validate
+from sim_backend.world import World
 
 HAL_METHODS = [n for n in vars(H.Hal) if not n.startswith("_")]
 UP_KINDS = [m[0] for m in msg.MESSAGES if m[2] == msg.UP]
@@ -53,13 +59,13 @@ class HalContract:
 
     def test_senses_answer_small_ints_in_range(self) -> None:
         hal, _ = self.make()
-        assert isinstance(hal.x(), int) and isinstance(hal.y(), int)
+        assert isinstance(hal.x(), Integral) and isinstance(hal.y(), Integral)
         for h in range(0, 360, 15):
             assert hal.probe(h) in (H.NOTHING, H.OBJECT, H.CLAIMED, H.ROBOT, H.WALL)
             v = hal.field_ahead(h)
-            assert isinstance(v, int) and v >= 0
+            assert isinstance(v, Integral) and v >= 0
         v = hal.field_here()
-        assert isinstance(v, int) and v >= 0
+        assert isinstance(v, Integral) and v >= 0
         u = hal.uphill()
         assert u == -1 or (u % 45 == 0 and 0 <= u < 360)
         assert hal.holding() in (0, 1)
@@ -105,13 +111,21 @@ class HalContract:
         assert hal.field_here() > before
 
 
+SCENARIO = {"agents": 3, "objectX": 5, "objectY": 5, "objectWeight": 1.0}
+
+
+def placed(w: World) -> World:
+    """Robot 1 at the origin, the others 6 patches away: every heading free."""
+    w.xs[:] = [0, 6 * fx.ONE, -6 * fx.ONE]
+    w.ys[:] = [0, 0, 0]
+    w.recount()
+    return w
+
+
 class TestSimBody(HalContract):
     def make(self):
-        e = Engine(validate({"agents": 3, "objectX": 5, "objectY": 5, "objectWeight": 1.0}), 1)
-        w = e.world
-        w.xs[:] = [0, 6 * fx.ONE, -6 * fx.ONE]
-        w.ys[:] = [0, 0, 0]
-        w.recount()
+        e = Engine(validate(SCENARIO), 1)
+        placed(e.world)
         body = e.bodies[0]
         body.reset_intents()
 
@@ -119,6 +133,22 @@ class TestSimBody(HalContract):
             e._apply()
             e.exchange()
             body.reset_intents()
+        return body, tick
+
+
+class TestBatchBody(HalContract):
+    def make(self):
+        arrays = BatchArrays([placed(World(validate(SCENARIO), 1))])
+        body = BatchBody(*arrays.body_args())
+        body.i = 0
+        clock = [0]
+
+        def tick():
+            clock[0] += 1
+            body.apply(0, clock[0])
+            body.mv_on[0] = 0
+            body.claim_k[0] = -1
+            body.beacon_set[0] = -1
         return body, tick
 
 

@@ -46,6 +46,68 @@ def _nfields() -> list[int]:
     return [len(msg.fields(k)) if k in msg.SCHEMA else 0 for k in range(top)]
 
 
+class BatchArrays:
+    """The flat arrays of a batch of worlds (sim_backend/batch/body.py's
+    layout), filled from each World's start; what a BatchBody is made of."""
+
+    def __init__(self, worlds: Sequence[World]) -> None:
+        nr = len(worlds)
+        agents = [len(w.xs) for w in worlds]
+        self.starts = np.concatenate([[0], np.cumsum(agents)]).astype(np.int64)
+        starts = self.starts
+        nrob = int(starts[-1])
+        self.stride = max(w.n * w.n for w in worlds)
+        rt = np.zeros((B.RUN_ROWS, nr), dtype=np.int64)
+        tables = [(w.tdx, w.tdy, w.tv) for w in worlds]
+        tstarts = np.concatenate([[0], np.cumsum([len(t[0]) for t in tables])])
+        cells = [w.cell_arrays() for w in worlds]
+        cstarts = np.concatenate([[0], np.cumsum([len(c[0]) for c in cells])])
+        for r, w in enumerate(worlds):
+            rt[B.BASE, r] = r * self.stride
+            rt[B.W, r] = w.w
+            rt[B.N, r] = w.n
+            rt[B.LO, r] = starts[r]
+            rt[B.HI, r] = starts[r + 1]
+            rt[B.T0, r], rt[B.T1, r] = tstarts[r], tstarts[r + 1]
+            rt[B.C0, r], rt[B.C1, r] = cstarts[r], cstarts[r + 1]
+        rt[B.LIVE] = 1
+        table = np.zeros((3, max(1, int(tstarts[-1]))), dtype=np.int64)
+        cell = np.zeros((4, max(1, int(cstarts[-1]))), dtype=np.int64)
+        grids = np.zeros((B.GRID_ROWS, nr * self.stride), dtype=np.int64)
+        grids[B.STAMP] = -1
+        rb = np.zeros((B.ROBOT_ROWS, nrob), dtype=np.int64)
+        for r, w in enumerate(worlds):
+            a, b = int(rt[B.T0, r]), int(rt[B.T1, r])
+            table[:, a:b] = tables[r]
+            a, b = int(rt[B.C0, r]), int(rt[B.C1, r])
+            cell[:2, a:b] = cells[r][:2]
+            base, size = r * self.stride, w.n * w.n
+            for row, grid in ((B.OBJ, w.obj), (B.OWNER, w.owner), (B.FIELD, w.field),
+                              (B.OCC, w.occ)):
+                grids[row, base:base + size] = grid
+            lo, hi = int(starts[r]), int(starts[r + 1])
+            rb[B.XS, lo:hi] = w.xs
+            rb[B.YS, lo:hi] = w.ys
+            rb[B.RUN, lo:hi] = r
+        rb[B.HELD] = -1
+        rb[B.CLAIM] = -1
+        rb[B.BEACON_SET] = -1
+        self.rt, self.rb, self.grids, self.cells, self.table = rt, rb, grids, cell, table
+        cap = SENDS_PER_ROBOT * nrob + 16
+        self.out_i = np.zeros(cap, dtype=np.int64)
+        self.out_kind = np.zeros(cap, dtype=np.int64)
+        self.out_f = np.zeros((cap, B.FIELDS), dtype=np.int64)
+        self.out_n = np.zeros(2, dtype=np.int64)
+        self.in_kind = np.zeros((nrob, INBOX), dtype=np.int64)
+        self.in_nf = np.zeros((nrob, INBOX), dtype=np.int64)
+        self.in_f = np.zeros((nrob, INBOX, B.FIELDS), dtype=np.int64)
+
+    def body_args(self) -> tuple:
+        """BatchBody's constructor arguments (the arrays are shared, not copied)."""
+        return (self.grids, self.rb, self.rt, self.cells, self.table, self.out_i,
+                self.out_kind, self.out_f, self.out_n, self.in_kind, self.in_nf, self.in_f)
+
+
 class BatchEngine:
     """A batch of independent runs (scenario, seed) of one behaviour."""
 
@@ -74,57 +136,15 @@ class BatchEngine:
         runs = self.runs
         nr = len(runs)
         self.worlds = [World(sc, seed) for sc, seed in runs]
-        agents = [sc.agents for sc, _ in runs]
-        starts = np.concatenate([[0], np.cumsum(agents)]).astype(np.int64)
-        nrob = int(starts[-1])
-        self.stride = max(w.n * w.n for w in self.worlds)
-        # per run
-        rt = np.zeros((B.RUN_ROWS, nr), dtype=np.int64)
-        tables = [(w.tdx, w.tdy, w.tv) for w in self.worlds]
-        tstarts = np.concatenate([[0], np.cumsum([len(t[0]) for t in tables])])
-        cells = [w.cell_arrays() for w in self.worlds]
-        cstarts = np.concatenate([[0], np.cumsum([len(c[0]) for c in cells])])
-        for r, w in enumerate(self.worlds):
-            rt[B.BASE, r] = r * self.stride
-            rt[B.W, r] = w.w
-            rt[B.N, r] = w.n
-            rt[B.LO, r] = starts[r]
-            rt[B.HI, r] = starts[r + 1]
-            rt[B.T0, r], rt[B.T1, r] = tstarts[r], tstarts[r + 1]
-            rt[B.C0, r], rt[B.C1, r] = cstarts[r], cstarts[r + 1]
-        rt[B.LIVE] = 1
-        table = np.zeros((3, max(1, int(tstarts[-1]))), dtype=np.int64)
-        cell = np.zeros((4, max(1, int(cstarts[-1]))), dtype=np.int64)
-        grids = np.zeros((B.GRID_ROWS, nr * self.stride), dtype=np.int64)
-        grids[B.STAMP] = -1
-        rb = np.zeros((B.ROBOT_ROWS, nrob), dtype=np.int64)
-        for r, w in enumerate(self.worlds):
-            a, b = int(rt[B.T0, r]), int(rt[B.T1, r])
-            table[:, a:b] = tables[r]
-            a, b = int(rt[B.C0, r]), int(rt[B.C1, r])
-            cell[:2, a:b] = cells[r][:2]
-            base, size = r * self.stride, w.n * w.n
-            for row, grid in ((B.OBJ, w.obj), (B.OWNER, w.owner), (B.FIELD, w.field),
-                              (B.OCC, w.occ)):
-                grids[row, base:base + size] = grid
-            lo, hi = int(starts[r]), int(starts[r + 1])
-            rb[B.XS, lo:hi] = w.xs
-            rb[B.YS, lo:hi] = w.ys
-            rb[B.RUN, lo:hi] = r
-        rb[B.HELD] = -1
-        rb[B.CLAIM] = -1
-        rb[B.BEACON_SET] = -1
-        self.rt, self.rb, self.grids, self.cells = rt, rb, grids, cell
-        cap = SENDS_PER_ROBOT * nrob + 16
-        self.out_i = np.zeros(cap, dtype=np.int64)
-        self.out_kind = np.zeros(cap, dtype=np.int64)
-        self.out_f = np.zeros((cap, B.FIELDS), dtype=np.int64)
-        self.out_n = np.zeros(2, dtype=np.int64)
-        self.in_kind = np.zeros((nrob, INBOX), dtype=np.int64)
-        self.in_nf = np.zeros((nrob, INBOX), dtype=np.int64)
-        self.in_f = np.zeros((nrob, INBOX, B.FIELDS), dtype=np.int64)
-        args = (grids, rb, rt, cell, table, self.out_i, self.out_kind, self.out_f, self.out_n,
-                self.in_kind, self.in_nf, self.in_f)
+        arrays = BatchArrays(self.worlds)
+        self.stride = arrays.stride
+        self.rt, self.rb, self.grids, self.cells = arrays.rt, arrays.rb, arrays.grids, arrays.cells
+        self.out_i, self.out_kind, self.out_f, self.out_n = \
+            arrays.out_i, arrays.out_kind, arrays.out_f, arrays.out_n
+        self.in_kind, self.in_nf, self.in_f = arrays.in_kind, arrays.in_nf, arrays.in_f
+        args = arrays.body_args()
+        starts = arrays.starts
+        rb = self.rb
 
         tw = twins()
         c0 = time.perf_counter()
