@@ -8,13 +8,13 @@ Bodies here: the simulated body (SimBody over a World), the batch engine's
 body (BatchBody over flat arrays, here run by CPython: the batch engine
 compiles this very class), the scripted body (the conformance fixture that
 also runs on MicroPython). The serial bodies
-(Khepera, GoGo) are held to the same promises by hil_tests/test_serial_*.py
-and hil_tests/test_mixed_mission.py; their subclasses here are still to be
-written (docs/architecture.md, "The HAL contract").
+(Khepera II, GoGo Board) on their emulators behind ptys:
+hil_tests/test_hal_contract_serial.py.
 """
 
 from __future__ import annotations
 
+from contextlib import ExitStack
 from numbers import Integral
 from typing import Callable
 
@@ -39,9 +39,15 @@ class HalContract:
     the current tick (intents applied, messages exchanged)."""
 
     CANNOT: dict[str, str] = {}
+    stack: ExitStack | None = None      # a body on a device: closed after each test
 
     def make(self) -> tuple[H.Hal, Callable[[], None]]:
         raise NotImplementedError
+
+    def teardown_method(self, method: object) -> None:
+        if self.stack is not None:
+            self.stack.close()
+            self.stack = None
 
     def _unless(self, clause: str) -> bool:
         reason = self.CANNOT.get(clause)
