@@ -86,3 +86,20 @@ def test_one_rule_changed_in_the_source_changes_both_engines_identically(tmp_pat
     for seed, b in zip(seeds, got):
         before = reference(original, seed)
         assert b.trajectories != before.trajectories[:len(b.trajectories)], seed
+
+
+def test_a_behaviour_outside_the_compiled_subset_is_named(tmp_path):
+    """A robot attribute the batch engine cannot compile (a float) gets a
+    one-line CompileError naming the attribute, before any run starts."""
+    from sim_backend.batch.compiler import CompileError
+    agg = registry.load("aggregate")
+    copy = tmp_path / "aggregate_float"
+    shutil.copytree(agg.folder, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    robot = copy / "robot.py"
+    src = robot.read_text()
+    anchor = "        self.rxbuf = [0, 0, 0, 0, 0, 0]\n"
+    assert anchor in src
+    robot.write_text(src.replace(anchor, anchor + "        self.gain = 0.5\n"))
+    sc = validate({"behaviour": str(copy)})
+    with pytest.raises(CompileError, match=r"Robot\.gain: a float"):
+        BatchEngine([(sc, 1)])
