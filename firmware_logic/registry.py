@@ -75,6 +75,12 @@ class Behaviour:
         states = self.spec.STATES
         return states[code] if 0 <= code < len(states) else str(code)
 
+    @property
+    def halt_state(self) -> int:
+        """The code of the state "halt" (every behaviour has one: the host's
+        HALT ends a mission in it, and the bus tools wait for it)."""
+        return self.spec.STATES.index("halt")
+
     def model_names(self) -> dict[int, str]:
         return dict(self.spec.MODELS)
 
@@ -103,6 +109,9 @@ def _check(mod: ModuleType, spec: ModuleType, where: str) -> None:
     missing = [k for k in SPEC_KEYS if not hasattr(spec, k)]
     if missing:
         raise BehaviourError(f"behaviour {where}: spec.py lacks {', '.join(missing)}")
+    if "halt" not in spec.STATES:
+        raise BehaviourError(f"behaviour {where}: spec.py STATES has no \"halt\" state "
+                             "(the host's HALT must end a mission in it)")
     for attr in ("ROBOT", "robot_args", "make_coordinator"):
         if not hasattr(mod, attr):
             raise BehaviourError(f"behaviour {where}: __init__.py lacks {attr}")

@@ -122,3 +122,21 @@ def test_robots_leave_over_a_long_aggregation() -> None:
 def test_run_of_another_behaviour_writes_records_and_picture(tmp_path: Path) -> None:
     assert main(["run", "--set", "behaviour=aggregate", "--out", str(tmp_path)]) == 0
     assert (tmp_path / "world.png").stat().st_size > 1000
+
+
+def test_the_swarm_on_a_bus_knows_each_behaviours_states() -> None:
+    """`touchswarm robots` (bridge/host/swarm.py) names states and waits for
+    "halt" through the behaviour, not the thesis's constants."""
+    from bridge.host.swarm import swarm_engine, swarm_summary
+    from bridge.links import open_bus
+    sc = load("default").replace(behaviour="aggregate", agents=6)
+    with open_bus("virtual://behaviour-states-test") as bus:
+        e = swarm_engine(sc, 1, bus)
+        e.step()
+        s = swarm_summary(e)
+        assert set(s["states"]) <= {"search", "climb", "stay", "halt"} and not s["halted"]
+        assert not e.finished()
+        for r in e.robots:
+            r.state = e.behaviour.halt_state
+        assert e.finished() and swarm_summary(e)["halted"]
+        assert e.behaviour.state_name(e.behaviour.halt_state) == "halt"

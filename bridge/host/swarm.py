@@ -9,7 +9,6 @@ from typing import Any, Callable
 import can
 
 from bridge.links.canlink import Faults, Gateway
-from firmware_logic.behaviours.thesis import robot as R
 
 
 def swarm_engine(sc: Any, seed: int, bus: can.BusABC, faults_up: Faults | None = None,
@@ -23,7 +22,7 @@ def swarm_engine(sc: Any, seed: int, bus: can.BusABC, faults_up: Faults | None =
 
         def finished(self) -> bool:
             return (self.tick >= self.sc.maxTicks
-                    or all(r.state == R.HALT for r in self.robots))
+                    or all(r.state == self.behaviour.halt_state for r in self.robots))
 
     gw = Gateway(bus, list(range(1, sc.agents + 1)), faults_up, faults_down=faults_down)
     return SwarmEngine(sc, seed, link=gw)
@@ -49,14 +48,16 @@ def run_swarm(engine: Any, tick_seconds: float, stop: Callable[[], bool] | None 
 
 def swarm_summary(engine: Any) -> dict[str, Any]:
     gw = engine.link
-    reports = [[r.node, r.seq] for r in engine.robots if r.seq > 0]
+    # `seq` (the last report's number) and `pending` (a report waiting for its
+    # ACK) are what a behaviour's robot offers the bus tools; both optional
+    reports = [[r.node, r.seq] for r in engine.robots if getattr(r, "seq", 0) > 0]
     out = {
         "ticks": engine.tick,
         "robots": len(engine.robots),
-        "states": [R.STATE_NAMES[r.state] for r in engine.robots],
+        "states": [engine.behaviour.state_name(r.state) for r in engine.robots],
         "reported": reports,
-        "unacked": [r.node for r in engine.robots if r.pending],
-        "halted": all(r.state == R.HALT for r in engine.robots),
+        "unacked": [r.node for r in engine.robots if getattr(r, "pending", 0)],
+        "halted": all(r.state == engine.behaviour.halt_state for r in engine.robots),
         "object_cells": sorted(list(c) for c in engine.world.object_cells),
         "frames_sent": gw.sent,
         "frames_received": gw.received,

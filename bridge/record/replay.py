@@ -26,10 +26,8 @@ from bridge.links.codec import HOST_KINDS, BadFrames, Decoder, Message
 from bridge.record.formats import meta_path, record_format
 from bridge.record.recorder import Q_RECV, Q_X, Q_Y
 from firmware_logic import messages as msg
-from firmware_logic.behaviours.thesis import make_coordinator
-from firmware_logic import hal
+from firmware_logic import hal, registry
 from firmware_logic.hal import Hal
-from firmware_logic.behaviours.thesis.robot import Robot
 from sim_backend.scenario import check_seed
 from sim_backend.world import World
 
@@ -110,6 +108,16 @@ def _quiet_python_can():
         lg.setLevel(old)
 
 
+def behaviour(meta: dict, path: Path) -> registry.Behaviour:
+    """The behaviour the recorded run ran (the sidecar's scenario names it;
+    recordings made before behaviours existed ran the thesis)."""
+    name = meta["scenario"].get("behaviour", "thesis")
+    try:
+        return registry.load(name)
+    except registry.BehaviourError as err:
+        raise UsageError(f"replay: sidecar {meta_path(path)}: {err}") from None
+
+
 def load(path: Path) -> Recording:
     """Read a recording and its sidecar. UsageError (bad input: the CLI exits 2)
     for a missing, unreadable, corrupt, truncated or mismatched recording."""
@@ -124,6 +132,7 @@ def load(path: Path) -> Recording:
         raise UsageError(f"replay: {path} is empty (0 bytes); expected a recording made by "
                          "`touchswarm run --record`")
     rec = Recording(meta=_sidecar(path))
+    behaviour(rec.meta, path)            # its own message kinds, before any frame is read
     dec = Decoder("host", BadFrames("replay"))
     tick = 0
     try:
@@ -268,14 +277,14 @@ def replay(path: Path, realtime: bool = False, limit: int = 50) -> dict:
     sc = validate(dict(rec.meta["scenario"]), source=str(meta_path(Path(path))))
     seed = int(rec.meta["seed"])
     nodes = sorted(set(rec.sensors) | set(rec.actions))
-    robots = {n: Robot(n, seed, sc.model, sc.robotVisionSpan, sc.fieldDefiance,
-                       sc.power_centi) for n in nodes}
+    beh = behaviour(rec.meta, Path(path))
+    robots = {n: beh.make_robot(n, seed, sc) for n in nodes}
     inbox = {n: deque() for n in nodes}
     hals = {n: ReplayHal(n, inbox[n]) for n in nodes}
     stopped: set[int] = set()
     # the recorded run was a simulation: the host may check touches against
     # the object's true cells
-    coord = make_coordinator(sc, cells=World(sc, seed).object_cells)
+    coord = beh.coordinator(sc, cells=World(sc, seed).object_cells)
     coord_ok = True
     divergences: list[str] = []
     counts = {"sensor_readings": 0, "actions": 0, "robot_messages": 0, "host_commands": 0}
