@@ -29,11 +29,13 @@ from firmware_logic import framing
 from firmware_logic import messages as msg
 from firmware_logic import hal
 from firmware_logic.hal import Hal
-from firmware_logic.behaviours.thesis.robot import HALT, Robot, WALL
+from firmware_logic.hal import WALL
 
 # SENSOR queries and ACTION codes: the HAL's (firmware_logic/hal.py); END
 # closes a tick's actions on the tether
 A_END = 0
+
+SUBSET_SETUP = ("make_robot",)   # start-up: may allocate (docs/subset.md)
 
 INBOX = 8          # queued host messages between two FSM steps
 REPLY_MS = 200     # wait for one answer before asking again
@@ -220,18 +222,34 @@ class TetherHal(Hal):
         return self.box[k]
 
 
-def run(port, node, seed, model, span, defiance, power, max_ticks, linger):
+def make_robot(robot_class, spec, node, seed, model, span, defiance, power):
+    """The behaviour's FSM and the code of its "halt" state; its own message
+    kinds (spec.MESSAGES) are declared first. main.py imports the behaviour
+    robot_config.py names (bridge/serial/board_main.py)."""
+    if hasattr(spec, "MESSAGES"):
+        msg.declare(spec.MESSAGES)
+    return robot_class(node, seed, model, span, defiance, power), spec.STATES.index("halt")
+
+
+def run(port, node, seed, model, span, defiance, power, max_ticks, linger,
+        robot_class=None, spec=None):
     """The robot's main loop: step the FSM, let the body apply the tick,
     until `max_ticks` ticks (0: forever) or `linger` ticks after HALT.
-    Returns the HAL (its counters), with the robot as `hal.robot`."""
-    robot = Robot(node, seed, model, span, defiance, power)
+    Returns the HAL (its counters), with the robot as `hal.robot`.
+    robot_class, spec: the behaviour's (default: the thesis's)."""
+    if robot_class is None:
+        from firmware_logic.behaviours.thesis import robot as thesis_robot
+        from firmware_logic.behaviours.thesis import spec as thesis_spec
+        robot_class = thesis_robot.Robot
+        spec = thesis_spec
+    robot, halt = make_robot(robot_class, spec, node, seed, model, span, defiance, power)
     hal = TetherHal(port, node)
     hal.robot = robot
     after = 0
     while max_ticks == 0 or hal.tick < max_ticks:
         robot.step(hal)
         hal.end_tick()
-        if robot.state == HALT:
+        if robot.state == halt:
             after += 1
             if after > linger:
                 break

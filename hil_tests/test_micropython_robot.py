@@ -236,3 +236,28 @@ def test_micropython_robot_survives_garbage_truncation_and_a_vanishing_port(
     bad = m.serial.bad_frames()
     assert bad.get("disconnect", 0) >= 1, bad
     assert sum(v for k, v in bad.items() if k not in ("disconnect", "send_dropped")) > 0, bad
+
+
+def test_deploy_another_behaviour_and_the_board_builds_it(micropython_device: PtyRelay,
+                                                          capsys: pytest.CaptureFixture[str]
+                                                          ) -> None:
+    """deploy --behaviour aggregate copies that behaviour (not the thesis's FSM)
+    and names it in robot_config.py; on the device, main.py's import of it and
+    the runtime's make_robot build the aggregation FSM with its own messages."""
+    rc = cli_main(["deploy", "--port", micropython_device.path, "--behaviour", "aggregate",
+                   "--config", "NODE=2"])
+    out, err = capsys.readouterr()
+    assert rc == 0, out + err
+    flash = micropython_device.flash   # type: ignore[attr-defined]
+    assert (flash / "firmware_logic/behaviours/aggregate/robot.mpy").is_file()
+    assert not (flash / "firmware_logic/behaviours/aggregate/coordinator.mpy").exists()
+    assert "BEHAVIOUR = 'firmware_logic.behaviours.aggregate'" in \
+        (flash / "robot_config.py").read_text()
+    text = Deployer(micropython_device.path).exec(
+        "import robot_config as c\n"
+        "from firmware_logic import board, messages\n"
+        "m = __import__(c.BEHAVIOUR + '.robot', None, None, ('Robot',))\n"
+        "s = __import__(c.BEHAVIOUR + '.spec', None, None, ('STATES',))\n"
+        "r, h = board.make_robot(m.Robot, s, c.NODE, 1, 1, 45, 2, 100)\n"
+        "print('built', r.node, s.STATES[h], messages.dlc(s.LEAVE))\n")
+    assert "built 2 halt 5" in text, text

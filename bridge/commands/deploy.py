@@ -21,6 +21,9 @@ def register(sub) -> None:
     p.add_argument("--config", action="append", default=[], metavar="KEY=N",
                    help="write robot_config.py on the device, keys %s (repeatable)"
                         % ", ".join(CONFIG_KEYS))
+    p.add_argument("--behaviour", default="thesis", metavar="NAME",
+                   help="the behaviour the board runs (a built-in one, `touchswarm "
+                        "behaviours`; default: thesis); written into robot_config.py")
     p.add_argument("--mpy-cross", metavar="PATH", help="mpy-cross to use (default: on PATH)")
     p.add_argument("--mpremote", metavar="PATH", help="mpremote to use (default: on PATH)")
     p.add_argument("--start", action="store_true",
@@ -46,8 +49,17 @@ def parse_config(items: list[str]) -> dict[str, int]:
 
 def cmd_deploy(args: argparse.Namespace) -> int:
     from bridge.serial.deploy import Deployer
-    config = parse_config(args.config)
-    d = Deployer(args.port, mpy_cross=args.mpy_cross, mpremote=args.mpremote)
+    from firmware_logic import registry
+    config: dict[str, int | str] = dict(parse_config(args.config))
+    try:
+        behaviour = registry.load(args.behaviour)
+    except registry.BehaviourError as err:
+        raise UsageError(f"--behaviour: {err}") from None
+    if behaviour.name != "thesis":
+        # main.py runs the thesis unless robot_config.py names another behaviour
+        config["BEHAVIOUR"] = behaviour.module_name
+    d = Deployer(args.port, mpy_cross=args.mpy_cross, mpremote=args.mpremote,
+                 behaviour=behaviour.name)
     report = d.deploy(config or None)
     for f in report.files:
         print("%-34s %6d bytes  sha256 %s  verified" % (f.remote, f.size, f.sha256[:16]))

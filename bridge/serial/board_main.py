@@ -43,7 +43,7 @@ class StdioPort:
 
 def config():
     c = {"NODE": 1, "SEED": 1, "MODEL": 1, "SPAN": 45, "DEFIANCE": 2, "POWER": 100,
-         "MAX_TICKS": 0, "LINGER": 4}
+         "MAX_TICKS": 0, "LINGER": 4, "BEHAVIOUR": "firmware_logic.behaviours.thesis"}
     try:
         import robot_config
         for k in c:
@@ -60,8 +60,11 @@ LAST = {}    # the last run's HAL (counters, hal.robot), for inspection over the
 def main():
     from firmware_logic import board
     c = config()
+    # the behaviour robot_config.py names (deploy --behaviour writes it)
+    robot_mod = __import__(c["BEHAVIOUR"] + ".robot", None, None, ("Robot",))
+    spec = __import__(c["BEHAVIOUR"] + ".spec", None, None, ("STATES",))
     LAST["hal"] = board.run(StdioPort(), c["NODE"], c["SEED"], c["MODEL"], c["SPAN"], c["DEFIANCE"],
-                     c["POWER"], c["MAX_TICKS"], c["LINGER"])
+                     c["POWER"], c["MAX_TICKS"], c["LINGER"], robot_mod.Robot, spec)
     return LAST["hal"]
 
 

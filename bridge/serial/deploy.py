@@ -43,6 +43,23 @@ CORE_MODULES = ("__init__", "fixedpoint", "rng", "messages", "hal", "framing", "
 BEHAVIOUR_MODULES = ("behaviours/thesis/__init__", "behaviours/thesis/spec",
                      "behaviours/thesis/robot")
 MODULES = CORE_MODULES + BEHAVIOUR_MODULES
+HOST_SIDE = ("coordinator",)   # a behaviour's modules the board does not run
+
+
+def behaviour_modules(name: str, firmware_dir: Path = FIRMWARE_DIR) -> tuple[str, ...]:
+    """The board-side modules of a built-in behaviour, relative to firmware_dir;
+    DeployError for one that lives elsewhere (deploy copies firmware_logic only)."""
+    from firmware_logic import registry
+    try:
+        b = registry.load(name)
+    except registry.BehaviourError as err:
+        raise DeployError(str(err)) from None
+    folder = b.folder
+    if folder.parent != (Path(firmware_dir) / "behaviours").resolve():
+        raise DeployError("behaviour %r lives in %s, outside firmware_logic/behaviours/; "
+                          "deploy copies built-in behaviours only" % (name, folder))
+    return tuple("behaviours/%s/%s" % (folder.name, p.stem) for p in b.modules()
+                 if p.stem not in HOST_SIDE)
 REMOTE_PKG = "firmware_logic"
 TIMEOUT_S = 60.0
 
@@ -113,8 +130,12 @@ def subset_violations(paths: list[Path]) -> list[str]:
 
 class Deployer:
     def __init__(self, port: str, mpy_cross: str | None = None, mpremote: str | None = None,
-                 firmware_dir: Path = FIRMWARE_DIR, timeout: float = TIMEOUT_S) -> None:
+                 firmware_dir: Path = FIRMWARE_DIR, timeout: float = TIMEOUT_S,
+                 behaviour: str = "thesis") -> None:
         self.port = port
+        self.behaviour = behaviour
+        self.modules = CORE_MODULES + (BEHAVIOUR_MODULES if behaviour == "thesis"
+                                       else behaviour_modules(behaviour, firmware_dir))
         self.mpy_cross = _tool("mpy-cross", mpy_cross)
         self.mpremote = _tool("mpremote", mpremote)
         self.firmware_dir = Path(firmware_dir)
@@ -149,7 +170,7 @@ class Deployer:
 
     def sources(self) -> list[Path]:
         out = []
-        for m in MODULES:
+        for m in self.modules:
             p = self.firmware_dir / (m + ".py")
             if not p.exists():
                 raise DeployError("firmware module %s is missing" % p)
@@ -182,7 +203,7 @@ class Deployer:
                               "(is it MicroPython? got %r)" % (self.port, text.strip()[:80]))
         return device_mpy_version(int(m.group(1)))
 
-    def deploy(self, config: dict[str, int] | None = None) -> DeployReport:
+    def deploy(self, config: dict[str, int | str] | None = None) -> DeployReport:
         sources = self.sources()
         self.check(sources)
         with tempfile.TemporaryDirectory(prefix="touchswarm-deploy-") as tmp:
@@ -204,8 +225,7 @@ class Deployer:
             files.append((main, "main.py"))
             if config:
                 cfg = stage / "robot_config.py"
-                cfg.write_text("".join("%s = %d\n" % (k, int(v))
-                                       for k, v in sorted(config.items())))
+                cfg.write_text("".join("%s = %r\n" % (k, v) for k, v in sorted(config.items())))
                 files.append((cfg, "robot_config.py"))
             self._copy(files)
             report = DeployReport(self.port, "%d.%d" % have)
