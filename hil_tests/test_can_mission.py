@@ -159,3 +159,71 @@ def test_host_restart_mid_run_loses_no_touch(tmp_path):
         assert len(first.coord.touches) >= 2 and second.resumed >= 2
         assert sorted((t.node, t.seq) for t in j.touches()) == sorted(
             tuple(t) for t in out["host"]["touches"])
+
+
+KILL_EVERY = 9        # host ticks between two deaths of the host
+
+
+def test_host_killed_at_20_plus_points_resumes_to_delivery_exactly_once(tmp_path):
+    """The host dies every KILL_EVERY ticks over a whole mission (before the
+    first touch, between touches, during transport) and once more after
+    delivery; a death loses everything in memory and the frames on its bus,
+    the journal stays. Each successor resumes from the journal. The mission
+    ends delivered, every touch counted exactly once, no transport step
+    executed twice, and the host that resumes after delivery only repeats
+    the HALT."""
+    from bridge.host.swarm import swarm_summary
+    sc = scenario.load("default").replace(objectWeight=6.0)
+    url = REAL_BUS or f"virtual://{private_channel('hil')}"
+    clock = SimClock()
+    deaths: list[str] = []
+    executed: dict[int, list[int]] = {}     # node -> transport steps it executed
+    with Journal(tmp_path / "j.sqlite") as j, open_bus(url) as rb:
+        engine = swarm_engine(sc, 2, rb)
+
+        def host() -> HostProcess:
+            h = HostProcess(Lockstep(CanTransport(open_bus(url)), engine, clock),
+                            sc.weight_centi, sc.homeX, sc.homeY, journal=j, tick_seconds=TICK)
+            if deaths:
+                h.resume(j)
+            return h
+
+        orig_step = engine.step
+
+        def step_and_watch() -> None:
+            orig_step()
+            for r in engine.robots:
+                if r.done_step and executed.setdefault(r.node, [0])[-1] != r.done_step:
+                    executed[r.node].append(r.done_step)
+        engine.step = step_and_watch
+        while True:
+            h = host()
+            start = h.tick
+            span = 2 if not deaths else KILL_EVERY       # the first death: before any touch
+            with h.transport:
+                out = h.run(stop=lambda: h.tick >= start + span, max_ticks=20000,
+                            clock=clock)
+            if out["delivered"]:
+                break
+            c = h.coord
+            deaths.append("transport" if c.converged_tick >= 0 else
+                          "between touches" if c.touches else "before the first touch")
+            assert len(deaths) < 400, "the mission makes no progress across deaths"
+        deaths.append("after delivery")
+        last = host()
+        with last.transport:
+            after = last.run(max_ticks=50, clock=clock)
+        robots = swarm_summary(engine)
+        journalled = sorted((t.node, t.seq) for t in j.touches())
+    assert len(deaths) >= 20, deaths
+    assert {"before the first touch", "between touches", "transport"} <= set(deaths), deaths
+    touches = [tuple(t) for t in out["touches"]]
+    assert len(touches) == len(set(touches))                        # none counted twice
+    assert set(touches) == {tuple(t) for t in robots["reported"]}   # none lost
+    assert journalled == sorted(touches)
+    assert out["power"] == len(touches) * 1.0
+    for node, steps in executed.items():                            # no step run twice
+        assert len(steps) == len(set(steps)), (node, steps)
+    # the host resumed after delivery knows it: delivered, no new transport step
+    assert after["delivered"] and after["transport_step"] == out["transport_step"]
+    assert robots["halted"]
