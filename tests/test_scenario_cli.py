@@ -113,3 +113,17 @@ def test_real_links_refuse_more_robots_than_node_ids():
     assert p.returncode == 2 and "allowed 1..127" in p.stderr
     p = cli("run", "--robots", "200", "--set", "worldSize=60", "--json")
     assert p.returncode == 0 and json.loads(p.stdout)["robots"] == 200
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["deploy", "--port", "/dev/ttyACM97"], "--port /dev/ttyACM97: no such device"),
+    (["deploy", "--port", "/dev/null", "--behaviour", "nope"], "--behaviour: behaviour 'nope'"),
+    (["run", "--set", "behaviour=nope"], "behaviour 'nope': not an installed behaviour"),
+    (["sweep", "--grid", "sigRadius=3", "--engine", "batch", "--set", "behaviour=nope"],
+     "behaviour 'nope'"),
+])
+def test_more_bad_commands_are_one_line_exit_2(args, needle):
+    p = cli(*args)
+    assert p.returncode == 2, p.stderr
+    assert needle in p.stderr
+    assert "Traceback" not in p.stderr and len(p.stderr.strip().splitlines()) == 1

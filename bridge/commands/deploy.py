@@ -49,7 +49,13 @@ def parse_config(items: list[str]) -> dict[str, int]:
 
 def cmd_deploy(args: argparse.Namespace) -> int:
     from bridge.serial.deploy import Deployer
+    from pathlib import Path
+
     from firmware_logic import registry
+    if args.port.startswith("/") and not Path(args.port).exists():
+        # mpremote would say "may be in use by another program"
+        raise UsageError(f"--port {args.port}: no such device; is the board plugged in? "
+                         "(`mpremote devs` lists the serial devices)")
     config: dict[str, int | str] = dict(parse_config(args.config))
     try:
         behaviour = registry.load(args.behaviour)
