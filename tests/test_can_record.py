@@ -113,3 +113,44 @@ def test_python_can_tools_open_a_recording(tmp_path):
     assert replay(conv)["frames"] == replay(f)["frames"]
     subprocess.run([sys.executable, "-m", "can.player", "-i", "virtual", "-c", "player-test",
                     "--ignore-timestamps", str(f)], check=True, capture_output=True, timeout=60)
+
+
+def test_an_aggregate_recording_replays_as_aggregate(tmp_path, capsys):
+    # issue 9: replay builds the behaviour the run was recorded with
+    f = tmp_path / "agg.blf"
+    assert main(["run", *SMALL, "--set", "behaviour=aggregate", "--link", "can",
+                 "--record", str(f), "--json"]) == 0
+    run = json.loads(capsys.readouterr().out)
+    meta = json.loads(Path(str(f) + ".json").read_text())
+    assert meta["behaviour"] == "aggregate" == meta["scenario"]["behaviour"]
+    assert main(["replay", str(f)]) == 0
+    assert "0 divergences" in capsys.readouterr().out
+    s = replay(f)
+    assert s["divergences"] == 0 and s["ticks"] == run["ticks"]
+    assert s["delivered_tick"] == run["home_tick"]
+    # the same frames replayed on the thesis firmware diverge: the choice matters
+    meta["scenario"]["behaviour"] = meta["behaviour"] = "thesis"
+    Path(str(f) + ".json").write_text(json.dumps(meta))
+    assert replay(f)["divergences"] > 0
+
+
+def test_a_recording_without_behaviour_replays_as_thesis(tmp_path, capsys):
+    # recordings made before the seam carry no behaviour key anywhere
+    f = tmp_path / "old.log"
+    assert main(["run", *SMALL, "--record", str(f), "--json"]) == 0
+    capsys.readouterr()
+    mp = Path(str(f) + ".json")
+    meta = json.loads(mp.read_text())
+    del meta["behaviour"], meta["scenario"]["behaviour"], meta["scenario"]["quorum"]
+    mp.write_text(json.dumps(meta))
+    assert replay(f)["divergences"] == 0
+    # a hand-edited sidecar whose two behaviour names disagree is refused in one line
+    meta["behaviour"] = "aggregate"
+    mp.write_text(json.dumps(meta))
+    assert main(["replay", str(f)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "behaviour 'aggregate'" in err and "'thesis'" in err and "\n" not in err
+    meta["behaviour"] = meta["scenario"]["behaviour"] = "nosuch"
+    mp.write_text(json.dumps(meta))
+    assert main(["replay", str(f)]) == 2
+    assert "not an installed behaviour" in capsys.readouterr().err

@@ -26,11 +26,9 @@ from bridge.links.codec import HOST_KINDS, BadFrames, Decoder, Message
 from bridge.record.formats import meta_path, record_format
 from bridge.record.recorder import Q_RECV, Q_X, Q_Y
 from firmware_logic import messages as msg
-from firmware_logic.behaviours.thesis import make_coordinator
-from firmware_logic import hal
+from firmware_logic import hal, registry
 from firmware_logic.hal import Hal
-from firmware_logic.behaviours.thesis.robot import Robot
-from sim_backend.scenario import check_seed
+from sim_backend.scenario import Scenario, check_seed
 from sim_backend.world import World
 
 log = logging.getLogger(__name__)
@@ -260,6 +258,22 @@ def _fmt(m: Message) -> str:
     return "%s_%d%s" % (msg.SCHEMA[kind][0], node, tuple(f))
 
 
+def _behaviour(meta: dict, sc: Scenario, path: Path) -> registry.Behaviour:
+    """The behaviour the recorded run ran: the scenario's `behaviour` key (a
+    recording made before the seam has none, and validate() then gives
+    "thesis", which is what every such run was). The sidecar's top-level
+    "behaviour" is the same name, written for readers of the JSON; a sidecar
+    where the two disagree was edited by hand and is refused."""
+    top = meta.get("behaviour")
+    if top is not None and top != sc.behaviour:
+        raise UsageError(f"replay: sidecar {meta_path(path)}: behaviour {top!r} but its "
+                         f"scenario's behaviour is {sc.behaviour!r}")
+    try:
+        return registry.load(sc.behaviour)
+    except registry.BehaviourError as err:
+        raise UsageError(f"replay: {err}") from None
+
+
 def replay(path: Path, realtime: bool = False, limit: int = 50) -> dict:
     """Replay a recording; return a summary with a list of divergences."""
     from sim_backend.scenario import validate
@@ -267,15 +281,15 @@ def replay(path: Path, realtime: bool = False, limit: int = 50) -> dict:
     rec = load(path)
     sc = validate(dict(rec.meta["scenario"]), source=str(meta_path(Path(path))))
     seed = int(rec.meta["seed"])
+    behaviour = _behaviour(rec.meta, sc, Path(path))
     nodes = sorted(set(rec.sensors) | set(rec.actions))
-    robots = {n: Robot(n, seed, sc.model, sc.robotVisionSpan, sc.fieldDefiance,
-                       sc.power_centi) for n in nodes}
+    robots = {n: behaviour.make_robot(n, seed, sc) for n in nodes}
     inbox = {n: deque() for n in nodes}
     hals = {n: ReplayHal(n, inbox[n]) for n in nodes}
     stopped: set[int] = set()
     # the recorded run was a simulation: the host may check touches against
     # the object's true cells
-    coord = make_coordinator(sc, cells=World(sc, seed).object_cells)
+    coord = behaviour.coordinator(sc, cells=World(sc, seed).object_cells)
     coord_ok = True
     divergences: list[str] = []
     counts = {"sensor_readings": 0, "actions": 0, "robot_messages": 0, "host_commands": 0}
