@@ -5,7 +5,8 @@ bridge/firmware/subset_check.py).
 A behaviour is a package of firmware-subset modules:
 
     spec.py         its declaration: NAME, TITLE, STATES, MODELS,
-                    PARAMS, MEASURES (see behaviours/thesis/spec.py)
+                    PARAMS, MEASURES (see behaviours/thesis/spec.py);
+                    STATES includes "halt", entered on the host's HALT
     robot.py        the FSM class named by ROBOT, stepped as `robot.step(hal)`
     coordinator.py  its host-side coordinator (portable, may allocate)
     __init__.py     the wiring: ROBOT = "module:Class", and
@@ -73,6 +74,18 @@ class Behaviour:
         states = self.spec.STATES
         return states[code] if 0 <= code < len(states) else str(code)
 
+    @property
+    def halt_state(self) -> int:
+        """The code of the state a robot enters on the host's HALT: the index
+        of "halt" in spec.STATES (every behaviour declares one, as the host's
+        HALT is a common link message). Tools that wait for a swarm to stop
+        (`touchswarm robots`, the board runtime) compare against it."""
+        try:
+            return self.spec.STATES.index("halt")
+        except ValueError:
+            raise BehaviourError(f"behaviour {self.name!r}: spec.STATES has no \"halt\" state "
+                                 "(the state a robot enters on the host's HALT)") from None
+
     def model_names(self) -> dict[int, str]:
         return dict(self.spec.MODELS)
 
@@ -101,6 +114,10 @@ def _check(mod: ModuleType, spec: ModuleType, where: str) -> None:
     missing = [k for k in SPEC_KEYS if not hasattr(spec, k)]
     if missing:
         raise BehaviourError(f"behaviour {where}: spec.py lacks {', '.join(missing)}")
+    if "halt" not in spec.STATES:
+        # the host's HALT is a link message every robot obeys; tools wait for it
+        raise BehaviourError(f"behaviour {where}: spec.STATES lacks \"halt\" (the state "
+                             "a robot enters on the host's HALT)")
     for attr in ("ROBOT", "robot_args", "make_coordinator"):
         if not hasattr(mod, attr):
             raise BehaviourError(f"behaviour {where}: __init__.py lacks {attr}")

@@ -9,7 +9,6 @@ from typing import Any, Callable
 import can
 
 from bridge.links.canlink import Faults, Gateway
-from firmware_logic.behaviours.thesis import robot as R
 
 
 def swarm_engine(sc: Any, seed: int, bus: can.BusABC, faults_up: Faults | None = None,
@@ -22,11 +21,18 @@ def swarm_engine(sc: Any, seed: int, bus: can.BusABC, faults_up: Faults | None =
             self.link.drain(None)
 
         def finished(self) -> bool:
-            return (self.tick >= self.sc.maxTicks
-                    or all(r.state == R.HALT for r in self.robots))
+            return self.tick >= self.sc.maxTicks or all_halted(self)
 
     gw = Gateway(bus, list(range(1, sc.agents + 1)), faults_up, faults_down=faults_down)
     return SwarmEngine(sc, seed, link=gw)
+
+
+def all_halted(engine: Any) -> bool:
+    """Every robot is in its behaviour's "halt" state (spec.STATES), the one
+    it enters on the host's HALT: with no coordinator of its own, that is how
+    the swarm knows the mission ended."""
+    halt = engine.behaviour.halt_state
+    return all(r.state == halt for r in engine.robots)
 
 
 def run_swarm(engine: Any, tick_seconds: float, stop: Callable[[], bool] | None = None,
@@ -53,10 +59,13 @@ def swarm_summary(engine: Any) -> dict[str, Any]:
     out = {
         "ticks": engine.tick,
         "robots": len(engine.robots),
-        "states": [R.STATE_NAMES[r.state] for r in engine.robots],
+        "behaviour": engine.behaviour.name,
+        "states": [engine.behaviour.state_name(r.state) for r in engine.robots],
         "reported": reports,
-        "unacked": [r.node for r in engine.robots if r.pending],
-        "halted": all(r.state == R.HALT for r in engine.robots),
+        # a robot that retransmits until ACKed keeps `pending` (the thesis's);
+        # a behaviour without one has nothing unacknowledged to show
+        "unacked": [r.node for r in engine.robots if getattr(r, "pending", 0)],
+        "halted": all_halted(engine),
         "object_cells": sorted(list(c) for c in engine.world.object_cells),
         "frames_sent": gw.sent,
         "frames_received": gw.received,
