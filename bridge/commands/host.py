@@ -63,12 +63,14 @@ def register(sub) -> None:
 def cmd_host(args: argparse.Namespace) -> int:
     from bridge.errors import UsageError
     from bridge.host.journal import Journal, JournalError
-    from bridge.host.process import HostProcess
+    from bridge.host.process import HostProcess, host_behaviour
     from bridge.host.transport import CanTransport
     from bridge.links import LinkError, open_bus, parse_url, refuse_in_process
     from bridge.transport import FanIn
 
     sc = scenario_from_args(args)
+    # a behaviour the host process cannot run is refused before any port opens
+    host_behaviour(sc.behaviour, sc)
     if not args.bus and not args.serial:
         raise UsageError("host: give --bus URL and/or --serial PORT (where the robots are)")
     if args.bus:
@@ -122,7 +124,7 @@ def cmd_host(args: argparse.Namespace) -> int:
             # the host knows the arena, not the object: the robots may be real
             host = HostProcess(transport, sc.weight_centi, sc.homeX, sc.homeY, journal=journal,
                                tick_seconds=args.tick_ms / 1000.0, on_event=event,
-                               world_size=sc.worldSize)
+                               world_size=sc.worldSize, behaviour=sc.behaviour)
             if args.resume is not None:
                 assert journal is not None      # journal_path defaults to the resumed one
                 try:

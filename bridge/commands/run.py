@@ -23,6 +23,9 @@ def add_scenario_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override any scenario key, e.g. --set fieldDefiance=4 (repeatable, "
                         "one per key; `touchswarm scenarios` lists keys and ranges)")
+    p.add_argument("--behaviour", metavar="NAME|FOLDER",
+                   help="the behaviour to run, by name (`touchswarm behaviours`) or folder; "
+                        "the same as --set behaviour=NAME (default: the scenario's, thesis)")
 
 
 def parse_value(text: str):
@@ -72,6 +75,11 @@ def scenario_from_args(args: argparse.Namespace):
             raise UsageError(f"--robots {args.robots} and --set agents={changes['agents']} "
                              "disagree; give one of them")
         changes["agents"] = args.robots
+    if getattr(args, "behaviour", None) is not None:
+        if "behaviour" in changes and changes["behaviour"] != args.behaviour:
+            raise UsageError(f"--behaviour {args.behaviour} and --set behaviour="
+                             f"{changes['behaviour']} disagree; give one of them")
+        changes["behaviour"] = args.behaviour
     return sc.replace(**changes) if changes else sc
 
 

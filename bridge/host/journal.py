@@ -15,13 +15,25 @@ converged_tick, delivered_tick, ...) and the host's tick and HALT count.
 
 from __future__ import annotations
 
+import importlib
 import json
 import sqlite3
 from pathlib import Path
 from typing import Any, NamedTuple
 
 from bridge.errors import BridgeError
-from firmware_logic.behaviours.thesis.coordinator import Touch
+from firmware_logic import registry
+
+
+def _touch_class() -> Any:
+    """The record a journalled touch row is read back as. The journal's rows
+    are the thesis's Touch (mx, my included); the host process refuses a
+    behaviour whose coordinator cannot take them (process.host_behaviour)."""
+    b = registry.load("thesis")
+    return importlib.import_module(b.module_name + ".coordinator").Touch
+
+
+Touch = Any   # the thesis's Touch record (see _touch_class)
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS nodes (node INTEGER PRIMARY KEY, model INTEGER NOT NULL,
@@ -103,7 +115,8 @@ class Journal:
     def touches(self) -> list[Touch]:
         rows = self._sql("SELECT node, seq, rx, ry, sx, sy, power, tick, mx, my FROM touches "
                          "ORDER BY rowid")
-        return [Touch(*r) for r in rows]
+        touch = _touch_class()
+        return [touch(*r) for r in rows]
 
     def decisions(self) -> list[Decision]:
         return [self._decision(r) for r in

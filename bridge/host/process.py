@@ -20,15 +20,23 @@ move without it) for `node_timeout` seconds; the summary then says why.
 
 from __future__ import annotations
 
+import inspect
 import logging
 import time
+from types import SimpleNamespace
 from typing import Any, Callable
 
+from bridge.errors import UsageError
 from bridge.links.codec import UNANNOUNCED, BadFrames, Message
 from bridge.host.journal import Journal
 from bridge.transport import RobotTransport
 from firmware_logic import messages as msg
-from firmware_logic.behaviours.thesis.coordinator import Coordinator, Touch
+from firmware_logic import registry
+
+# A coordinator is any behaviour's (registry); these aliases only document
+# what the host handles: the thesis's Coordinator and its Touch records.
+Coordinator = Any
+Touch = Any
 
 log = logging.getLogger(__name__)
 
@@ -64,25 +72,63 @@ def restore_coordinator(c: Coordinator, state: dict[str, Any]) -> None:
         setattr(c, k, tuple(v) if isinstance(getattr(c, k), tuple) else v)
 
 
+# What the host process needs of a behaviour's coordinator beyond what every
+# engine uses: make_coordinator keywords for journalling each node before its
+# ACK and logging rejected reports, and the attributes the journal's snapshots,
+# resume and liveness checks read. The journal's touch rows are the thesis's
+# (node, seq, rx, ry, sx, sy, power, tick, mx, my).
+HOST_KEYWORDS = ("journal", "cells", "journal_node", "on_reject")
+HOST_ATTRIBUTES = ("carriers", "restore", "step", "leader_done", "nodes")
+
+
+def host_behaviour(name: str | None, sc: Any = None) -> registry.Behaviour:
+    """The behaviour `touchswarm host` runs, checked to have what the host
+    process needs; UsageError (one line) for an unknown one or one whose
+    coordinator lacks it, before any port or journal is touched."""
+    try:
+        b = registry.load(name)
+    except registry.BehaviourError as err:
+        raise UsageError(f"host: {err}") from None
+    params = inspect.signature(b.package.make_coordinator).parameters
+    missing = [k for k in HOST_KEYWORDS if k not in params]
+    if not missing and sc is not None:
+        coord = b.coordinator(sc, journal=None, cells=None, journal_node=None, on_reject=None)
+        missing = [a for a in HOST_ATTRIBUTES if not hasattr(coord, a)]
+    if missing:
+        raise UsageError(f"host: behaviour {b.name!r} cannot run in the host process: its "
+                         f"coordinator lacks {', '.join(missing)} (what the journal, resume "
+                         f"and liveness checks need); run it with `touchswarm run "
+                         f"--behaviour {b.name} --link can`")
+    return b
+
+
 class HostProcess:
     def __init__(self, transport: RobotTransport, weight: int, home_x: int = -15,
                  home_y: int = -15, journal: Journal | None = None,
                  tick_seconds: float = 0.01,
                  on_event: Callable[[str], None] | None = None,
                  world_size: int | None = None,
-                 cells: list[tuple[int, int]] | None = None) -> None:
+                 cells: list[tuple[int, int]] | None = None,
+                 behaviour: str | None = None) -> None:
         """world_size: the arena's half width in patches (None: what a byte
         carries); cells: the object's cells when the host knows them (a
-        simulated swarm), else a touch need only be plausible."""
+        simulated swarm), else a touch need only be plausible. behaviour: a
+        name or folder (default thesis) whose coordinator the host runs; it
+        must pass host_behaviour()."""
         self.transport = transport
         self.journal = journal
         self.tick_seconds = tick_seconds
         self.on_event = on_event
         self.bad = BadFrames("host")
         self.rejects_logged: set[str] = set()
-        self.coord = Coordinator(weight, home_x, home_y, journal=self._journal_touch,
-                                 world_size=world_size, cells=cells,
-                                 journal_node=self._journal_node, on_reject=self._rejected)
+        # the host knows the arena and the object's weight, not a whole scenario
+        # (the robots may be real): the coordinator's view of one
+        sc = SimpleNamespace(weight_centi=weight, homeX=home_x, homeY=home_y,
+                             worldSize=world_size)
+        self.behaviour = host_behaviour(behaviour, sc)
+        self.coord = self.behaviour.coordinator(sc, journal=self._journal_touch, cells=cells,
+                                                journal_node=self._journal_node,
+                                                on_reject=self._rejected)
         self.tick = 0
         self.halts_sent = 0
         self.resumed = 0

@@ -21,11 +21,18 @@ def swarm_engine(sc: Any, seed: int, bus: can.BusABC, faults_up: Faults | None =
             self.link.drain(None)
 
         def finished(self) -> bool:
-            return (self.tick >= self.sc.maxTicks
-                    or all(r.state == self.behaviour.halt_state for r in self.robots))
+            return self.tick >= self.sc.maxTicks or all_halted(self)
 
     gw = Gateway(bus, list(range(1, sc.agents + 1)), faults_up, faults_down=faults_down)
     return SwarmEngine(sc, seed, link=gw)
+
+
+def all_halted(engine: Any) -> bool:
+    """Every robot is in its behaviour's "halt" state (spec.STATES), the one
+    it enters on the host's HALT: with no coordinator of its own, that is how
+    the swarm knows the mission ended."""
+    halt = engine.behaviour.halt_state
+    return all(r.state == halt for r in engine.robots)
 
 
 def run_swarm(engine: Any, tick_seconds: float, stop: Callable[[], bool] | None = None,
@@ -48,16 +55,17 @@ def run_swarm(engine: Any, tick_seconds: float, stop: Callable[[], bool] | None 
 
 def swarm_summary(engine: Any) -> dict[str, Any]:
     gw = engine.link
-    # `seq` (the last report's number) and `pending` (a report waiting for its
-    # ACK) are what a behaviour's robot offers the bus tools; both optional
     reports = [[r.node, r.seq] for r in engine.robots if getattr(r, "seq", 0) > 0]
     out = {
         "ticks": engine.tick,
         "robots": len(engine.robots),
+        "behaviour": engine.behaviour.name,
         "states": [engine.behaviour.state_name(r.state) for r in engine.robots],
         "reported": reports,
+        # a robot that retransmits until ACKed keeps `pending` (the thesis's);
+        # a behaviour without one has nothing unacknowledged to show
         "unacked": [r.node for r in engine.robots if getattr(r, "pending", 0)],
-        "halted": all(r.state == engine.behaviour.halt_state for r in engine.robots),
+        "halted": all_halted(engine),
         "object_cells": sorted(list(c) for c in engine.world.object_cells),
         "frames_sent": gw.sent,
         "frames_received": gw.received,

@@ -5,7 +5,8 @@ File layout, per tick: for each robot in node order its SENSOR frames then its
 ACTION frames, then the robots' reports, then the host's commands. Frame
 timestamps are EPOCH + tick * TICK_SECONDS (+ 1 us per frame within a tick),
 so the files are reproducible and `--realtime` replay paces by them. A
-sidecar FILE.json keeps what the frames cannot: the scenario and the seed,
+sidecar FILE.json keeps what the frames cannot: the scenario (with its
+behaviour, also written as the top-level "behaviour") and the seed,
 plus the number of frames written and the run's summary, so that replay can
 tell a truncated or mismatched recording from a diverging one.
 
@@ -90,7 +91,10 @@ class Recorder:
         path = Path(path)
         record_format(path)
         self.path = path
+        # the behaviour is also inside the scenario; written at the top level so
+        # a reader of the sidecar sees at once which firmware made the frames
         self.meta = {"scenario": scenario.to_dict(), "seed": seed, "link": link,
+                     "behaviour": scenario.behaviour,
                      "tick_seconds": TICK_SECONDS, "epoch": EPOCH, "format": FORMAT}
         try:
             self.writer = can.Logger(str(path))
