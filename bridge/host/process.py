@@ -242,6 +242,8 @@ class HostProcess:
         if kind == "converged":
             self._event(f"tick {self.tick}: converged, power {c.power}/{c.weight}; "
                         f"leader robot {c.leader}; transport begins")
+        elif kind == "step":
+            self._event(f"tick {self.tick}: transport step {c.step} ({c.dx:+d}, {c.dy:+d})")
         elif kind == "delivered":
             self._event(f"tick {self.tick}: object home; HALT")
 

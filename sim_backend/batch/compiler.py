@@ -43,8 +43,6 @@ class Twins:
     def __init__(self) -> None:
         import numba  # the compiler is needed only here: a warm `touchswarm run` never loads it
         self.numba = numba
-        self.modules: dict[str, ModuleType] = {}
-        self.twin_of: dict[str, str] = {}
         self.by_file: dict[str, ModuleType] = {}
         self.classes: dict[tuple[str, str], Any] = {}    # (file, class name) -> jitclass
         self.compile_seconds = 0.0
@@ -71,8 +69,6 @@ class Twins:
         if hasattr(real, "__path__"):
             twin.__path__ = list(real.__path__)
         self.by_file[key] = twin
-        self.modules[real.__name__] = twin
-        self.twin_of[twin.__name__] = real.__name__
         source = Path(path).read_text()
         exec(compile(source, path, "exec"), ns)           # noqa: S102 (our own source)
         for name, value in list(ns.items()):
