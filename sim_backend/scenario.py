@@ -154,7 +154,7 @@ def validate(raw: dict[str, Any], source: str = "scenario") -> Scenario:
                 value = int(value)
             if not ok_type or (kind is int and not isinstance(value, int)):
                 raise ScenarioError(f"{key}: expected {kind.__name__} in {lo}..{hi}, got {value!r}")
-            if value < lo or value > hi:
+            if value != value or value < lo or value > hi:     # NaN compares False
                 raise ScenarioError(f"{key}: {value!r} is outside the allowed range {lo}..{hi}")
             values[key] = kind(value)
     sc = Scenario(**values)
@@ -217,6 +217,9 @@ def load(spec: str | Path | None = None) -> Scenario:
     """A scenario by built-in name or by path to a TOML file."""
     if spec is None:
         spec = "default"
+    if not str(spec).strip():
+        raise ScenarioError(f"scenario: an empty name; expected a built-in "
+                            f"({', '.join(builtin_names())}) or a .toml file")
     path = Path(spec)
     if str(spec) in builtin_names():
         text = (resources.files("sim_backend") / "scenarios" / f"{spec}.toml").read_text()
@@ -226,6 +229,9 @@ def load(spec: str | Path | None = None) -> Scenario:
             text = path.read_text()
         except OSError as err:
             raise ScenarioError(f"scenario file {str(path)!r}: {err.strerror}") from err
+        except UnicodeDecodeError as err:
+            raise ScenarioError(f"scenario file {str(path)!r}: not UTF-8 text (byte "
+                                f"{err.start}); expected a TOML file") from err
         source = str(path)
     else:
         raise ScenarioError(f"scenario: {str(spec)!r} is neither a built-in "

@@ -78,8 +78,6 @@ def test_assignment() -> None:
     (["--body", "1=khepera://loop://?bogus=1"], "unknown option 'bogus'"),
     (["--body", "1=sim://", "--body", "1=sim://"], "given twice"),
     (["--body", "99=sim://"], "node 99 is not a robot of the scenario (1..20)"),
-    (["--body", "1=sim://", "--tick-ms", "0"], "--tick-ms 0"),
-    (["--body", "1=sim://", "--max-ticks", "-1"], "--max-ticks -1"),
     (["--body", "1=sim://", "--robots", "200"], "do not fit the serial link"),
     # a port that is there but answers nothing a Khepera would: refused before the run
     (["--body", "1=khepera://loop://"], "did not answer 'B'"),

@@ -69,7 +69,10 @@ def test_dbc_command(tmp_path, capsys):
     assert main(["dbc", "-o", str(out), "--max-node", "4"]) == 0
     db = cantools.database.load_file(str(out))
     assert db.get_message_by_name("TOUCH_4").frame_id == msg.can_id(msg.TOUCH, 4)
-    assert main(["dbc", "-o", str(out), "--max-node", "200"]) == 2
+    with pytest.raises(SystemExit) as refused:   # argparse refuses the node id
+        main(["dbc", "-o", str(out), "--max-node", "200"])
+    assert refused.value.code == 2
+    assert "expected a node id 1..127" in capsys.readouterr().err
 
 
 def test_physical_values_units_and_names() -> None:

@@ -26,11 +26,11 @@ the mission starts.
 from __future__ import annotations
 
 import importlib
-import os
 from dataclasses import dataclass, field
 from typing import Any, Callable, Protocol
 from urllib.parse import parse_qsl
 
+from bridge import devices
 from bridge.errors import UsageError
 
 __all__ = ["REGISTRY", "EXPECTED", "OPTIONS", "BodyURLError", "BodySpec", "BodyContext",
@@ -246,9 +246,9 @@ def parse_body_url(url: str) -> BodySpec:
         raise BodyURLError(f"body {url!r}: patch_mm={opts['patch_mm']} must be positive")
     # a device path that is not there fails here, with its name, rather than
     # as pyserial's errno text after the other bodies were opened
-    if "://" not in port and not os.path.exists(port):
-        raise BodyURLError(f"body {url!r}: no such device {port!r} (is the robot plugged "
-                           f"in? `ls /dev/tty*` lists the ports)")
+    why = devices.missing(port)
+    if why:
+        raise BodyURLError(f"body {url!r}: {why}")
     return BodySpec(url, scheme, port, opts)
 
 

@@ -7,6 +7,7 @@ import argparse
 import keyword
 from pathlib import Path
 
+from bridge.commands.paths import path_arg
 from bridge.errors import UsageError
 
 EPILOG = """examples:
@@ -36,7 +37,7 @@ def register(sub) -> None:
                                       "firmware_logic/behaviours/ so that `firmware check` "
                                       "and `deploy` see it.")
     new.add_argument("name", help="a Python identifier, lower case (e.g. chain)")
-    new.add_argument("--into", type=Path, default=None,
+    new.add_argument("--into", type=path_arg, default=None,
                      help="parent folder (default: firmware_logic/behaviours/)")
     new.set_defaults(func=cmd_new)
     n.set_defaults(func=lambda args: (n.print_help(), 2)[1])

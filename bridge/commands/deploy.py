@@ -44,19 +44,46 @@ def parse_config(items: list[str]) -> dict[str, int]:
         except ValueError:
             raise UsageError("--config %s=%r: the value must be an integer" % (key, value)) \
                 from None
+        lo, hi = _config_range(key)
+        if not lo <= out[key] <= hi:
+            raise UsageError(f"--config {key}={out[key]}: expected {lo}..{hi}")
     return out
 
 
-def cmd_deploy(args: argparse.Namespace) -> int:
-    from bridge.serial.deploy import Deployer
-    from pathlib import Path
+def _config_range(key: str) -> tuple[int, int]:
+    """The allowed values of a robot_config key, from where each is defined."""
+    from firmware_logic.messages import MAX_NODE
+    from sim_backend.scenario import SEED_MAX, SEED_MIN
+    if key == "NODE":
+        return 1, MAX_NODE
+    if key == "SEED":
+        return SEED_MIN, SEED_MAX
+    return 0, 2 ** 31 - 1      # the board's own checks bound the rest
 
+
+def _check_tool(option: str, path: str | None) -> None:
+    """A tool given by path must exist and be executable, or mpremote's and
+    the OS's words would name neither the option nor the fix."""
+    import os
+    if path is None:
+        return
+    if not os.path.exists(path):
+        raise UsageError(f"{option} {path}: no such file")
+    if os.path.isdir(path) or not os.access(path, os.X_OK):
+        raise UsageError(f"{option} {path}: not an executable program")
+
+
+def cmd_deploy(args: argparse.Namespace) -> int:
+    from bridge import devices
+    from bridge.serial.deploy import Deployer
     from firmware_logic import registry
-    if args.port.startswith("/") and not Path(args.port).exists():
+    why = devices.missing(args.port)
+    if why:
         # mpremote would say "may be in use by another program"
-        raise UsageError(f"--port {args.port}: no such device; is the board plugged in? "
-                         "(`mpremote devs` lists the serial devices)")
+        raise UsageError(f"--port {args.port}: {why}")
     config: dict[str, int | str] = dict(parse_config(args.config))
+    _check_tool("--mpy-cross", args.mpy_cross)
+    _check_tool("--mpremote", args.mpremote)
     try:
         behaviour = registry.load(args.behaviour)
     except registry.BehaviourError as err:

@@ -9,6 +9,8 @@ import sys
 import threading
 from pathlib import Path
 
+from bridge.commands import numbers as N
+from bridge.commands.paths import path_arg
 from bridge.commands.run import add_scenario_args, scenario_from_args
 
 # Silence limits (seconds). A robot sends at least one frame every 64 of its
@@ -37,22 +39,22 @@ def register(sub) -> None:
                    help="robots on a framed serial port: device path, "
                         "serial:///dev/ttyUSB0?baud=115200 or any pyserial URL (repeatable; "
                         "may be combined with --bus)")
-    p.add_argument("--serial-baud", type=int, default=115200, metavar="BAUD",
+    p.add_argument("--serial-baud", type=N.count(1, what="a baud rate"), default=115200, metavar="BAUD",
                    help="baud rate of --serial ports without ?baud= (default: %(default)s)")
     add_scenario_args(p)
-    p.add_argument("--journal", type=Path, metavar="PATH",
+    p.add_argument("--journal", type=path_arg, metavar="PATH",
                    help="SQLite (WAL) journal written before every ACK "
                         "(default: the --resume journal, else none)")
-    p.add_argument("--resume", type=Path, metavar="JOURNAL",
+    p.add_argument("--resume", type=path_arg, metavar="JOURNAL",
                    help="recover nodes and touches from a journal after a crash")
-    p.add_argument("--tick-ms", type=float, default=10.0, metavar="MS",
+    p.add_argument("--tick-ms", type=N.positive("milliseconds"), default=10.0, metavar="MS",
                    help="host tick period (default: %(default)s)")
-    p.add_argument("--max-ticks", type=int, metavar="N", help="give up after N host ticks")
-    p.add_argument("--node-timeout", type=float, default=NODE_TIMEOUT, metavar="S",
+    p.add_argument("--max-ticks", type=N.count(1, what="ticks"), metavar="N", help="give up after N host ticks")
+    p.add_argument("--node-timeout", type=N.at_least(0, "seconds", " (0: never give up)"), default=NODE_TIMEOUT, metavar="S",
                    help="give up (exit 3) when a carrier, a robot whose touch was accepted, "
                         "is silent this long; robots send a HEARTBEAT at least every 64 of "
                         "their ticks (0: never; default: %(default)s)")
-    p.add_argument("--bus-timeout", type=float, default=BUS_TIMEOUT, metavar="S",
+    p.add_argument("--bus-timeout", type=N.at_least(0, "seconds", " (0: never give up)"), default=BUS_TIMEOUT, metavar="S",
                    help="give up (exit 3) when no robot at all is heard this long, start-up "
                         "included (0: never; default: %(default)s)")
     p.add_argument("--json", action="store_true",
@@ -65,7 +67,8 @@ def cmd_host(args: argparse.Namespace) -> int:
     from bridge.host.journal import Journal, JournalError
     from bridge.host.process import HostProcess, host_behaviour
     from bridge.host.transport import CanTransport
-    from bridge.links import LinkError, open_bus, parse_url, refuse_in_process
+    from bridge import devices
+    from bridge.links import LinkError, check_device, open_bus, parse_url, refuse_in_process
     from bridge.transport import FanIn
 
     sc = scenario_from_args(args)
@@ -76,12 +79,11 @@ def cmd_host(args: argparse.Namespace) -> int:
     if args.bus:
         parse_url(args.bus)
         refuse_in_process(args.bus, "host")
-    if args.tick_ms <= 0:
-        raise UsageError(f"--tick-ms {args.tick_ms}: expected a positive period")
-    for name in ("node_timeout", "bus_timeout"):
-        if getattr(args, name) < 0:
-            raise UsageError(f"--{name.replace('_', '-')} {getattr(args, name)}: expected "
-                             f"seconds >= 0 (0: never give up)")
+        check_device(args.bus, "host")
+    for port in args.serial:
+        why = devices.missing(port)
+        if why:
+            raise UsageError(f"--serial {port}: {why}")
     if args.resume is not None and not args.resume.exists():
         raise UsageError(f"--resume {args.resume}: no such journal")
     out = sys.stderr if args.json else sys.stdout

@@ -7,8 +7,8 @@ import argparse
 import json
 import sys
 
+from bridge.commands import numbers as N
 from bridge.commands.run import add_scenario_args, check_link_limits, scenario_from_args
-from bridge.errors import UsageError
 
 
 def register(sub) -> None:
@@ -46,10 +46,10 @@ def register(sub) -> None:
     p.add_argument("--body", action="append", default=[], required=True, metavar="NODE=URL",
                    help="robot NODE (1..robots) is the body at URL (repeatable, one per node)")
     add_scenario_args(p)
-    p.add_argument("--tick-ms", type=float, default=50.0, metavar="MS",
+    p.add_argument("--tick-ms", type=N.positive("milliseconds"), default=50.0, metavar="MS",
                    help="tick period on the wall clock; a real body's steering assumes it "
                         "(default: %(default)s)")
-    p.add_argument("--max-ticks", type=int, metavar="N",
+    p.add_argument("--max-ticks", type=N.count(1, what="ticks"), metavar="N",
                    help="stop after N ticks (default: the scenario's maxTicks)")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
     p.set_defaults(func=cmd_mission)
@@ -75,10 +75,6 @@ def cmd_mission(args: argparse.Namespace) -> int:
     sc = scenario_from_args(args)
     # real robots' messages carry node ids and patch coordinates as on a real link
     check_link_limits(sc, "serial")
-    if args.tick_ms <= 0:
-        raise UsageError(f"--tick-ms {args.tick_ms}: expected a positive period")
-    if args.max_ticks is not None and args.max_ticks <= 0:
-        raise UsageError(f"--max-ticks {args.max_ticks}: expected a positive number of ticks")
     with MixedMission(sc, args.seed, bodies, tick_s=args.tick_ms / 1000.0) as m:
         for node, (x, y, h) in m.start_poses().items():
             print(f"robot {node}: {m.opened[node].describe()}, put down at patch ({x}, {y}) "

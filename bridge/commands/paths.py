@@ -79,3 +79,12 @@ def check_out_file(path: Path, option: str, example: str) -> None:
     if path.exists() and not os.access(path, os.W_OK):
         raise UsageError(f"{option} {path}: the existing file is read-only; expected a "
                          "writable file")
+
+
+def path_arg(text: str) -> Path:
+    """An argparse type for a path: refuses the empty string, which Path()
+    would quietly turn into the current directory."""
+    import argparse
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty path; expected a file or directory name")
+    return Path(text)

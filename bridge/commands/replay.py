@@ -7,6 +7,8 @@ import json
 import sys
 from pathlib import Path
 
+from bridge.commands.paths import path_arg
+
 
 def register(sub) -> None:
     from bridge.record.formats import FORMATS
@@ -25,7 +27,7 @@ def register(sub) -> None:
                "\nA sidecar without a frame count (written by another tool) is replayed "
                "with a warning:\ntruncation cannot be detected then.",
         formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("file", type=Path, metavar="FILE",
+    p.add_argument("file", type=path_arg, metavar="FILE",
                    help="a recording made by `touchswarm run --record` (%s), with its "
                         "sidecar FILE.json beside it" % ", ".join(FORMATS))
     p.add_argument("--realtime", action="store_true",

@@ -9,6 +9,7 @@ import sys
 import threading
 import time
 
+from bridge.commands import numbers as N
 from bridge.commands.run import add_scenario_args, check_link_limits, scenario_from_args
 
 
@@ -23,13 +24,13 @@ def register(sub) -> None:
                         "slcan-pty:///tmp/adapter; not virtual://, which does not cross "
                         "processes")
     add_scenario_args(p)
-    p.add_argument("--tick-ms", type=float, default=10.0, metavar="MS",
+    p.add_argument("--tick-ms", type=N.positive("milliseconds"), default=10.0, metavar="MS",
                    help="robot tick period (default: %(default)s)")
-    p.add_argument("--loss", type=float, default=0.0, help="drop this share of frames")
-    p.add_argument("--dup", type=float, default=0.0, help="duplicate this share of frames")
-    p.add_argument("--reorder", type=int, default=1, metavar="W",
+    p.add_argument("--loss", type=N.share, default=0.0, help="drop this share of frames")
+    p.add_argument("--dup", type=N.share, default=0.0, help="duplicate this share of frames")
+    p.add_argument("--reorder", type=N.count(1, what="a window of frames"), default=1, metavar="W",
                    help="shuffle frames within windows of W (default: 1, no reordering)")
-    p.add_argument("--linger-ms", type=float, default=500.0, metavar="MS",
+    p.add_argument("--linger-ms", type=N.at_least(0, "milliseconds"), default=500.0, metavar="MS",
                    help="keep the bus open this long after every robot halted")
     p.add_argument("--json", action="store_true", help="print one JSON summary")
     p.set_defaults(func=cmd_robots)
@@ -38,15 +39,14 @@ def register(sub) -> None:
 def cmd_robots(args: argparse.Namespace) -> int:
     from bridge.errors import UsageError
     from bridge.host.swarm import run_swarm, swarm_engine
-    from bridge.links import open_bus, parse_url, refuse_in_process
+    from bridge.links import check_device, open_bus, parse_url, refuse_in_process
     from bridge.links.canlink import Faults
 
     parse_url(args.bus)
     refuse_in_process(args.bus, "robots")
+    check_device(args.bus, "robots")
     sc = scenario_from_args(args)
     check_link_limits(sc, "CAN")
-    if args.tick_ms <= 0:
-        raise UsageError(f"--tick-ms {args.tick_ms}: expected a positive period")
     try:
         up = Faults(args.seed, args.loss, args.dup, args.reorder)
         down = Faults(args.seed + 1, args.loss, args.dup, args.reorder)

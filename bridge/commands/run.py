@@ -7,6 +7,7 @@ import json
 import sys
 from pathlib import Path
 
+from bridge.commands.paths import path_arg
 from bridge.errors import UsageError
 
 
@@ -99,14 +100,14 @@ def register(sub) -> None:
                "run.blf",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     add_scenario_args(p)
-    p.add_argument("--out", type=Path, metavar="DIR",
+    p.add_argument("--out", type=path_arg, metavar="DIR",
                    help="directory (created if missing) for world.png, summary.json and the "
                         "thesis-style CSV records")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
     p.add_argument("--link", choices=["inproc", "can"], default="inproc",
                    help="how robots reach the host coordinator: in-process lists, or CAN "
                         "frames over a python-can virtual channel (default: %(default)s)")
-    p.add_argument("--record", type=Path, metavar="FILE",
+    p.add_argument("--record", type=path_arg, metavar="FILE",
                    help="record all traffic, SENSOR and ACTION capture frames included, as a "
                         "python-can log plus FILE.json (scenario, seed, frame count, summary); "
                         "the suffix picks the format: " + ", ".join(FORMATS))

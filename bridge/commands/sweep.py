@@ -8,6 +8,7 @@ import sys
 import time
 from pathlib import Path
 
+from bridge.commands.paths import path_arg
 from bridge.errors import UsageError
 from sim_backend.sweep import ENGINES
 
@@ -55,7 +56,7 @@ def register(sub) -> None:
                         "(a dask.distributed scheduler)")
     p.add_argument("--chunk", type=int, default=None, metavar="RUNS",
                    help="runs per task, at least 1 (default: spread evenly, at most 512)")
-    p.add_argument("--out", type=Path, default=Path("sweep-out"), metavar="DIR",
+    p.add_argument("--out", type=path_arg, default=Path("sweep-out"), metavar="DIR",
                    help="directory (created if missing) for sweep.csv and the PNGs "
                         "(default: %(default)s)")
     p.add_argument("--no-plots", action="store_true", help="write the CSV only")

@@ -88,6 +88,17 @@ def refuse_in_process(url: str, command: str) -> None:
             f"docs/protocol.md) or one process: touchswarm run --link can")
 
 
+def check_device(url: str, command: str) -> None:
+    """Refuse an slcan:// link whose device path is not there (before any
+    port opens, so nothing was done: a usage error)."""
+    from bridge import devices
+    scheme, channel, _ = parse_url(url)
+    if scheme == "slcan":
+        why = devices.missing(channel)
+        if why:
+            raise LinkURLError(f"{command} --bus {url}: {why}")
+
+
 def open_bus(url: str) -> Any:
     """Open the python-can bus a URL names (a context manager; shutdown is idempotent)."""
     scheme, channel, opts = parse_url(url)
