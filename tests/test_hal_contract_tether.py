@@ -1,0 +1,115 @@
+"""The HAL contract (tests/test_hal_contract.py) against the MicroPython
+tether body: `TetherHal` (firmware_logic/board.py) run by CPython, framing
+every call over an in-memory serial line to the host side it tethers to,
+`TetherTransport` (sim_backend/emulators/tether.py) serving the sim world.
+The same body under the real MicroPython interpreter, over ptys:
+hil_tests/test_hal_contract_micropython.py.
+
+No thread and no clock: the line is two byte queues, and a board read that
+finds nothing waiting lets the host side serve first, so an answer is in
+the queue as soon as the host gives it. A read that still finds nothing is
+the board's timeout (the host had nothing more to say): TetherHal asks
+again, as over a real line.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+from bridge.transport import Message
+from firmware_logic import framing
+from firmware_logic.board import TetherHal
+from sim_backend.emulators.tether import TetherTransport
+from sim_backend.engine import Engine
+from sim_backend.scenario import validate
+from tests.test_hal_contract import SCENARIO, HalContract, placed
+
+NODE = 1
+
+
+class HostEnd:
+    """The host's end of the line: a RobotTransport decoding what the board
+    wrote and queueing what the host sends for the board to read."""
+
+    def __init__(self, to_host: deque, to_board: deque) -> None:
+        self.to_host = to_host
+        self.to_board = to_board
+        self.dec = framing.Decoder()
+        self.enc = framing.Encoder()
+
+    def poll(self, timeout: float) -> list[Message]:
+        # everything the board wrote is already here: nothing to wait for
+        out: list[Message] = []
+        d = self.dec
+        while self.to_host:
+            if d.feed(self.to_host.popleft()):
+                out.append((d.node, d.kind, tuple(d.fields[:d.nfields])))
+        return out
+
+    def send(self, node: int, kind: int, fields: tuple) -> None:
+        args = list(fields) + [0] * (6 - len(fields))
+        n = self.enc.frame(kind, node, *args)
+        self.to_board.extend(self.enc.out[:n])
+
+    def bad_frames(self) -> dict[str, int]:
+        return self.dec.error_counts()
+
+    def close(self) -> None:
+        pass
+
+
+class BoardEnd:
+    """The board's port as board.py wants it: read(timeout_ms) -> a byte or
+    -1, write(buf, n). `serve()` runs the host side when the board would
+    otherwise wait."""
+
+    def __init__(self, to_host: deque, to_board: deque) -> None:
+        self.to_host = to_host
+        self.to_board = to_board
+        self.serve = lambda: None
+
+    def read(self, timeout_ms: int) -> int:
+        if not self.to_board:
+            self.serve()
+        return self.to_board.popleft() if self.to_board else -1
+
+    def write(self, buf: bytearray, n: int) -> None:
+        self.to_host.extend(buf[:n])
+
+
+class TestTetherHal(HalContract):
+    def make(self):
+        e = Engine(validate(SCENARIO), 1)
+        placed(e.world)
+        for b in e.bodies:
+            b.reset_intents()
+        to_host: deque = deque()
+        to_board: deque = deque()
+        tether = TetherTransport(HostEnd(to_host, to_board), e, [NODE])
+        self.up: list[Message] = []      # what the tether passed on to the host
+
+        def serve() -> None:
+            self.up += tether.poll(0.0)
+
+        port = BoardEnd(to_host, to_board)
+        port.serve = serve
+        hal = TetherHal(port, NODE)
+
+        def tick():
+            # end_tick returns 0 when the host never applied the tick: that
+            # would make every clause after a tick pass or fail by accident
+            assert hal.end_tick() == 1, "the host did not apply the tick"
+            serve()
+            assert hal.lost == 0 and tether.bad_frames() == {}
+        return hal, tick
+
+    def test_reports_reach_the_host_unchanged(self) -> None:
+        """The tether passes the robot's own messages through (what the
+        contract's "every report kind can be sent" cannot see from the body)."""
+        from tests.test_hal_contract import UP_KINDS
+        hal, tick = self.make()
+        for j, kind in enumerate(UP_KINDS):
+            hal.send(kind, j + 1, 1, 1, 1, 1, 1)
+        tick()
+        assert [(n, k) for n, k, _ in self.up] == [(NODE, k) for k in UP_KINDS]
+        assert [f[0] for _, _, f in self.up] == list(range(1, len(UP_KINDS) + 1))
