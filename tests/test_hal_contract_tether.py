@@ -2,8 +2,9 @@
 tether body: `TetherHal` (firmware_logic/board.py) run by CPython, framing
 every call over an in-memory serial line to the host side it tethers to,
 `TetherTransport` (sim_backend/emulators/tether.py) serving the sim world.
-The same body under the real MicroPython interpreter, over ptys:
-hil_tests/test_hal_contract_micropython.py.
+The clauses are CPython test code calling the body, so they run the body
+under CPython; the same module under the real MicroPython interpreter, over
+a pty, runs whole missions in hil_tests/test_micropython_robot.py.
 
 No thread and no clock: the line is two byte queues, and a board read that
 finds nothing waiting lets the host side serve first, so an answer is in
