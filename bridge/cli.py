@@ -32,6 +32,7 @@ COMMANDS = [
     "bridge.commands.replay",
     "bridge.commands.deploy",
     "bridge.commands.sweep",
+    "bridge.commands.keys",
 ]
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130

@@ -25,6 +25,7 @@ FIXTURES = {
     "bad.toml": b"agents = [\n", "badkey.toml": b"colour = 3\n",
     "badtype.toml": b'agents = "many"\n', "bin.toml": bytes([0xff, 0xfe, 0x00, 0x81]) * 50,
     "journal.sqlite": b"this is not sqlite at all" * 100, "plainfile": b"x",
+    "fewkeys.toml": b'[keys]\n1 = "' + b"0" * 32 + b'"\n',
 }
 
 ROWS = [
@@ -170,6 +171,18 @@ ROWS = [
     (["deploy", "--port", "/dev/null", "--config", "COLOUR=1"], "expected KEY=N with KEY one of"),
     (["deploy", "--port", "/dev/null", "--mpy-cross", "{T}/missing"], "--mpy-cross {T}/missing: no such file"),
     (["deploy", "--port", "/dev/null", "--mpremote", "{T}/plainfile"], "not an executable program"),
+    # keys (authenticated host commands)
+    (["keys", "new", "--out", "{T}/plainfile"], "exists already"),
+    (["keys", "new", "--nodes", "0", "--out", "k.toml"], "--nodes: 0: expected a robot count"),
+    (["keys", "new", "--nodes", "200", "--out", "k.toml"], "node ids 1..127"),
+    (["keys", "new", "--out", "{T}/missing/k.toml"], "missing does not exist"),
+    (["host", "--bus", "slcan:///dev/null", "--keys", "{T}/missing.toml"],
+     "--keys: key file '{T}/missing.toml': No such file"),
+    (["host", "--bus", "slcan:///dev/null", "--keys", "{T}/bad.toml"], "not valid TOML"),
+    (["host", "--bus", "slcan:///dev/null", "--keys", "{T}/badkey.toml"], "no [keys] table"),
+    (["robots", "--bus", "slcan:///dev/null", "--keys", "{T}/bin.toml"], "not UTF-8 text"),
+    (["robots", "--bus", "slcan:///dev/null", "--keys", "{T}/fewkeys.toml"],
+     "no key for node 2 (the scenario has 20 robots, the file 1 keys)"),
     # top level
     (["nosuchcommand"], "invalid choice: 'nosuchcommand'"),
     (["-v", "run", "--seed"], "argument --seed: expected one argument"),

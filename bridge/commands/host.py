@@ -10,7 +10,8 @@ import threading
 from pathlib import Path
 
 from bridge.commands import numbers as N
-from bridge.commands.paths import path_arg
+from bridge.commands.keys import add_keys_arg, freshness_file, keys_from_args
+from bridge.commands.paths import check_out_file, path_arg
 from bridge.commands.run import add_scenario_args, scenario_from_args
 
 # Silence limits (seconds). A robot sends at least one frame every 64 of its
@@ -57,6 +58,7 @@ def register(sub) -> None:
     p.add_argument("--bus-timeout", type=N.at_least(0, "seconds", " (0: never give up)"), default=BUS_TIMEOUT, metavar="S",
                    help="give up (exit 3) when no robot at all is heard this long, start-up "
                         "included (0: never; default: %(default)s)")
+    add_keys_arg(p)
     p.add_argument("--json", action="store_true",
                    help="progress on stderr, one JSON summary on stdout")
     p.set_defaults(func=cmd_host)
@@ -84,6 +86,16 @@ def cmd_host(args: argparse.Namespace) -> int:
         why = devices.missing(port)
         if why:
             raise UsageError(f"--serial {port}: {why}")
+    keys = keys_from_args(args, sc.agents)
+    sealer = None
+    if keys is not None:
+        from bridge.links.secoc import FreshnessStore, KeyFileError, Sealer
+        fv_path = freshness_file(args.keys)
+        check_out_file(fv_path, "--keys (freshness file)", fv_path.name)
+        try:
+            sealer = Sealer(keys, FreshnessStore(fv_path))
+        except KeyFileError as err:
+            raise UsageError(f"--keys: {err}") from None
     if args.resume is not None and not args.resume.exists():
         raise UsageError(f"--resume {args.resume}: no such journal")
     out = sys.stderr if args.json else sys.stdout
@@ -110,7 +122,7 @@ def cmd_host(args: argparse.Namespace) -> int:
     parts: list = []
     try:
         if args.bus:
-            parts.append(CanTransport(open_bus(args.bus)))
+            parts.append(CanTransport(open_bus(args.bus), sealer=sealer))
         if args.serial:
             from bridge.serial.transport import MultiSerialTransport
             parts.append(MultiSerialTransport.open(args.serial, args.serial_baud))

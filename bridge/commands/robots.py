@@ -10,6 +10,7 @@ import threading
 import time
 
 from bridge.commands import numbers as N
+from bridge.commands.keys import add_keys_arg, keys_from_args
 from bridge.commands.run import add_scenario_args, check_link_limits, scenario_from_args
 
 
@@ -32,6 +33,7 @@ def register(sub) -> None:
                    help="shuffle frames within windows of W (default: 1, no reordering)")
     p.add_argument("--linger-ms", type=N.at_least(0, "milliseconds"), default=500.0, metavar="MS",
                    help="keep the bus open this long after every robot halted")
+    add_keys_arg(p)
     p.add_argument("--json", action="store_true", help="print one JSON summary")
     p.set_defaults(func=cmd_robots)
 
@@ -47,6 +49,7 @@ def cmd_robots(args: argparse.Namespace) -> int:
     check_device(args.bus, "robots")
     sc = scenario_from_args(args)
     check_link_limits(sc, "CAN")
+    keys = keys_from_args(args, sc.agents)
     try:
         up = Faults(args.seed, args.loss, args.dup, args.reorder)
         down = Faults(args.seed + 1, args.loss, args.dup, args.reorder)
@@ -58,8 +61,9 @@ def cmd_robots(args: argparse.Namespace) -> int:
         signal.signal(signal.SIGTERM, lambda *a: stopping.append(1))
     with open_bus(args.bus) as bus:
         engine = swarm_engine(sc, args.seed, bus, up if faulty else None,
-                              down if faulty else None)
-        print(f"{sc.agents} robots on {args.bus}, tick {args.tick_ms} ms", file=sys.stderr,
+                              down if faulty else None, keys=keys)
+        print(f"{sc.agents} robots on {args.bus}, tick {args.tick_ms} ms"
+              f"{', host commands authenticated' if keys else ''}", file=sys.stderr,
               flush=True)
         summary = run_swarm(engine, args.tick_ms / 1000.0, stop=lambda: bool(stopping))
         end = time.monotonic() + args.linger_ms / 1000.0

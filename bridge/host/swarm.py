@@ -12,7 +12,7 @@ from bridge.links.canlink import Faults, Gateway
 
 
 def swarm_engine(sc: Any, seed: int, bus: can.BusABC, faults_up: Faults | None = None,
-                 faults_down: Faults | None = None):
+                 faults_down: Faults | None = None, keys: dict[int, bytes] | None = None):
     from sim_backend.engine import Engine
 
     class SwarmEngine(Engine):
@@ -23,7 +23,8 @@ def swarm_engine(sc: Any, seed: int, bus: can.BusABC, faults_up: Faults | None =
         def finished(self) -> bool:
             return self.tick >= self.sc.maxTicks or all_halted(self)
 
-    gw = Gateway(bus, list(range(1, sc.agents + 1)), faults_up, faults_down=faults_down)
+    gw = Gateway(bus, list(range(1, sc.agents + 1)), faults_up, faults_down=faults_down,
+                 keys=keys)
     return SwarmEngine(sc, seed, link=gw)
 
 

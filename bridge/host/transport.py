@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import time
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import can
 
 from bridge.links.canbus import converted, shutdown_quietly
 from bridge.links.codec import BadFrames, Decoder, Message, encode
 from bridge.links.errors import LinkOperationError
+
+if TYPE_CHECKING:
+    from bridge.links.secoc import Sealer
 
 BATCH = 4096       # at most this many frames per poll, so a flood cannot starve the tick
 MALFORMED = "malformed adapter line"
@@ -19,8 +22,10 @@ class CanTransport:
     """Decoded robot messages from a bus; bad frames counted, never passed on."""
 
     def __init__(self, bus: can.BusABC, bad: BadFrames | None = None,
-                 clock: Callable[[], float] = time.monotonic) -> None:
+                 clock: Callable[[], float] = time.monotonic,
+                 sealer: "Sealer | None" = None) -> None:
         self.bus = bus
+        self.sealer = sealer        # authenticated host commands (bridge/links/secoc.py)
         self.clock = clock          # what poll's deadline is measured on
         self.decoder = Decoder("host", bad or BadFrames("host"))
         self.frames_in = 0
@@ -61,9 +66,12 @@ class CanTransport:
     def send(self, node: int, kind: int, fields: tuple) -> None:
         if self._closed:
             raise LinkOperationError("host send: the transport is closed")
+        frame = encode(node, kind, fields)
+        frames = [frame] if self.sealer is None else self.sealer.seal(frame)
         with converted("host send"):
-            self.bus.send(encode(node, kind, fields))
-        self.frames_out += 1
+            for f in frames:
+                self.bus.send(f)
+        self.frames_out += len(frames)
 
     def bad_frames(self) -> dict[str, int]:
         return dict(self.decoder.bad.counts)

@@ -75,12 +75,18 @@ class Gateway:
     """Every simulated robot on one bus (the robots' side of a link)."""
 
     def __init__(self, bus: can.BusABC, nodes: list[int], faults: Faults | None = None,
-                 bad: BadFrames | None = None, faults_down: Faults | None = None) -> None:
+                 bad: BadFrames | None = None, faults_down: Faults | None = None,
+                 keys: dict[int, bytes] | None = None) -> None:
         self.bus = bus
         self.nodes = list(nodes)
         self.faults = faults
         self.faults_down = faults_down     # applied to what the gateway receives
         self.decoder = Decoder("robot", bad or BadFrames("gateway"))
+        # with keys, host commands are obeyed only when authenticated
+        self.opener = None
+        if keys is not None:
+            from bridge.links.secoc import Opener   # cryptography only when keyed
+            self.opener = Opener(keys, self.decoder.bad)
         self.up: list[can.Message] = []
         self.inbox: dict[int, deque] = {n: deque() for n in nodes}
         self.sent = 0
@@ -105,6 +111,10 @@ class Gateway:
         return len(frames)
 
     def deliver(self, frame: can.Message) -> None:
+        if self.opener is not None:
+            frame = self.opener.open(frame)
+            if frame is None:
+                return
         m = self.decoder.decode(frame)
         if m is None:
             return

@@ -1,0 +1,248 @@
+"""Authenticated host commands on CAN, in the style of AUTOSAR SecOC.
+
+Classic CAN carries no sender identity, so without this any node on the bus
+can send HALT, ACK or TRANSPORT and the robots obey (docs/protocol.md, "What
+a node on the bus can and cannot do"). With a key file, every host command
+(the DOWN kinds of firmware_logic/messages.py) is sealed: its payload is
+followed by a freshness value (FV) and a truncated AES-128-CMAC over
+(identifier, payload, full FV), filling the 8 data bytes:
+
+    payload (n bytes) | FV, low 8-n-3 bytes, big-endian | MAC, 3 bytes
+
+HALT and ACK (n = 1) carry the whole 32-bit FV, TRANSPORT (n = 3) its low
+16 bits; the receiver rebuilds a truncated FV as the smallest value above
+the last one it accepted from the host with those low bits. A frame is
+passed on only when its MAC verifies and its FV is above the last accepted
+one, so a forged, tampered or replayed command is counted and dropped.
+
+Keys are per robot (a group key would let any robot forge the host), so a
+broadcast command (node 0) is sent once per keyed robot, and a broadcast on
+the bus is refused by the robots. The host keeps its counters across
+restarts by reserving them in blocks of RESERVE in a small JSON file, written
+before a reserved value is used: a restarted host starts above anything it
+sent. Robot reports (HELLO, TOUCH, HEARTBEAT) stay plain; the host validates
+them (docs/protocol.md, "Valid reports").
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import secrets
+import tomllib
+from pathlib import Path
+
+import can
+from cryptography.hazmat.primitives.ciphers.algorithms import AES
+from cryptography.hazmat.primitives.cmac import CMAC
+
+from firmware_logic import messages as msg
+
+log = logging.getLogger(__name__)
+
+MAC_BYTES = 3          # 24-bit MAC: SecOC profile 1's length
+FV_MAX = 0xFFFFFFFF    # a 32-bit freshness counter per robot
+RESERVE = 256          # host counters are persisted this many frames ahead
+KEY_BYTES = 16         # AES-128
+
+# what a robot counts when it drops a host command (BadFrames fault names)
+UNAUTHENTICATED = "unauthenticated host command"
+BAD_MAC = "bad MAC"
+STALE = "stale freshness (replayed or reordered)"
+UNKEYED = "host command for a node without a key"
+
+
+class KeyFileError(ValueError):
+    """A key file that cannot be used; the message is one line."""
+
+
+def down_kinds() -> set[int]:
+    return {m[0] for m in msg.rows() if m[2] == msg.DOWN}
+
+
+def fv_bytes(payload_len: int) -> int:
+    """How many FV bytes fit beside a payload and the MAC in 8 bytes."""
+    return min(4, 8 - payload_len - MAC_BYTES)
+
+
+def check_layout() -> None:
+    """Every host command must leave room for at least one FV byte."""
+    for m in msg.rows():
+        if m[2] == msg.DOWN and fv_bytes(msg.dlc(m[0])) < 1:
+            raise KeyFileError(f"message {m[1]} ({msg.dlc(m[0])} bytes) leaves no room for "
+                               f"the {MAC_BYTES}-byte MAC and a freshness byte")
+
+
+def _mac(key: bytes, arbitration_id: int, payload: bytes, fv: int) -> bytes:
+    c = CMAC(AES(key))
+    c.update(arbitration_id.to_bytes(2, "big") + payload + fv.to_bytes(4, "big"))
+    return c.finalize()[:MAC_BYTES]
+
+
+def load_keys(path: Path) -> dict[int, bytes]:
+    """{node: key} from a TOML key file ([keys] NODE = "32 hex digits")."""
+    where = f"key file {str(path)!r}"
+    try:
+        raw = tomllib.loads(Path(path).read_text())
+    except OSError as err:
+        raise KeyFileError(f"{where}: {err.strerror}") from None
+    except UnicodeDecodeError:
+        raise KeyFileError(f"{where}: not UTF-8 text; expected TOML from "
+                           "`touchswarm keys new`") from None
+    except tomllib.TOMLDecodeError as err:
+        raise KeyFileError(f"{where}: not valid TOML: {err}") from None
+    table = raw.get("keys")
+    if not isinstance(table, dict) or not table:
+        raise KeyFileError(f"{where}: no [keys] table; expected NODE = \"32 hex digits\" "
+                           "lines from `touchswarm keys new`")
+    keys: dict[int, bytes] = {}
+    for name, value in table.items():
+        if not name.isdigit() or not 1 <= int(name) <= msg.MAX_NODE:
+            raise KeyFileError(f"{where}: key {name!r}: expected a node id 1..{msg.MAX_NODE}")
+        try:
+            key = bytes.fromhex(value) if isinstance(value, str) else b""
+        except ValueError:
+            key = b""
+        if len(key) != KEY_BYTES:
+            raise KeyFileError(f"{where}: node {name}: expected {2 * KEY_BYTES} hex digits "
+                               "(an AES-128 key)")
+        keys[int(name)] = key
+    return keys
+
+
+def new_key_file(path: Path, nodes: list[int]) -> None:
+    """Write fresh random keys for `nodes`, readable by the owner only;
+    never overwrites (a key already on robots would be lost)."""
+    lines = ["# touchswarm CAN authentication keys: one AES-128 key per robot.",
+             "# Keep private: whoever holds a robot's key can command that robot.",
+             "[keys]"]
+    lines += [f'{n} = "{secrets.token_hex(KEY_BYTES)}"' for n in nodes]
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    with os.fdopen(fd, "w") as f:
+        f.write("\n".join(lines) + "\n")
+
+
+class FreshnessStore:
+    """The host's counters, persisted RESERVE frames ahead (None: in memory
+    only, for tests and single-process runs)."""
+
+    def __init__(self, path: Path | None) -> None:
+        self.path = path
+        self.reserved: dict[int, int] = {}
+        if path is not None and Path(path).exists():
+            try:
+                raw = json.loads(Path(path).read_text())
+                self.reserved = {int(k): int(v) for k, v in raw.items()}
+            except (OSError, ValueError, AttributeError) as err:
+                raise KeyFileError(f"freshness file {str(path)!r}: unreadable ({err}); "
+                                   "delete it only if no robot has seen this host's "
+                                   "commands, or rekey") from None
+
+    def start(self, node: int) -> int:
+        """The first counter this process may use for `node`."""
+        return self.reserved.get(node, 0)
+
+    def reserve(self, node: int, upto: int) -> None:
+        self.reserved[node] = upto
+        if self.path is None:
+            return
+        tmp = Path(f"{self.path}.tmp")
+        with open(tmp, "w") as f:
+            json.dump({str(k): v for k, v in sorted(self.reserved.items())}, f)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, self.path)
+
+
+class Sealer:
+    """The host's side: seals every host command; a broadcast becomes one
+    sealed frame per keyed robot."""
+
+    def __init__(self, keys: dict[int, bytes], store: FreshnessStore | None = None) -> None:
+        check_layout()
+        self.keys = keys
+        self.store = store or FreshnessStore(None)
+        self.down = down_kinds()
+        self.fv = {n: self.store.start(n) for n in keys}
+        self.limit = dict(self.fv)
+
+    def _next_fv(self, node: int) -> int:
+        fv = self.fv[node] + 1
+        if fv > FV_MAX:
+            raise KeyFileError(f"node {node}: freshness counter exhausted; rekey the robot")
+        if fv > self.limit[node]:
+            self.limit[node] = min(FV_MAX, fv + RESERVE)
+            self.store.reserve(node, self.limit[node])
+        self.fv[node] = fv
+        return fv
+
+    def seal(self, frame: can.Message) -> list[can.Message]:
+        kind, node = msg.split_id(frame.arbitration_id)
+        if kind not in self.down:
+            return [frame]
+        nodes = sorted(self.keys) if node == msg.HOST else [node]
+        out = []
+        for n in nodes:
+            key = self.keys.get(n)
+            if key is None:
+                log.warning("no key for node %d: command %d not sent", n, kind)
+                continue
+            ident = msg.can_id(kind, n)
+            payload = bytes(frame.data)
+            fv = self._next_fv(n)
+            k = fv_bytes(len(payload))
+            data = payload + (fv & ((1 << (8 * k)) - 1)).to_bytes(k, "big") + \
+                _mac(key, ident, payload, fv)
+            out.append(can.Message(arbitration_id=ident, is_extended_id=False, data=data,
+                                   dlc=len(data), timestamp=frame.timestamp))
+        return out
+
+
+class Opener:
+    """The robots' side: passes on a host command only when it verifies and
+    is fresh, stripped back to its plain layout; anything else is counted in
+    `bad` and dropped. Frames of other kinds pass unchanged."""
+
+    def __init__(self, keys: dict[int, bytes], bad) -> None:
+        check_layout()
+        self.keys = keys
+        self.bad = bad
+        self.down = down_kinds()
+        self.last = {n: 0 for n in keys}
+
+    def open(self, frame: can.Message) -> can.Message | None:
+        if frame.is_extended_id or frame.is_remote_frame or frame.is_error_frame:
+            return frame        # the decoder names these
+        kind, node = msg.split_id(frame.arbitration_id)
+        if kind not in self.down:
+            return frame
+        n = msg.dlc(kind)
+        k = fv_bytes(n)
+        data = bytes(frame.data)
+        if node == msg.HOST or len(data) != n + k + MAC_BYTES:
+            self.bad.add(UNAUTHENTICATED, frame)
+            return None
+        key = self.keys.get(node)
+        if key is None:
+            self.bad.add(UNKEYED, frame)
+            return None
+        payload, low = data[:n], int.from_bytes(data[n:n + k], "big")
+        last = self.last[node]
+        if k == 4:
+            fv = low
+        else:
+            span = 1 << (8 * k)
+            fv = (last & ~(span - 1)) | low
+            if fv <= last:
+                fv += span
+        if not secrets.compare_digest(_mac(key, frame.arbitration_id, payload, fv),
+                                      data[n + k:]):
+            self.bad.add(BAD_MAC, frame)
+            return None
+        if fv <= last:
+            self.bad.add(STALE, frame)
+            return None
+        self.last[node] = fv
+        return can.Message(arbitration_id=frame.arbitration_id, is_extended_id=False,
+                           data=payload, dlc=n, timestamp=frame.timestamp)

@@ -1,0 +1,148 @@
+"""Authenticated host commands (bridge/links/secoc.py): a robot passes on a
+host command only when its MAC verifies under that robot's key and its
+freshness value is above the last one accepted; everything else is counted
+by kind and dropped."""
+
+from __future__ import annotations
+
+import json
+
+import can
+import pytest
+
+from bridge.links import secoc
+from bridge.links.codec import BadFrames, Decoder, encode
+from firmware_logic import messages as msg
+
+KEYS = {n: bytes([n]) * 16 for n in range(1, 6)}
+OTHER = {n: bytes([n + 100]) * 16 for n in range(1, 6)}
+
+
+def robot_side(keys=KEYS):
+    bad = BadFrames("robot")
+    return secoc.Opener(keys, bad), Decoder("robot", bad), bad
+
+
+def passed(opener, decoder, frame):
+    f = opener.open(frame)
+    return None if f is None else decoder.decode(f)
+
+
+@pytest.mark.parametrize("kind, fields", [(msg.HALT, (1,)), (msg.ACK, (7,)),
+                                          (msg.TRANSPORT, (3, 1, -1))])
+def test_a_sealed_command_fills_8_bytes_and_opens_to_the_same_message(kind, fields):
+    sealer = secoc.Sealer(KEYS)
+    opener, decoder, bad = robot_side()
+    (frame,) = sealer.seal(encode(2, kind, fields))
+    assert frame.dlc == 8 and bytes(frame.data[:msg.dlc(kind)]) == bytes(
+        encode(2, kind, fields).data)
+    assert passed(opener, decoder, frame) == (2, kind, fields)
+    assert bad.counts == {}
+
+
+def test_plain_forged_tampered_replayed_and_wrong_key_commands_are_dropped_and_counted():
+    sealer = secoc.Sealer(KEYS)
+    opener, decoder, bad = robot_side()
+    ack = sealer.seal(encode(3, msg.ACK, (5,)))[0]
+    assert passed(opener, decoder, ack) == (3, msg.ACK, (5,))
+    # the same genuine frame again: its MAC verifies, its counter is used up
+    assert passed(opener, decoder, ack) is None and bad.counts == {secoc.STALE: 1}
+    # a plain command, as every host sent before keys
+    assert passed(opener, decoder, encode(3, msg.HALT, (0,))) is None
+    assert bad.counts[secoc.UNAUTHENTICATED] == 1
+    # a broadcast: never sealed by a keyed host (it sends one per robot)
+    assert passed(opener, decoder, can.Message(arbitration_id=msg.can_id(msg.HALT, 0),
+                                               is_extended_id=False, data=bytes(8))) is None
+    assert bad.counts[secoc.UNAUTHENTICATED] == 2
+    # a genuine frame with its payload changed (ACK seq 5 -> 6)
+    t = sealer.seal(encode(3, msg.ACK, (5,)))[0]
+    forged = can.Message(arbitration_id=t.arbitration_id, is_extended_id=False,
+                         data=bytes([6]) + bytes(t.data[1:]))
+    assert passed(opener, decoder, forged) is None and bad.counts[secoc.BAD_MAC] == 1
+    # sealed with another robot's, or another swarm's, key
+    assert passed(opener, decoder, secoc.Sealer(OTHER).seal(encode(3, msg.HALT, (0,)))[0]) \
+        is None
+    assert bad.counts[secoc.BAD_MAC] == 2
+    moved = can.Message(arbitration_id=msg.can_id(msg.ACK, 4), is_extended_id=False,
+                        data=bytes(t.data))        # node 3's frame sent to node 4
+    assert passed(opener, decoder, moved) is None and bad.counts[secoc.BAD_MAC] == 3
+    # a replayed TRANSPORT (16-bit counter on the wire) is read as the next
+    # window's value, so its MAC fails: dropped as well
+    step = sealer.seal(encode(3, msg.TRANSPORT, (1, 1, 0)))[0]
+    assert passed(opener, decoder, step) == (3, msg.TRANSPORT, (1, 1, 0))
+    assert passed(opener, decoder, step) is None and bad.counts[secoc.BAD_MAC] == 4
+    # the host's next genuine command still passes after all of that
+    assert passed(opener, decoder, sealer.seal(encode(3, msg.ACK, (6,)))[0]) == \
+        (3, msg.ACK, (6,))
+
+
+def test_a_broadcast_becomes_one_sealed_frame_per_keyed_robot():
+    frames = secoc.Sealer(KEYS).seal(encode(0, msg.HALT, (2,)))
+    assert [msg.split_id(f.arbitration_id) for f in frames] == [(msg.HALT, n) for n in KEYS]
+    opener, decoder, bad = robot_side()
+    assert [passed(opener, decoder, f) for f in frames] == [(n, msg.HALT, (2,)) for n in KEYS]
+
+
+def test_robot_reports_pass_unchanged():
+    opener, decoder, bad = robot_side()
+    hello = encode(2, msg.HELLO, (1, 100, 1))
+    assert opener.open(hello) is hello
+
+
+def test_truncated_counters_follow_the_host_across_many_frames():
+    """TRANSPORT carries 16 bits of the counter; 70,000 commands (more than one
+    wrap of those bits) with a lost stretch in between all verify."""
+    sealer = secoc.Sealer({1: KEYS[1]})
+    opener, decoder, bad = robot_side({1: KEYS[1]})
+    ok = 0
+    for i in range(70_000):
+        f = sealer.seal(encode(1, msg.TRANSPORT, (1 + i % 200, 0, 1)))[0]
+        if 30_000 <= i < 30_000 + 60_000 // 2 and i % 1000:   # frames lost on the bus
+            continue
+        ok += passed(opener, decoder, f) is not None
+    assert bad.counts == {} and opener.last[1] == sealer.fv[1] == 70_000
+    assert ok == 70_000 - 30_000 + 30
+
+
+def test_a_restarted_host_continues_above_every_counter_it_used(tmp_path):
+    store = tmp_path / "keys.toml.fv.json"
+    opener, decoder, bad = robot_side()
+    first = secoc.Sealer(KEYS, secoc.FreshnessStore(store))
+    for seq in range(1, 300):
+        assert passed(opener, decoder, first.seal(encode(1, msg.ACK, (seq % 250,)))[0])
+    assert json.loads(store.read_text())["1"] >= first.fv[1]
+    again = secoc.Sealer(KEYS, secoc.FreshnessStore(store))     # the host restarted
+    assert passed(opener, decoder, again.seal(encode(1, msg.ACK, (9,)))[0]) == (1, msg.ACK, (9,))
+    # a host that forgot its counters would be refused as a replay
+    amnesiac = secoc.Sealer(KEYS)
+    assert passed(opener, decoder, amnesiac.seal(encode(1, msg.ACK, (9,)))[0]) is None
+    assert bad.counts == {secoc.STALE: 1}
+
+
+@pytest.mark.parametrize("text, needle", [
+    ("", "no [keys] table"),
+    ("[keys]\n", "no [keys] table"),
+    ("[keys]\n1 = \"00\"\n", "node 1: expected 32 hex digits"),
+    ("[keys]\n1 = \"zz" + "0" * 30 + "\"\n", "node 1: expected 32 hex digits"),
+    ("[keys]\n0 = \"" + "0" * 32 + "\"\n", "key '0': expected a node id 1..127"),
+    ("[keys]\nx = \"" + "0" * 32 + "\"\n", "key 'x': expected a node id"),
+    ("[keys]\n1 = 5\n", "node 1: expected 32 hex digits"),
+    ("[keys\n", "not valid TOML"),
+])
+def test_bad_key_files_are_refused_in_one_line(tmp_path, text, needle):
+    p = tmp_path / "k.toml"
+    p.write_text(text)
+    with pytest.raises(secoc.KeyFileError) as err:
+        secoc.load_keys(p)
+    assert needle in str(err.value) and "\n" not in str(err.value)
+
+
+def test_keys_new_writes_owner_only_keys_that_load(tmp_path):
+    from bridge.cli import main
+    out = tmp_path / "k.toml"
+    assert main(["keys", "new", "--nodes", "7", "--out", str(out)]) == 0
+    assert oct(out.stat().st_mode & 0o777) == "0o600"
+    keys = secoc.load_keys(out)
+    assert sorted(keys) == list(range(1, 8)) and len(set(keys.values())) == 7
+    assert main(["keys", "new", "--out", str(out)]) == 2        # never overwritten
+    assert secoc.load_keys(out) == keys
