@@ -115,6 +115,7 @@ def cmd_host(args: argparse.Namespace) -> int:
             if args.resume is not None and args.resume.resolve() != Path(journal_path).resolve():
                 with Journal(args.resume) as old:     # carry it over, then go on there
                     journal.copy_from(old)
+            journal.bind(sc.behaviour)     # a journal of another behaviour is refused here
     except JournalError as err:
         if journal is not None:
             journal.close()
@@ -138,7 +139,8 @@ def cmd_host(args: argparse.Namespace) -> int:
             # the host knows the arena, not the object: the robots may be real
             host = HostProcess(transport, sc.weight_centi, sc.homeX, sc.homeY, journal=journal,
                                tick_seconds=args.tick_ms / 1000.0, on_event=event,
-                               world_size=sc.worldSize, behaviour=sc.behaviour)
+                               world_size=sc.worldSize, behaviour=sc.behaviour,
+                               scenario=sc)
             if args.resume is not None:
                 assert journal is not None      # journal_path defaults to the resumed one
                 try:

@@ -11,6 +11,13 @@ last decision instead of starting the transport again.
 A decision row holds the state the host needs to go on from there, as JSON
 (`HostProcess.snapshot`): the coordinator's scalar attributes (step, dx, dy,
 converged_tick, delivered_tick, ...) and the host's tick and HALT count.
+
+Records (a thesis touch, an aggregation stop) share the TOUCH row layout;
+they are read back as the journal's behaviour's RECORD class (its
+coordinator module's). A record a behaviour withdraws (a robot that left its
+stop) is marked released, not deleted, and is no longer restored. A journal
+belongs to one behaviour (the `meta` table; journals written before it are
+the thesis's), and a host of another behaviour refuses it.
 """
 
 from __future__ import annotations
@@ -25,15 +32,17 @@ from bridge.errors import BridgeError
 from firmware_logic import registry
 
 
-def _touch_class() -> Any:
-    """The record a journalled touch row is read back as. The journal's rows
-    are the thesis's Touch (mx, my included); the host process refuses a
-    behaviour whose coordinator cannot take them (process.host_behaviour)."""
-    b = registry.load("thesis")
-    return importlib.import_module(b.module_name + ".coordinator").Touch
+DEFAULT_BEHAVIOUR = "thesis"    # what a journal without a `meta` row was written by
 
 
-Touch = Any   # the thesis's Touch record (see _touch_class)
+def record_class(behaviour: str) -> Any:
+    """The class a journalled row is read back as: RECORD of the behaviour's
+    coordinator module (the host process checks it is there)."""
+    b = registry.load(behaviour)
+    return importlib.import_module(b.module_name + ".coordinator").RECORD
+
+
+Touch = Any   # a behaviour's RECORD (see record_class)
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS nodes (node INTEGER PRIMARY KEY, model INTEGER NOT NULL,
@@ -44,6 +53,9 @@ CREATE TABLE IF NOT EXISTS touches (node INTEGER NOT NULL, seq INTEGER NOT NULL,
     my INTEGER NOT NULL DEFAULT 0, PRIMARY KEY (node, seq));
 CREATE TABLE IF NOT EXISTS decisions (id INTEGER PRIMARY KEY AUTOINCREMENT,
     tick INTEGER NOT NULL, kind TEXT NOT NULL, state TEXT NOT NULL);
+CREATE TABLE IF NOT EXISTS released (node INTEGER NOT NULL, seq INTEGER NOT NULL,
+    tick INTEGER NOT NULL, PRIMARY KEY (node, seq));
+CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
 """
 
 
@@ -101,8 +113,30 @@ class Journal:
         self._sql("INSERT OR REPLACE INTO nodes VALUES (?, ?, ?)", (node, model, power))
 
     def add_touch(self, t: Touch) -> None:
+        self._add_row(t.as_tuple() + (t.mx, t.my))
+
+    def _add_row(self, row: tuple) -> None:
         self._sql("INSERT OR IGNORE INTO touches (node, seq, rx, ry, sx, sy, power, tick, mx, my) "
-                  "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)", t.as_tuple() + (t.mx, t.my))
+                  "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)", row)
+
+    def release(self, node: int, seq: int, tick: int) -> None:
+        """The record (node, seq) was withdrawn; it is no longer restored."""
+        self._sql("INSERT OR IGNORE INTO released VALUES (?, ?, ?)", (node, seq, tick))
+
+    def behaviour(self) -> str:
+        rows = self._sql("SELECT value FROM meta WHERE key = 'behaviour'")
+        return rows[0][0] if rows else DEFAULT_BEHAVIOUR
+
+    def bind(self, behaviour: str) -> None:
+        """Mark the journal as `behaviour`'s; JournalError if it holds another's
+        records (it would be read back as the wrong kind of record)."""
+        has = self._sql("SELECT COUNT(*) FROM touches")[0][0] or \
+            self._sql("SELECT COUNT(*) FROM meta")[0][0]
+        if has and self.behaviour() != behaviour:
+            raise JournalError(f"journal {self.path} was written by a host of behaviour "
+                               f"{self.behaviour()!r}, not {behaviour!r}; resume it with "
+                               f"--behaviour {self.behaviour()}")
+        self._sql("INSERT OR REPLACE INTO meta VALUES ('behaviour', ?)", (behaviour,))
 
     def add_decision(self, tick: int, kind: str, state: dict[str, Any]) -> None:
         self._sql("INSERT INTO decisions (tick, kind, state) VALUES (?, ?, ?)",
@@ -112,11 +146,18 @@ class Journal:
         return {n: (m, p) for n, m, p in
                 self._sql("SELECT node, model, power FROM nodes ORDER BY node")}
 
+    def rows(self, released: bool = False) -> list[tuple]:
+        """The records' rows in journal order; without `released`, only those
+        still held."""
+        where = "" if released else \
+            " WHERE NOT EXISTS (SELECT 1 FROM released r WHERE r.node = t.node AND r.seq = t.seq)"
+        return self._sql("SELECT node, seq, rx, ry, sx, sy, power, tick, mx, my FROM touches t"
+                         + where + " ORDER BY rowid")
+
     def touches(self) -> list[Touch]:
-        rows = self._sql("SELECT node, seq, rx, ry, sx, sy, power, tick, mx, my FROM touches "
-                         "ORDER BY rowid")
-        touch = _touch_class()
-        return [touch(*r) for r in rows]
+        """The records still held, as the journal's behaviour's RECORD."""
+        record = record_class(self.behaviour())
+        return [record(*r) for r in self.rows()]
 
     def decisions(self) -> list[Decision]:
         return [self._decision(r) for r in
@@ -143,10 +184,13 @@ class Journal:
     def copy_from(self, other: "Journal") -> None:
         """Carry another journal's nodes, touches and decisions over (resume
         into a new file); decisions keep their order."""
+        self.bind(other.behaviour())
         for n, (m, pw) in other.nodes().items():
             self.add_node(n, m, pw)
-        for t in other.touches():
-            self.add_touch(t)
+        for r in other.rows(released=True):
+            self._add_row(r)
+        for node, seq, tick in other._sql("SELECT node, seq, tick FROM released"):
+            self.release(node, seq, tick)
         for d in other.decisions():
             self.add_decision(d.tick, d.kind, d.state)
 

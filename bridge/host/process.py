@@ -20,6 +20,7 @@ move without it) for `node_timeout` seconds; the summary then says why.
 
 from __future__ import annotations
 
+import importlib
 import inspect
 import logging
 import time
@@ -46,7 +47,7 @@ HALT_REPEATS = 10   # HALT is broadcast on this many ticks after delivery (it is
 # command line), what the journalled touches rebuild (power, leader,
 # found_tick), and this process's own counters.
 NOT_SNAPSHOT = frozenset(("weight", "home_x", "home_y", "home_r2", "world_size", "power",
-                          "leader", "found_tick", "duplicates"))
+                          "leader", "found_tick", "duplicates", "models"))
 
 
 def coordinator_state(c: Coordinator) -> dict[str, Any]:
@@ -73,12 +74,16 @@ def restore_coordinator(c: Coordinator, state: dict[str, Any]) -> None:
 
 
 # What the host process needs of a behaviour's coordinator beyond what every
-# engine uses: make_coordinator keywords for journalling each node before its
-# ACK and logging rejected reports, and the attributes the journal's snapshots,
-# resume and liveness checks read. The journal's touch rows are the thesis's
-# (node, seq, rx, ry, sx, sy, power, tick, mx, my).
+# engine uses (docs/writing-a-behaviour.md, "What the host needs"):
+# make_coordinator keywords for journalling each record and node before its
+# ACK and logging rejected reports; the attributes resume and the liveness
+# checks read (a Coordinator deriving from firmware_logic.roster.Roster has
+# `nodes`); and RECORD in its coordinator module, the class journalled rows
+# (the TOUCH layout) are read back as. journal_release is optional: a
+# behaviour whose robots can withdraw a report takes it.
 HOST_KEYWORDS = ("journal", "cells", "journal_node", "on_reject")
-HOST_ATTRIBUTES = ("carriers", "restore", "step", "leader_done", "nodes")
+HOST_ATTRIBUTES = ("carriers", "restore", "nodes")
+OPTIONAL_KEYWORDS = ("journal_release",)
 
 
 def host_behaviour(name: str | None, sc: Any = None) -> registry.Behaviour:
@@ -91,6 +96,11 @@ def host_behaviour(name: str | None, sc: Any = None) -> registry.Behaviour:
         raise UsageError(f"host: {err}") from None
     params = inspect.signature(b.package.make_coordinator).parameters
     missing = [k for k in HOST_KEYWORDS if k not in params]
+    try:
+        if not hasattr(importlib.import_module(b.module_name + ".coordinator"), "RECORD"):
+            missing.append("RECORD (in coordinator.py)")
+    except ImportError:
+        missing.append("a coordinator module")
     if not missing and sc is not None:
         coord = b.coordinator(sc, journal=None, cells=None, journal_node=None, on_reject=None)
         missing = [a for a in HOST_ATTRIBUTES if not hasattr(coord, a)]
@@ -109,12 +119,14 @@ class HostProcess:
                  on_event: Callable[[str], None] | None = None,
                  world_size: int | None = None,
                  cells: list[tuple[int, int]] | None = None,
-                 behaviour: str | None = None) -> None:
+                 behaviour: str | None = None, scenario: Any = None) -> None:
         """world_size: the arena's half width in patches (None: what a byte
         carries); cells: the object's cells when the host knows them (a
         simulated swarm), else a touch need only be plausible. behaviour: a
         name or folder (default thesis) whose coordinator the host runs; it
-        must pass host_behaviour()."""
+        must pass host_behaviour(). scenario: the whole scenario, for a
+        behaviour whose coordinator needs more than the arena and the weight
+        (aggregation: the swarm's size and quorum)."""
         self.transport = transport
         self.journal = journal
         self.tick_seconds = tick_seconds
@@ -123,12 +135,16 @@ class HostProcess:
         self.rejects_logged: set[str] = set()
         # the host knows the arena and the object's weight, not a whole scenario
         # (the robots may be real): the coordinator's view of one
-        sc = SimpleNamespace(weight_centi=weight, homeX=home_x, homeY=home_y,
-                             worldSize=world_size)
+        sc = scenario if scenario is not None else SimpleNamespace(
+            weight_centi=weight, homeX=home_x, homeY=home_y, worldSize=world_size)
         self.behaviour = host_behaviour(behaviour, sc)
+        if journal is not None:
+            journal.bind(str(behaviour or "thesis"))    # JournalError: another behaviour's
+        params = inspect.signature(self.behaviour.package.make_coordinator).parameters
+        extra = {k: getattr(self, "_" + k) for k in OPTIONAL_KEYWORDS if k in params}
         self.coord = self.behaviour.coordinator(sc, journal=self._journal_touch, cells=cells,
                                                 journal_node=self._journal_node,
-                                                on_reject=self._rejected)
+                                                on_reject=self._rejected, **extra)
         self.tick = 0
         self.halts_sent = 0
         self.resumed = 0
@@ -169,7 +185,8 @@ class HostProcess:
             return (f"delivered at tick {c.delivered_tick}, HALT sent "
                     f"{self.halts_sent}/{HALT_REPEATS}")
         if c.converged_tick >= 0:
-            return f"transport step {c.step} (leader done {c.leader_done})"
+            return (f"transport step {getattr(c, 'step', 0)} "
+                    f"(leader done {getattr(c, 'leader_done', 0)})")
         return "collecting touches"
 
     def _journal_touch(self, t: Touch) -> None:
@@ -178,6 +195,12 @@ class HostProcess:
         self._event(f"tick {self.tick}: touch from robot {t.node} seq {t.seq} at "
                     f"({t.rx},{t.ry}) segment ({t.sx},{t.sy}); power "
                     f"{self.coord.power + t.power}/{self.coord.weight}")
+
+    def _journal_release(self, node: int, seq: int, tick: int) -> None:
+        # called by the coordinator when a robot withdraws its report
+        if self.journal is not None:
+            self.journal.release(node, seq, self.tick)
+        self._event(f"tick {self.tick}: robot {node} withdrew its report seq {seq}")
 
     def _journal_node(self, node: int, model: int, power: int) -> None:
         # called by the coordinator for a valid HELLO of a new node, before its ACK
@@ -218,7 +241,7 @@ class HostProcess:
         """One host tick: decide, journal the decision, then send the commands."""
         self.tick += 1
         c = self.coord
-        converged, step, delivered = c.converged_tick, c.step, c.delivered_tick
+        converged, step, delivered = c.converged_tick, getattr(c, "step", 0), c.delivered_tick
         out = c.tick(self.tick)
         if c.delivered_tick >= 0 and delivered >= 0 and self.halts_sent < HALT_REPEATS:
             out.append((msg.HOST, msg.HALT, (0,)))          # a repeat: HALT is not ACKed
@@ -227,7 +250,7 @@ class HostProcess:
             kind = "delivered"
         elif c.converged_tick != converged:
             kind = "converged"
-        elif c.step != step:
+        elif getattr(c, "step", 0) != step:
             kind = "step"
         elif halts:
             kind = "halt"
@@ -327,7 +350,7 @@ class HostProcess:
             "converged_tick": c.converged_tick if c.converged_tick >= 0 else None,
             "home_tick": c.delivered_tick if c.delivered_tick >= 0 else None,
             "delivered": c.delivered_tick >= 0,
-            "transport_step": c.step,
+            "transport_step": getattr(c, "step", 0),
             "gave_up": self.gave_up,
             "gave_up_on": self.gave_up_on,
             "messages": self.messages,

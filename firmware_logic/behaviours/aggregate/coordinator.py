@@ -7,13 +7,21 @@ link and the host process drive it unchanged.
 """
 
 from firmware_logic import messages as msg
-from firmware_logic.behaviours.aggregate.spec import LEAVE, STAY
+from firmware_logic.behaviours.aggregate.spec import LEAVE, MODELS, STAY
+from firmware_logic.roster import Roster
 
 SUBSET_SETUP = ("Stop", "Coordinator")
 
+UNANNOUNCED_STOP = "stop from unannounced node"
+UNANNOUNCED_REPORT = "report from unannounced node"
+STOP_OUT_OF_RANGE = "stop outside the arena"
+
 
 class Stop:
-    def __init__(self, node, seq, rx, ry, sx, sy, power, tick):
+    """A stop as the host journals it: the TOUCH row layout (node, seq, robot
+    patch, touched patch, power, tick; mx, my always 0: nothing is carried)."""
+
+    def __init__(self, node, seq, rx, ry, sx, sy, power, tick, mx=0, my=0):
         self.node = node
         self.seq = seq
         self.rx = rx
@@ -22,14 +30,34 @@ class Stop:
         self.sy = sy
         self.power = power
         self.tick = tick
+        self.mx = mx
+        self.my = my
+
+    def as_tuple(self):
+        return (self.node, self.seq, self.rx, self.ry, self.sx, self.sy,
+                self.power, self.tick)
 
 
-class Coordinator:
-    def __init__(self, robots, quorum_percent, journal=None):
+# a journalled record of this behaviour (bridge/host/journal.py reads rows back as these)
+RECORD = Stop
+
+
+class Coordinator(Roster):
+    def __init__(self, robots, quorum_percent, journal=None, journal_node=None,
+                 on_reject=None, world_size=None, journal_release=None):
+        """journal: callable(stop) for every new stop, called BEFORE its ACK;
+        journal_release: callable(node, seq, tick) when a stop is withdrawn
+        (the robot left), so a resumed host does not count it again;
+        journal_node, on_reject: see firmware_logic/roster.py."""
+        codes = []
+        for m in MODELS:
+            codes.append(m[0])
+        Roster.__init__(self, tuple(codes), journal_node, on_reject)
         self.robots = robots
         self.need = (robots * quorum_percent + 99) // 100
         self.journal = journal
-        self.nodes = {}
+        self.journal_release = journal_release
+        self.world_size = 127 if world_size is None else world_size
         self.touches = []         # one Stop per stopped robot, in order
         self.stopped = {}         # node -> Stop
         self.power = 0
@@ -39,50 +67,66 @@ class Coordinator:
         self.converged_tick = -1
         self.delivered_tick = -1
         self.duplicates = 0
-        self.rejected = {}
         self.outbox = []
 
     def on_message(self, node, kind, f, tick):
         if kind == msg.HELLO:
-            self.nodes[node] = (f[0], f[1])
-            self.outbox.append((node, msg.ACK, (0,)))
+            self._hello(node, f)
+        elif node not in self.nodes:
+            self._reject(UNANNOUNCED_STOP if kind == msg.TOUCH else UNANNOUNCED_REPORT,
+                         node, f)
         elif kind == msg.TOUCH:
-            if node not in self.nodes:
-                self.rejected["stop from unannounced node"] = \
-                    self.rejected.get("stop from unannounced node", 0) + 1
-                return
             old = self.stopped.get(node)
             if old is not None and old.seq == f[0]:
                 self.duplicates += 1
+            elif self._invalid(f):
+                self._reject(STOP_OUT_OF_RANGE, node, f)
+                return
             else:
+                self._leave(node, tick)      # a new stop withdraws the old one first
                 s = Stop(node, f[0], f[1], f[2], f[3], f[4], f[5], tick)
                 if self.journal is not None:
                     self.journal(s)
-                self._leave(node)
                 self.stopped[node] = s
                 self.touches.append(s)
                 self.power = len(self.touches)
                 if self.found_tick < 0:
                     self.found_tick = tick
                     self.leader = node
-            self.outbox.append((node, msg.ACK, (f[0],)))
+            self._ack(node, f[0])
         elif kind == LEAVE:
             # only the stop it reported: a stale LEAVE cannot undo a newer stop
             if node in self.stopped and self.stopped[node].seq == f[0]:
-                self._leave(node)
+                self._leave(node, tick)
         elif kind == msg.HEARTBEAT:
             if node in self.stopped and f[0] != STAY:
-                self._leave(node)
+                self._leave(node, tick)
 
-    def _leave(self, node):
+    def _invalid(self, f):
+        w = self.world_size
+        for v in (f[1], f[2], f[3], f[4]):
+            if v < -w or v > w:
+                return True
+        return False
+
+    def _leave(self, node, tick):
         if node in self.stopped:
-            s = self.stopped.pop(node)
+            s = self.stopped[node]
+            if self.journal_release is not None:
+                self.journal_release(node, s.seq, tick)
+            del self.stopped[node]
             self.touches.remove(s)
             self.power = len(self.touches)
 
     def restore(self, stops):
+        """Re-adopt stops recovered from a journal (no ACKs are sent); a stop of
+        a node the journal never announced, or outside the arena, is refused."""
         for s in stops:
-            if s.node not in self.stopped:
+            if s.node not in self.nodes:
+                self._reject(UNANNOUNCED_STOP, s.node, s.as_tuple())
+            elif self._invalid(s.as_tuple()[1:]):
+                self._reject(STOP_OUT_OF_RANGE, s.node, s.as_tuple())
+            elif s.node not in self.stopped:
                 self.stopped[s.node] = s
                 self.touches.append(s)
         self.power = len(self.touches)
@@ -90,12 +134,19 @@ class Coordinator:
     def segments_now(self):
         return []
 
+    def carriers(self):
+        """Robots the mission cannot go on without: none (a stopped robot that
+        falls silent still counts towards the quorum)."""
+        return []
+
     def quiet(self):
         """True when tick() without a new message would neither send nor change
         anything (a batch engine then skips the call)."""
-        return not self.outbox and (self.delivered_tick >= 0 or len(self.touches) < self.need)
+        return not self.outbox and not self.acks and (
+            self.delivered_tick >= 0 or len(self.touches) < self.need)
 
     def tick(self, tick):
+        self._acks_out(self.outbox)
         if self.delivered_tick < 0 and len(self.touches) >= self.need:
             self.converged_tick = tick
             self.delivered_tick = tick

@@ -16,6 +16,7 @@ reason, passed to `on_reject` (the host process logs it) and not ACKed.
 """
 
 from firmware_logic import messages as msg
+from firmware_logic.roster import BAD_HELLO, CHANGED_HELLO, Roster  # noqa: F401 (re-exported)
 
 RESEND_AFTER = 4   # ticks without progress before a command is sent again
 # host-side logic: portable, but allowed to allocate
@@ -32,8 +33,6 @@ NOT_OBJECT = "segment not on the object"
 AT_HOME = "segment at home"
 WRONG_POWER = "power differs from HELLO"
 SECOND_TOUCH = "second touch from node"
-BAD_HELLO = "hello out of range"
-CHANGED_HELLO = "hello changes model or power"
 MODELS = (1, 2)
 
 # a patch coordinate travels in one signed byte: the arena of a host that was
@@ -67,7 +66,11 @@ class Touch:
                 self.sx + self.mx, self.sy + self.my, self.power)
 
 
-class Coordinator:
+# a journalled record of this behaviour (bridge/host/journal.py reads rows back as these)
+RECORD = Touch
+
+
+class Coordinator(Roster):
     def __init__(self, weight, home_x=-15, home_y=-15, home_radius=4, journal=None,
                  world_size=None, cells=None, journal_node=None, on_reject=None):
         """weight: the object's weight in hundredths (objectWeight * 100).
@@ -80,29 +83,25 @@ class Coordinator:
         what a byte carries). cells: the object's cells where it starts, when
         the host knows them (a simulation); None: any cell is plausible.
         """
+        Roster.__init__(self, MODELS, journal_node, on_reject)
         self.weight = weight
         self.home_x = home_x
         self.home_y = home_y
         self.home_r2 = home_radius * home_radius
         self.journal = journal
-        self.journal_node = journal_node
-        self.on_reject = on_reject
         self.world_size = BYTE_ARENA if world_size is None else world_size
         self.cells = None if cells is None else frozenset(cells)
-        self.nodes = {}          # node -> (model, power)
         self.touches = []        # accepted, in order of acceptance
         # node -> its accepted Touch: one touch per node per object (a robot
         # never releases the object), so the node identifies the touch and a
         # retransmission is the same report again
         self.by_node = {}
-        self.acks = {}           # node -> seq of the one ACK it gets this tick
         self.power = 0
         self.leader = 0
         self.found_tick = -1
         self.converged_tick = -1
         self.delivered_tick = -1
         self.duplicates = 0
-        self.rejected = {}       # reason -> count
         self.outbox = []
         # transport
         self.step = 0
@@ -153,24 +152,6 @@ class Coordinator:
                 self.moved_y = self.leader_y - lead.ry
         else:
             self._reject("unexpected kind %d from a robot" % kind, node, f)
-
-    def _hello(self, node, f):
-        model, power = f[0], f[1]
-        known = self.nodes.get(node)
-        if known is None:
-            if model not in MODELS or power < 1:
-                self._reject(BAD_HELLO, node, f)
-                return
-            if self.journal_node is not None:
-                self.journal_node(node, model, power)
-            self.nodes[node] = (model, power)
-        elif known != (model, power):
-            # a robot's model and power do not change while it runs; taking
-            # the new values would re-weigh its touch, and the journal (which
-            # holds the first HELLO) and memory would disagree after a resume
-            self._reject(CHANGED_HELLO, node, f)
-            return
-        self._ack(node, 0)
 
     def _touch(self, node, f, tick):
         t = self.by_node.get(node)
@@ -235,19 +216,6 @@ class Coordinator:
             self.leader_x = t.rx
             self.leader_y = t.ry
 
-    def _reject(self, reason, node=0, f=()):
-        self.rejected[reason] = self.rejected.get(reason, 0) + 1
-        if self.on_reject is not None:
-            self.on_reject(reason, node, f)
-
-    def _ack(self, node, seq):
-        # at most one ACK per node per tick, however many frames it (or a
-        # forger using its id) sent: the host must not amplify a flood. A
-        # touch's ACK wins over the HELLO's: the robot takes any ACK as the
-        # HELLO's too (a touch is only accepted from an announced node).
-        if seq or node not in self.acks:
-            self.acks[node] = seq
-
     def _send(self, node, kind, fields):
         self.outbox.append((node, kind, fields))
 
@@ -279,10 +247,7 @@ class Coordinator:
 
     def tick(self, tick):
         """Advance the centralised phase; return and clear the commands to send."""
-        if self.acks:
-            for node, seq in self.acks.items():
-                self.outbox.append((node, msg.ACK, (seq,)))
-            self.acks = {}
+        self._acks_out(self.outbox)
         if self.delivered_tick >= 0:
             if not self.halted:
                 self.halted = 1

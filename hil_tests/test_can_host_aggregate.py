@@ -1,0 +1,49 @@
+"""Aggregation in two processes: `touchswarm robots --behaviour aggregate`
+behind an SLCAN face on a pty and `touchswarm host --behaviour aggregate` on
+it, the host SIGKILLed after its journal holds stops and restarted with
+--resume; the swarm halts at the quorum with each stop counted once."""
+
+import json
+import os
+import signal
+import subprocess
+
+from hil_tests.test_can_host_restart import EXE, lines_of, stop_all, wait_for
+
+SC = ["--scenario", "default", "--behaviour", "aggregate", "--set", "quorum=80",
+      "--seed", "4", "--set", "maxTicks=20000"]
+
+
+def test_aggregate_host_sigkill_and_resume_over_slcan_pty(tmp_path):
+    adapter = tmp_path / "adapter"
+    journal = tmp_path / "host.sqlite"
+    robots = subprocess.Popen([EXE, "robots", "--bus", f"slcan-pty://{adapter}", *SC,
+                               "--tick-ms", "4", "--linger-ms", "1500", "--json"],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    procs = [robots]
+    try:
+        wait_for(lines_of(robots.stderr), lambda s: "robots on" in s[-1], 20)
+        bus = f"slcan://{adapter}?settle_ms=0"
+        host = subprocess.Popen([EXE, "host", "--bus", bus, *SC, "--journal", str(journal),
+                                 "--tick-ms", "4", "--json"],
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        procs.append(host)
+        # each "touch from robot" line follows the stop's journal write
+        wait_for(lines_of(host.stderr), lambda s: sum("touch from robot" in x for x in s) >= 3)
+        os.kill(host.pid, signal.SIGKILL)
+        host.wait(10)
+        again = subprocess.Popen([EXE, "host", "--bus", bus, *SC, "--resume", str(journal),
+                                  "--tick-ms", "4", "--json"],
+                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        procs.append(again)
+        out, err = again.communicate(timeout=120)
+        assert again.returncode == 0, err
+        h = json.loads(out.strip().splitlines()[-1])
+        rout, _ = robots.communicate(timeout=60)
+        r = json.loads(rout.strip().splitlines()[-1])
+    finally:
+        stop_all(procs)
+    assert "resumed" in err and h["resumed"] >= 1
+    assert h["delivered"] and r["halted"]
+    nodes = [t[0] for t in h["touches"]]
+    assert len(nodes) == len(set(nodes)) and len(nodes) >= 16     # 80 % of 20, once each
