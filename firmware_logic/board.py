@@ -232,11 +232,14 @@ def make_robot(robot_class, spec, node, seed, model, span, defiance, power):
 
 
 def run(port, node, seed, model, span, defiance, power, max_ticks, linger,
-        robot_class=None, spec=None):
+        robot_class=None, spec=None, guard=None):
     """The robot's main loop: step the FSM, let the body apply the tick,
     until `max_ticks` ticks (0: forever) or `linger` ticks after HALT.
     Returns the HAL (its counters), with the robot as `hal.robot`.
-    robot_class, spec: the behaviour's (default: the thesis's)."""
+    robot_class, spec: the behaviour's (default: the thesis's).
+    guard: a heap check (bridge/serial/board_main.py HeapGuard): after
+    guard.warmup ticks, guard.tick(robot, hal) runs each whole tick under
+    heap_lock() and counts the ticks that tried to allocate."""
     if robot_class is None:
         from firmware_logic.behaviours.thesis import robot as thesis_robot
         from firmware_logic.behaviours.thesis import spec as thesis_spec
@@ -247,8 +250,11 @@ def run(port, node, seed, model, span, defiance, power, max_ticks, linger,
     hal.robot = robot
     after = 0
     while max_ticks == 0 or hal.tick < max_ticks:
-        robot.step(hal)
-        hal.end_tick()
+        if guard is not None and hal.tick >= guard.warmup:
+            guard.tick(robot, hal)
+        else:
+            robot.step(hal)
+            hal.end_tick()
         if robot.state == halt:
             after += 1
             if after > linger:

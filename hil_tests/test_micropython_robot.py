@@ -46,9 +46,9 @@ def mission_engine() -> Engine:
     return eng
 
 
-def deploy_and_start(dev: PtyRelay, max_ticks: int = 3000) -> None:
+def deploy_and_start(dev: PtyRelay, max_ticks: int = 3000, **extra: int) -> None:
     Deployer(dev.path).deploy({"NODE": 1, "SEED": SEED, "MODEL": 1, "MAX_TICKS": max_ticks,
-                               "LINGER": 2})
+                               "LINGER": 2, **extra})
     Deployer(dev.path).start()
 
 
@@ -185,6 +185,30 @@ def test_micropython_robot_touches_and_host_journals_it(micropython_device: PtyR
         m.close()
     check_outcome(m, robot)
     assert m.engine.world.owner[m.engine.world.idx(m.journal[0].sx, m.journal[0].sy)] == 1
+
+
+def test_the_whole_board_tick_allocates_nothing_under_heap_lock(
+        micropython_device: PtyRelay) -> None:
+    """Not only the FSM: the board's tick (TetherHal framing, the serial port
+    wrapper, sensing round trips, the touch report, its ACK) runs under
+    micropython.heap_lock() after a 20-tick warm-up (HEAP_CHECK), through
+    the touch, its journalling and its ACK; not one tick tries to allocate."""
+    deploy_and_start(micropython_device, HEAP_CHECK=20)
+    fault = micropython_device.flash / "heap_fault.txt"    # type: ignore[attr-defined]
+    m = Mission(micropython_device)
+    try:
+        m.run(lambda m: acked(m) or fault.exists(), limit_s=30)
+        assert not fault.exists(), fault.read_text()       # where a tick allocated
+        robot = m.halt_and_inspect()
+    finally:
+        m.close()
+    out = Deployer(micropython_device.path).exec(
+        "import main; g = main.LAST['guard']; print('checked', g.checked); "
+        "print('faults', g.faults)")
+    heap = {k: int(v) for k, v in re.findall(r"^(checked|faults) (-?\d+)\s*$", out, re.M)}
+    assert heap["faults"] == 0, out
+    check_outcome(m, robot)
+    assert heap["checked"] > 80 and heap["checked"] == robot["ticks"] - 20, (heap, robot)
 
 
 def test_micropython_robot_survives_garbage_truncation_and_a_vanishing_port(

@@ -6,7 +6,8 @@ import argparse
 
 from bridge.errors import UsageError
 
-CONFIG_KEYS = ("NODE", "SEED", "MODEL", "SPAN", "DEFIANCE", "POWER", "MAX_TICKS", "LINGER")
+CONFIG_KEYS = ("NODE", "SEED", "MODEL", "SPAN", "DEFIANCE", "POWER", "MAX_TICKS", "LINGER",
+               "HEAP_CHECK")
 
 
 def register(sub) -> None:
