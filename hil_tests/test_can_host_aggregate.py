@@ -8,6 +8,7 @@ import os
 import signal
 import subprocess
 
+from bridge.host.journal import Journal
 from hil_tests.test_can_host_restart import EXE, lines_of, stop_all, wait_for
 
 SC = ["--scenario", "default", "--behaviour", "aggregate", "--set", "quorum=80",
@@ -22,28 +23,30 @@ def test_aggregate_host_sigkill_and_resume_over_slcan_pty(tmp_path):
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     procs = [robots]
     try:
-        wait_for(lines_of(robots.stderr), lambda s: "robots on" in s[-1], 20)
+        wait_for(lines_of(robots.stderr), lambda s: "robots on" in s[-1], 60)
         bus = f"slcan://{adapter}?settle_ms=0"
         host = subprocess.Popen([EXE, "host", "--bus", bus, *SC, "--journal", str(journal),
                                  "--tick-ms", "4", "--json"],
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         procs.append(host)
         # each "touch from robot" line follows the stop's journal write
-        wait_for(lines_of(host.stderr), lambda s: sum("touch from robot" in x for x in s) >= 3)
+        wait_for(lines_of(host.stderr), lambda s: sum("touch from robot" in x for x in s) >= 3, 120)
         os.kill(host.pid, signal.SIGKILL)
         host.wait(10)
+        with Journal(journal) as j:       # what a resumed host must start from
+            held = len(j.touches())
         again = subprocess.Popen([EXE, "host", "--bus", bus, *SC, "--resume", str(journal),
                                   "--tick-ms", "4", "--json"],
                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         procs.append(again)
-        out, err = again.communicate(timeout=120)
+        out, err = again.communicate(timeout=300)
         assert again.returncode == 0, err
         h = json.loads(out.strip().splitlines()[-1])
-        rout, _ = robots.communicate(timeout=60)
+        rout, _ = robots.communicate(timeout=120)
         r = json.loads(rout.strip().splitlines()[-1])
     finally:
         stop_all(procs)
-    assert "resumed" in err and h["resumed"] >= 1
+    assert f"resumed {held} touches" in err and h["resumed"] == held
     assert h["delivered"] and r["halted"]
     nodes = [t[0] for t in h["touches"]]
     assert len(nodes) == len(set(nodes)) and len(nodes) >= 16     # 80 % of 20, once each
