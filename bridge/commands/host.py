@@ -138,7 +138,8 @@ def cmd_host(args: argparse.Namespace) -> int:
             # the host knows the arena, not the object: the robots may be real
             host = HostProcess(transport, sc.weight_centi, sc.homeX, sc.homeY, journal=journal,
                                tick_seconds=args.tick_ms / 1000.0, on_event=event,
-                               world_size=sc.worldSize, behaviour=sc.behaviour)
+                               world_size=sc.worldSize, behaviour=sc.behaviour,
+                               arrival=sc.arrival)
             if args.resume is not None:
                 assert journal is not None      # journal_path defaults to the resumed one
                 try:

@@ -32,6 +32,7 @@ from bridge.host.journal import Journal
 from bridge.transport import RobotTransport
 from firmware_logic import messages as msg
 from firmware_logic import registry
+from sim_backend.scenario import CHOICES
 
 # A coordinator is any behaviour's (registry); these aliases only document
 # what the host handles: the thesis's Coordinator and its Touch records.
@@ -109,12 +110,13 @@ class HostProcess:
                  on_event: Callable[[str], None] | None = None,
                  world_size: int | None = None,
                  cells: list[tuple[int, int]] | None = None,
-                 behaviour: str | None = None) -> None:
+                 behaviour: str | None = None, arrival: str = CHOICES["arrival"][0]) -> None:
         """world_size: the arena's half width in patches (None: what a byte
         carries); cells: the object's cells when the host knows them (a
         simulated swarm), else a touch need only be plausible. behaviour: a
         name or folder (default thesis) whose coordinator the host runs; it
-        must pass host_behaviour()."""
+        must pass host_behaviour(). arrival: the scenario's arrival rule
+        (sim_backend/scenario.py CHOICES), which the host's coordinator applies."""
         self.transport = transport
         self.journal = journal
         self.tick_seconds = tick_seconds
@@ -124,7 +126,7 @@ class HostProcess:
         # the host knows the arena and the object's weight, not a whole scenario
         # (the robots may be real): the coordinator's view of one
         sc = SimpleNamespace(weight_centi=weight, homeX=home_x, homeY=home_y,
-                             worldSize=world_size)
+                             worldSize=world_size, arrival=arrival)
         self.behaviour = host_behaviour(behaviour, sc)
         self.coord = self.behaviour.coordinator(sc, journal=self._journal_touch, cells=cells,
                                                 journal_node=self._journal_node,

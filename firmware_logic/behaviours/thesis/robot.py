@@ -30,8 +30,12 @@ HEARTBEAT_EVERY = 64
 
 
 class Robot:
-    def __init__(self, node, seed, model, vision_span, field_defiance, power):
+    def __init__(self, node, seed, model, vision_span, field_defiance, power, leader_field=0):
         self.node = node
+        # 1: a leader (found the object from outside any field) lights its
+        # beacon as beacon(2), and the world pins its patch's field to 10
+        # every tick (Appendix A go's `set field 10`; scenario leaderField)
+        self.leader_field = leader_field
         self.model = model
         self.span = vision_span
         self.defiance = field_defiance
@@ -42,7 +46,7 @@ class Robot:
         self.state = SEARCH
         self.resume = SEARCH          # where to go back to if a grasp fails
         self.phase = 0                # position in the in-field cycle
-        self.first = 0                # found the object from outside any field
+        self.first = 0                # touched the object from outside any field
         self.claim_heading = 0
         self.ticks = 0
         # touch report and its retransmission
@@ -114,7 +118,10 @@ class Robot:
             self.phase = 0
             return
         self.state = HOLD
-        hal.beacon(1)
+        if self.leader_field and self.first:
+            hal.beacon(2)
+        else:
+            hal.beacon(1)
         x = hal.x()
         y = hal.y()
         self.rx = fx.patch(x)
@@ -160,8 +167,9 @@ class Robot:
         self.heading = h
         self.claim_heading = h
         self.resume = self.state
-        if self.state == SEARCH:
-            self.first = 1
+        # go's `not foundField`: judged at this touch (a failed grasp from
+        # SEARCH and a later touch from FIELD make no leader)
+        self.first = 1 if self.state == SEARCH else 0
         self.state = GRASP
         return 1
 
