@@ -21,7 +21,7 @@ Layout of one run inside the arrays:
 """
 
 from firmware_logic import fixedpoint as fx
-from firmware_logic.hal import CLAIMED, NOTHING, OBJECT, ROBOT, WALL
+from firmware_logic.hal import BEACON_LEADER, CLAIMED, NOTHING, OBJECT, ROBOT, WALL
 
 FREE = 0
 YELLOW = 1   # a free object segment
@@ -200,7 +200,7 @@ def beacons(field, base, w, n, tdx, tdy, tv, t0, t1, xs, ys, lo, hi, beacon_set,
             beacon_on, bsx, bsy, sigmode, radius):
     """Beacons turned on or off this tick, then every leader's pinned patch.
 
-    beacon(1) lights a beacon, beacon(2) a leader's (it pins its patch to
+    BEACON_ON lights a beacon, BEACON_LEADER a leader's (it pins its patch to
     LEADER_FIELD every tick, Appendix A go's `set field 10`). ON_PATCH: each
     beacon turned on adds the Signal table centred on its robot's patch.
     LAST_FINDER: only the highest node turning on this tick signals (go
@@ -223,13 +223,13 @@ def beacons(field, base, w, n, tdx, tdy, tv, t0, t1, xs, ys, lo, hi, beacon_set,
                     signal_at(field, base, w, n, radius, bsx[i], bsy[i], -1)
             beacon_on[i] = 0
     for i in range(lo, hi):
-        if (beacon_on[i] & PINS) or (beacon_set[i] == 2 and beacon_on[i] == 0):
+        if (beacon_on[i] & PINS) or (beacon_set[i] == BEACON_LEADER and beacon_on[i] == 0):
             field[base + cell(w, n, fx.patch(xs[i]), fx.patch(ys[i]))] = LEADER_FIELD
     for i in range(lo, hi):
         b = beacon_set[i]
         if b < 1 or beacon_on[i] != 0:
             continue
-        pins = PINS if b == 2 else 0
+        pins = PINS if b == BEACON_LEADER else 0
         if sigmode == ON_PATCH:
             bsx[i] = fx.patch(xs[i])
             bsy[i] = fx.patch(ys[i])

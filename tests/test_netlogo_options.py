@@ -203,6 +203,13 @@ def test_netlogo_starts_walk_fd_random_max_pxcor_along_the_robots_own_heading():
 
 # -- engines --------------------------------------------------------------------------
 
+def test_the_netlogo_scenario_sets_every_option_to_the_thesis_rule():
+    from sim_backend import scenario
+    sc = scenario.load("netlogo")
+    assert departures(sc) == list(CHOICES)
+    assert all(getattr(sc, k) == "netlogo" for k in CHOICES)
+
+
 def test_options_are_named_and_bad_values_refused():
     assert departures(validate({})) == []
     assert departures(validate({"starts": "netlogo", "arrival": "netlogo"})) == ["arrival",

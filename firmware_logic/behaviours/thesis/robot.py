@@ -19,7 +19,8 @@ from firmware_logic.rng import Rng
 
 from firmware_logic.behaviours.thesis.spec import (ANT, CARRY, FIELD, FIREFLY,  # noqa: F401
                                                    GRASP, HALT, HOLD, SEARCH, STATES)
-from firmware_logic.hal import CLAIMED, NOTHING, OBJECT, ROBOT, WALL  # noqa: F401
+from firmware_logic.hal import (BEACON_LEADER, BEACON_ON, CLAIMED, NOTHING,  # noqa: F401
+                               OBJECT, ROBOT, WALL)
 
 STATE_NAMES = STATES
 
@@ -33,7 +34,7 @@ class Robot:
     def __init__(self, node, seed, model, vision_span, field_defiance, power, leader_field=0):
         self.node = node
         # 1: a leader (found the object from outside any field) lights its
-        # beacon as beacon(2), and the world pins its patch's field to 10
+        # beacon as BEACON_LEADER, and the world pins its patch's field to 10
         # every tick (Appendix A go's `set field 10`; scenario leaderField)
         self.leader_field = leader_field
         self.model = model
@@ -119,9 +120,9 @@ class Robot:
             return
         self.state = HOLD
         if self.leader_field and self.first:
-            hal.beacon(2)
+            hal.beacon(BEACON_LEADER)
         else:
-            hal.beacon(1)
+            hal.beacon(BEACON_ON)
         x = hal.x()
         y = hal.y()
         self.rx = fx.patch(x)
