@@ -11,11 +11,13 @@ MAX_FRAMES frames are kept, so a long run stays a small file.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import shutil
+import subprocess
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable, Iterator
 
 import matplotlib
 
@@ -105,7 +107,7 @@ class Animation:
         w = self.world
         colours = rd.state_colours(self.names)
         vmax = max(float(f.field.max()) for f in frames)
-        fig, ax = plt.subplots(figsize=FIGSIZE)
+        fig, ax = plt.subplots(figsize=FIGSIZE, dpi=DPI)
         img, objimg = rd.draw_base(ax, w, frames[0].field, vmax)
         trail = LineCollection([], linewidths=1.0, alpha=0.8)
         ax.add_collection(trail)
@@ -124,14 +126,17 @@ class Animation:
                            *rd.state_legend(self.names, colours)],
                   loc="upper left", fontsize=5, framealpha=0.7)
         fig.tight_layout()
+        # blitting: the axes' tick labels and the colour bar are drawn once;
+        # each frame redraws only the artists inside the axes (a full redraw
+        # lays out every text again and costs several times more)
+        dynamic = [*ax.images, *ax.collections, *ax.lines, *ax.patches, ax.get_legend(),
+                   title, *ax.spines.values()]
+        for a in dynamic:
+            a.set_animated(True)
+        fig.canvas.draw()
+        background = fig.canvas.copy_from_bbox(fig.bbox)
         labels: list[Any] = []
-        if fmt == "gif":
-            from matplotlib.animation import PillowWriter
-            writer = PillowWriter(fps=FPS)
-        else:
-            from matplotlib.animation import FFMpegWriter
-            writer = FFMpegWriter(fps=FPS)
-        with writer.saving(fig, str(path), DPI):
+        with _sink(fmt, path, fig.canvas.get_width_height()) as sink:
             for f in frames:
                 img.set_data(f.field)
                 objimg.set_data(rd.object_rgba(f.obj))
@@ -150,6 +155,35 @@ class Animation:
                 labels = rd.touch_labels(ax, f.touches, f.xs, f.ys)
                 title.set_text(f"tick {f.tick}: {len(f.touches)} touches, power {f.power:g}, "
                                f"shape IoU {f.iou:.2f}")
-                writer.grab_frame()
+                fig.canvas.restore_region(background)
+                for a in sorted(dynamic + labels, key=lambda a: a.get_zorder()):
+                    ax.draw_artist(a)
+                sink(np.asarray(fig.canvas.buffer_rgba())[..., :3])
         plt.close(fig)
         return len(frames)
+
+
+@contextlib.contextmanager
+def _sink(fmt: str, path: Path, size: tuple[int, int]) -> Iterator[Callable[[np.ndarray], None]]:
+    """A function taking RGB frames (h, w, 3) that end up in path as a GIF
+    (Pillow, one adaptive palette per frame) or an MP4 (ffmpeg, H.264)."""
+    if fmt == "gif":
+        from PIL import Image
+        images: list[Any] = []
+        yield lambda rgb: images.append(
+            Image.fromarray(rgb).convert("P", palette=Image.Palette.ADAPTIVE))
+        images[0].save(path, save_all=True, append_images=images[1:],
+                       duration=1000 // FPS, loop=0)
+        return
+    width, height = size
+    proc = subprocess.Popen(
+        [shutil.which("ffmpeg") or "ffmpeg", "-loglevel", "error", "-y", "-f", "rawvideo",
+         "-pix_fmt", "rgb24", "-s", f"{width}x{height}", "-r", str(FPS), "-i", "-",
+         "-pix_fmt", "yuv420p", "-vf", "pad=ceil(iw/2)*2:ceil(ih/2)*2", str(path)],
+        stdin=subprocess.PIPE)
+    try:
+        yield lambda rgb: proc.stdin.write(np.ascontiguousarray(rgb).tobytes())
+    finally:
+        proc.stdin.close()
+        if proc.wait() != 0:
+            raise OSError(f"ffmpeg failed writing {path} (exit status {proc.returncode})")

@@ -111,7 +111,7 @@ def render(result: RunResult, path: Path, trails: Any = None) -> Path:
     if trails is not None:
         xs, ys, states = trails.arrays()
         segs, cols = trail_segments(xs, ys, states, colours)
-        ax1.add_collection(LineCollection(segs, colors=cols, linewidths=0.6, alpha=0.6))
+        ax1.add_collection(LineCollection(segs, colors=cols, linewidths=0.4, alpha=0.5))
         ax1.plot(xs[0], ys[0], "o", mfc="none", mec="black", ms=5)
         centre = np.array(trails.centre)
         ax1.plot(centre[:, 0], centre[:, 1], "--", color="darkcyan", lw=2)
