@@ -16,8 +16,8 @@ from PIL import Image
 from bridge import cli
 from firmware_logic import registry
 from sim_backend import animate, observe, scenario
-from sim_backend.engine import Engine
-from sim_backend.trace import columns
+from sim_backend.engine import Engine, InprocLink
+from sim_backend.trace import Trace, columns
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "outputs.md"
 THESIS_COLUMNS = ["tick", "n_search", "n_field", "n_grasp", "n_hold", "n_carry", "n_halt",
@@ -158,3 +158,33 @@ def test_parquet_without_pyarrow_is_refused_before_the_run(tmp_path, monkeypatch
     assert rc == 2 and out == ""
     assert ".parquet needs pyarrow" in err and len(err.strip().splitlines()) == 1
     assert list(tmp_path.iterdir()) == []
+
+
+class NoisyLink(InprocLink):
+    """An in-process link whose host side refuses two frames in its 5th
+    exchange and one in its 9th, counted the way CanLink counts them."""
+
+    def __init__(self, nodes: list[int]) -> None:
+        super().__init__(nodes)
+        self.exchanges = 0
+        self.refused = {"wrong dlc": 0, "unknown id": 0}
+
+    def host_recv(self):
+        self.exchanges += 1
+        if self.exchanges == 5:
+            self.refused["wrong dlc"] += 2
+        if self.exchanges == 9:
+            self.refused["unknown id"] += 1
+        return super().host_recv()
+
+    def bad_frames(self) -> dict[str, int]:
+        return dict(self.refused)
+
+
+def test_bad_frames_are_counted_in_the_tick_they_arrive():
+    sc = scenario.load("default").replace(agents=5, maxTicks=12)
+    e = Engine(sc, 1, link=NoisyLink(list(range(1, 6))))
+    trace = Trace(e)
+    e.run()
+    bad = [row[trace.names.index("bad_frames")] for row in trace.rows]
+    assert bad == [0, 0, 0, 0, 2, 0, 0, 0, 1, 0, 0, 0]
