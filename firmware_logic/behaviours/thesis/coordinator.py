@@ -283,6 +283,10 @@ class Coordinator(Roster):
         elif tick - self.step_sent_tick >= RESEND_AFTER:
             self._command(tick)
 
+    def reporters(self):
+        """spec.REPORTERS by name, for the per-tick trace."""
+        return {"holders": len(self.carriers()), "home_d2": self._home_d2(0, 0)}
+
     def leader_touch(self):
         for t in self.touches:
             if t.node == self.leader:
