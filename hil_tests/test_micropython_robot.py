@@ -149,6 +149,12 @@ def test_deploy_command_prints_bytes_and_verifies(micropython_device: PtyRelay,
     assert int(m.group(2)) == len(MODULES) + 2   # + main.py and robot_config.py
     assert (flash / "robot_config.py").read_text() == "NODE = 4\n"
     assert out.count("verified") == len(MODULES) + 2
+    assert "kept" not in out
+    # a redeploy without --config keeps the old configuration, and says so
+    assert cli_main(["deploy", "--port", micropython_device.path]) == 0
+    out = capsys.readouterr().out
+    assert "kept the device's robot_config.py from an earlier deploy (NODE=4)" in out
+    assert (flash / "robot_config.py").read_text() == "NODE = 4\n"
 
 
 def test_deploy_refuses_a_device_with_another_mpy_version(micropython_device: PtyRelay,

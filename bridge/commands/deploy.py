@@ -99,6 +99,11 @@ def cmd_deploy(args: argparse.Namespace) -> int:
         print("%-34s %6d bytes  sha256 %s  verified" % (f.remote, f.size, f.sha256[:16]))
     print("deployed %d bytes in %d files to %s (.mpy v%s)"
           % (report.total_bytes, len(report.files), args.port, report.mpy_version))
+    if report.kept_config is not None:
+        kept = ", ".join(line.replace(" ", "") for line in report.kept_config.splitlines()
+                         if "=" in line)
+        print("kept the device's robot_config.py from an earlier deploy (%s); pass --config "
+              "KEY=N to replace it" % (kept or "empty"))
     if args.start:
         d.start()
         print("firmware started")

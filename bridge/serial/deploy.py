@@ -80,6 +80,9 @@ class DeployReport:
     port: str
     mpy_version: str
     files: list[DeployedFile] = field(default_factory=list)
+    # a deploy without config leaves the device's robot_config.py in place:
+    # its text, so the caller can say which configuration the robot keeps
+    kept_config: str | None = None
 
     @property
     def total_bytes(self) -> int:
@@ -229,12 +232,23 @@ class Deployer:
                 files.append((cfg, "robot_config.py"))
             self._copy(files)
             report = DeployReport(self.port, "%d.%d" % have)
+            if not config:
+                report.kept_config = self._device_config()
             for local, remote in files:
                 data = local.read_bytes()
                 report.files.append(DeployedFile(remote, len(data),
                                                  hashlib.sha256(data).hexdigest()))
         self.verify(report)
         return report
+
+    def _device_config(self) -> str | None:
+        """The robot_config.py on the device, or None when there is none."""
+        try:
+            return self._mpremote("fs", "cat", ":robot_config.py")
+        except DeployError as err:
+            if "no such file" in str(err).lower() or "enoent" in str(err).lower():
+                return None
+            raise
 
     def _copy(self, files: list[tuple[Path, str]]) -> None:
         # one mkdir per package folder, then one cp per folder (a few round trips)
