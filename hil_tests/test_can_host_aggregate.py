@@ -28,8 +28,8 @@ def test_aggregate_host_sigkill_and_resume_over_slcan_pty(tmp_path):
                                  "--tick-ms", "4", "--json"],
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         procs.append(host)
-        # each "touch from robot" line follows the stop's journal write
-        wait_for(lines_of(host.stderr), lambda s: sum("touch from robot" in x for x in s) >= 3)
+        # each "TOUCH from robot" line follows the stop's journal write
+        wait_for(lines_of(host.stderr), lambda s: sum("TOUCH from robot" in x for x in s) >= 3)
         os.kill(host.pid, signal.SIGKILL)
         host.wait(10)
         again = subprocess.Popen([EXE, "host", "--bus", bus, *SC, "--resume", str(journal),

@@ -154,7 +154,7 @@ def cmd_host(args: argparse.Namespace) -> int:
                                    node_timeout=args.node_timeout or None,
                                    bus_timeout=args.bus_timeout or None)
             except LinkError as err:
-                if not host.coord.delivered_tick >= 0:
+                if not host.coord.done():
                     raise
                 event(f"bus closed after delivery ({err})")
                 summary = host.summary()

@@ -10,15 +10,15 @@ def robot_args(node, seed, sc):
     return (node, seed, sc.model, sc.robotVisionSpan, sc.fieldDefiance, sc.power_centi)
 
 
-def make_coordinator(sc, journal=None, cells=None, journal_node=None, on_reject=None):
+def make_coordinator(sc, journal=None, cells=None, on_reject=None):
     """The host coordinator of a mission in scenario `sc`.
 
     cells: the object's cells where it starts, when the host knows them (a
     simulation: `World(sc, seed).object_cells`); a TOUCH of any other cell is
     then rejected. Without them a touch need only be plausible (in the arena,
-    next to the robot, not at home). journal_node, on_reject: see Coordinator.
+    next to the robot, not at home). journal, on_reject: the host contract
+    (firmware_logic/roster.py).
     """
     from firmware_logic.behaviours.thesis.coordinator import Coordinator
     return Coordinator(sc.weight_centi, sc.homeX, sc.homeY, journal=journal,
-                       world_size=sc.worldSize, cells=cells, journal_node=journal_node,
-                       on_reject=on_reject)
+                       world_size=sc.worldSize, cells=cells, on_reject=on_reject)
