@@ -1,21 +1,26 @@
-"""The host controller process: coordinator + transport + journal.
+"""The host controller process: any behaviour's coordinator + transport + journal.
 
-One host tick every `tick_seconds` of wall time: frames that arrived since
-the last tick are handed to the coordinator as they come (a TOUCH is
-journalled before its ACK is queued; a HELLO's node before its ACK), and at
-the tick the coordinator's commands go out. Frames from nodes that never
-announced themselves with HELLO (and are not in a resumed journal) are
-counted as bad frames and never reach the coordinator.
+It knows no behaviour's rules, only the host contract
+(firmware_logic/roster.py). One host tick every `tick_seconds` of wall
+time: frames that arrived since the last tick are handed to the coordinator
+as they come (each report it accepts is journalled, through its `journal`
+callback, before its ACK is queued), and at the tick the coordinator's
+commands go out. Frames from nodes that never announced themselves with
+HELLO (and are not in a resumed journal) are counted as bad frames and never
+reach the coordinator.
 
-Every decision the host acts on (convergence, each transport step, delivery,
-each HALT) is journalled with a snapshot of the state it leads to BEFORE its
-command is sent; `resume` restores the last snapshot, so a host killed at any
-moment goes on where it stopped: it never plans a step twice, never starts
-the transport again after delivery.
+Every decision the host acts on (the coordinator's `decision`: for the
+thesis convergence, each transport step, delivery, each HALT) is journalled
+with a snapshot of the state it leads to BEFORE its command is sent; `resume`
+replays the journal's reports into a fresh coordinator and adopts each
+snapshot at its place, so a host killed at any moment goes on where it
+stopped: it never makes a decision twice (a transport step, the start of the
+transport after delivery).
 
 Liveness: `run` gives up when no robot has been heard for `bus_timeout`
-seconds, or a carrier (a robot whose touch was accepted: the object cannot
-move without it) for `node_timeout` seconds; the summary then says why.
+seconds, or one of the coordinator's `carriers()` (the thesis: a robot whose
+touch was accepted, the object cannot move without it) for `node_timeout`
+seconds; the summary then says why.
 """
 
 from __future__ import annotations
