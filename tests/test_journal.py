@@ -137,20 +137,21 @@ def test_resume_replays_reports_and_decisions_in_their_order(tmp_path):
         c = h.coord
         assert c.step == 1 and c.converged_tick == h.tick
         dx, dy = c.dx, c.dy
-        # the leader moved the object one step and says so
-        h.handle([(4, msg.HEARTBEAT, (4, (2 + dx) * 256, (2 + dy) * 256, 0, 1))])
-        h.step()
-        late = (1, 3 + dx, 3 + dy, 4 + dx, 3 + dy, 100)      # touched after the move
-        h.handle([(5, msg.TOUCH, late)])
+        # the leader moved the object one step and says so; robot 5 touches
+        # the moved object before the host's next tick (no decision between)
+        late = (1, 3 + dx, 3 + dy, 4 + dx, 3 + dy, 100)
+        h.handle([(4, msg.HEARTBEAT, (4, (2 + dx) * 256, (2 + dy) * 256, 0, 1)),
+                  (5, msg.TOUCH, late)])
         h.step()
         assert (c.moved_x, c.moved_y) == (dx, dy) and len(c.touches) == 2
-        state = c.snapshot()
+        state, segments = c.snapshot(), sorted(c.segments_now())
+        assert (4 + dx, 3 + dy) in segments
         kinds = [d.kind for d in j.decisions()]
         assert kinds[:2] == ["converged", "step"]
     with Journal(p) as j:
         r = HostProcess(FakeTransport(), weight=100, journal=j)
         assert r.resume(j) == 2
-        assert r.coord.snapshot() == state
+        assert r.coord.snapshot() == state and sorted(r.coord.segments_now()) == segments
         r.handle([(5, msg.TOUCH, late)])
         r.step()
         assert r.coord.duplicates == 1 and r.coord.rejected == {}
