@@ -21,7 +21,9 @@ docs/writing-a-behaviour.md "What the host needs"):
   journal before `out` is sent, as (kind, text) or None;
 - `done()`: the mission is over (the host repeats HALT, then exits);
   `carriers()`: robots the mission cannot go on without (liveness);
-  `status()`: one line on where the mission stands.
+  `status()`: one line on where the mission stands; `quiet()`: tick()
+  without a new message would neither send nor change anything (the host
+  then skips the snapshot; a batch engine skips the call).
 
 A behaviour's Coordinator derives from Roster and overrides what its
 mission needs (the thesis: decision names and carriers).
@@ -167,6 +169,9 @@ class Roster:
 
     def carriers(self):
         return []
+
+    def quiet(self):
+        return False
 
     def status(self):
         if self.done():

@@ -72,7 +72,7 @@ def test_a_behaviour_without_the_host_contract_is_refused_in_one_line(tmp_path, 
         "def make_coordinator(sc, journal=None, cells=None, on_reject=None):\n"
         "    return Bare()\n"))
     with pytest.raises(UsageError, match="lacks replay, snapshot, adopt, decision, done, "
-                                         "carriers, status"):
+                                         "carriers, status, quiet"):
         host_behaviour(str(bare), AGG)
     assert main(["host", "--behaviour", str(bare), "--bus", "slcan:///nonexistent"]) == 2
     assert "derive it from firmware_logic.roster.Roster" in capsys.readouterr().err

@@ -53,7 +53,7 @@ HALT_REPEATS = 10   # HALT is broadcast on this many ticks after the mission is 
 # firmware_logic.roster.Roster has all of HOST_ATTRIBUTES.
 HOST_KEYWORDS = ("journal", "cells", "on_reject")
 HOST_ATTRIBUTES = ("nodes", "touches", "rejected", "on_message", "tick", "replay", "snapshot",
-                   "adopt", "decision", "done", "carriers", "status")
+                   "adopt", "decision", "done", "carriers", "status", "quiet")
 
 
 def host_behaviour(name: str | None, sc: Any = None) -> registry.Behaviour:
@@ -194,13 +194,16 @@ class HostProcess:
         """One host tick: decide, journal the decision, then send the commands."""
         self.tick += 1
         c = self.coord
-        done = c.done()
-        before = c.snapshot()
+        repeat = c.done() and self.halts_sent < HALT_REPEATS
+        # a quiet coordinator's tick changes nothing: no snapshot to compare
+        # (most ticks; a snapshot costs more than the rest of the tick)
+        quiet = c.quiet() and not repeat
+        before = None if quiet else c.snapshot()
         out = c.tick(self.tick)
-        if done and self.halts_sent < HALT_REPEATS:
+        if repeat:
             out.append((msg.HOST, msg.HALT, (0,)))          # a repeat: HALT is not ACKed
         self.halts_sent += sum(1 for m in out if m[1] == msg.HALT)
-        decided = c.decision(before, out)
+        decided = None if before is None else c.decision(before, out)
         if decided is not None and self.journal is not None:
             # before anything is sent: a command on the bus is always journalled
             self.journal.add_decision(self.tick, decided[0], self.snapshot())
