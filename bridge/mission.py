@@ -33,6 +33,7 @@ from typing import Any, Callable
 from bridge.bodies import BodyContext, BodySpec, BodyURLError, OpenedBody, open_body
 from bridge.errors import BridgeError
 from firmware_logic import fixedpoint as fx
+from firmware_logic import hal
 from firmware_logic.hal import Hal
 
 log = logging.getLogger(__name__)
@@ -122,7 +123,8 @@ class Seat(Hal):
 
     def beacon(self, on: int) -> None:
         self.host.beacon(on)
-        self.world.beacon_set[self.i] = 1 if on else 0
+        self.world.beacon_set[self.i] = on if on in (hal.BEACON_OFF, hal.BEACON_LEADER) \
+            else hal.BEACON_ON
 
     # -- messages: over the engine's link, to the host coordinator ----------------------
 

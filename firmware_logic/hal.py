@@ -18,7 +18,10 @@ Acting (at most one of forward / claim / carry per tick):
     forward(heading, step)   -> move `step` (Q8) along `heading`
     claim(heading)           -> grip the segment one patch ahead
     carry(dx, dy)            -> move with the object by whole patches
-    beacon(on)               -> field source on (1) or off (0)
+    beacon(on)               -> field source off (BEACON_OFF), on (BEACON_ON), or
+                                on as a leader's (BEACON_LEADER: the world also
+                                keeps its own patch's field at 10, Appendix A's
+                                `set field 10`)
 Messages (firmware_logic/messages.py):
     send(kind, a0, a1, a2, a3, a4, a5)
     recv(buf)                -> kind of the next message (0: none), fields in buf
@@ -32,6 +35,11 @@ CLAIMED = 2  # a segment another robot holds (blue)
 ROBOT = 3
 WALL = 4
 PROBE_NAMES = ("nothing", "object", "claimed", "robot", "wall")
+
+# beacon(on) values
+BEACON_OFF = 0
+BEACON_ON = 1
+BEACON_LEADER = 2
 
 # codes of the HAL's queries and actions, as a recording captures them
 # (SENSOR.query and ACTION.action, docs/protocol.md); index = code

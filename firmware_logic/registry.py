@@ -6,7 +6,8 @@ A behaviour is a package of firmware-subset modules:
 
     spec.py         its declaration: NAME, TITLE, STATES, MODELS,
                     PARAMS, MEASURES (see behaviours/thesis/spec.py), and
-                    optionally MESSAGES, its own message kinds in the
+                    optionally REPORTERS ((name, meaning), ...: values its
+                    coordinator's reporters() gives at every tick) and MESSAGES, its own message kinds in the
                     format of messages.MESSAGES (kinds 7-9, 12-15)
     robot.py        the FSM class named by ROBOT, stepped as `robot.step(hal)`
     coordinator.py  its host-side coordinator (portable, may allocate)
@@ -74,6 +75,23 @@ class Behaviour:
     def state_name(self, code: int) -> str:
         states = self.spec.STATES
         return states[code] if 0 <= code < len(states) else str(code)
+
+    @property
+    def reporters(self) -> tuple:
+        """(name, meaning) of each per-tick reporter spec.REPORTERS declares
+        (optional; none when absent)."""
+        return tuple(getattr(self.spec, "REPORTERS", ()))
+
+    def report(self, coordinator: Any) -> dict[str, Any]:
+        """The declared reporters' values now, in declaration order."""
+        if not self.reporters:
+            return {}
+        got = coordinator.reporters()
+        missing = [name for name, _ in self.reporters if name not in got]
+        if missing:
+            raise BehaviourError(f"behaviour {self.name!r}: coordinator.reporters() lacks "
+                                 f"{', '.join(missing)} (declared in spec.REPORTERS)")
+        return {name: got[name] for name, _ in self.reporters}
 
     @property
     def halt_state(self) -> int:

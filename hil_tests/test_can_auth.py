@@ -124,15 +124,15 @@ def test_host_and_robots_processes_with_keys_deliver_and_drop_nothing_genuine(tm
                               text=True)
     procs = [robots]
     try:
-        wait_for(lines_of(robots.stderr), lambda s: "authenticated" in s[-1], 20)
+        wait_for(lines_of(robots.stderr), lambda s: "authenticated" in s[-1], 60)
         host = subprocess.Popen([EXE, "host", "--bus", f"slcan://{adapter}?settle_ms=0", *SC,
                                  "--keys", str(keys), "--tick-ms", "4", "--json"],
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         procs.append(host)
-        out, err = host.communicate(timeout=120)
+        out, err = host.communicate(timeout=300)
         assert host.returncode == 0, err
         h = json.loads(out.strip().splitlines()[-1])
-        rout, _ = robots.communicate(timeout=60)
+        rout, _ = robots.communicate(timeout=120)
         r = json.loads(rout.strip().splitlines()[-1])
     finally:
         stop_all(procs)

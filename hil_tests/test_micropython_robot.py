@@ -199,7 +199,7 @@ def test_the_whole_board_tick_allocates_nothing_under_heap_lock(
     fault = micropython_device.flash / "heap_fault.txt"    # type: ignore[attr-defined]
     m = Mission(micropython_device)
     try:
-        m.run(lambda m: acked(m) or fault.exists(), limit_s=30)
+        m.run(lambda m: acked(m) or fault.exists(), limit_s=90)
         assert not fault.exists(), fault.read_text()       # where a tick allocated
         robot = m.halt_and_inspect()
     finally:

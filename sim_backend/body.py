@@ -68,7 +68,7 @@ class SimBody(Hal):
 
     def uphill(self) -> int:
         w = self.world
-        out = kernel.uphill(w.field, 0, w.w, w.n, w.xs[self.i], w.ys[self.i])
+        out = w.uphill(self.i)
         if self.tape is not None:
             self.tape.append((hal.UPHILL, 0, out))
         return out

@@ -64,6 +64,22 @@ class InprocLink:
         pass
 
 
+def power_held(coordinator: Any) -> float:
+    """The holders' power in weight units (coordinators count hundredths)."""
+    return coordinator.power / 100
+
+
+def shape_iou(coordinator: Any, true_cells: list[tuple[int, int]],
+              perceived: set[tuple[int, int]] | None = None) -> float:
+    """IoU of the perceived outline (the touched segments where they are now;
+    pass it when already computed) with the object's true cells, rounded to 6
+    places as the summary has it."""
+    if perceived is None:
+        perceived = perception.outline_cells(coordinator.segments_now())
+    inter, union = perception.iou_counts(perceived, true_cells)
+    return round(inter / union, 6) if union else 0.0
+
+
 @dataclass
 class RunResult:
     scenario: Scenario
@@ -86,8 +102,7 @@ class RunResult:
         return perception.outline_cells(self.coordinator.segments_now())
 
     def shape_iou(self) -> float:
-        inter, union = perception.iou_counts(self.perceived_cells(), self.true_cells())
-        return round(inter / union, 6) if union else 0.0
+        return shape_iou(self.coordinator, self.true_cells())
 
     def summary(self) -> dict:
         c = self.coordinator
@@ -103,7 +118,7 @@ class RunResult:
             "home_tick": c.delivered_tick if c.delivered_tick >= 0 else None,
             "touches": [[t.rx, t.ry] for t in c.touches],
             "segments": [[t.sx, t.sy] for t in c.touches],
-            "power": c.power / 100,
+            "power": power_held(c),
             "shape_iou": self.shape_iou(),
             "leader": c.leader or None,
             "delivered": self.delivered,
@@ -130,6 +145,20 @@ class Engine:
         self.record = record_trajectories
         self.trajectories: list[tuple[list[int], list[int]]] = []
         self.states: list[list[int]] = []
+        # per-tick observers (sim_backend/observe.py): called with a Snapshot
+        # after every tick; with none, no snapshot is built
+        self.observers: list[Callable[[Any], None]] = []
+        self.msgs_up = 0                 # messages the host received this tick
+        self.msgs_down = 0               # messages (commands) it sent this tick
+        self.bad_seen = 0                # the link's bad frames counted so far
+
+    def observe(self, fn: Callable[[Any], None]) -> None:
+        """Call fn(snapshot) after every tick from now on."""
+        self.observers.append(fn)
+
+    def snapshot(self) -> Any:
+        from sim_backend.observe import snapshot
+        return snapshot(self)
 
     # -- one tick --------------------------------------------------------------
 
@@ -140,16 +169,24 @@ class Engine:
             robot.step(body)
         self._apply()
         self.exchange()
+        if self.observers:
+            snap = self.snapshot()
+            for fn in self.observers:
+                fn(snap)
         if self.record:
             self.trajectories.append((list(self.world.xs), list(self.world.ys)))
             self.states.append([r.state for r in self.robots])
 
     def exchange(self) -> None:
         c = self.coordinator
-        for node, kind, fields in self.link.host_recv():
+        up = self.link.host_recv()
+        for node, kind, fields in up:
             c.on_message(node, kind, fields, self.tick)
-        for node, kind, fields in c.tick(self.tick):
+        down = c.tick(self.tick)
+        for node, kind, fields in down:
             self.link.host_send(node, kind, fields)
+        self.msgs_up = len(up)
+        self.msgs_down = len(down)
 
     def _apply(self) -> None:
         self.world.apply(self.tick)

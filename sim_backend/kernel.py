@@ -21,11 +21,29 @@ Layout of one run inside the arrays:
 """
 
 from firmware_logic import fixedpoint as fx
-from firmware_logic.hal import CLAIMED, NOTHING, OBJECT, ROBOT, WALL
+from firmware_logic.hal import BEACON_LEADER, CLAIMED, NOTHING, OBJECT, ROBOT, WALL
 
 FREE = 0
 YELLOW = 1   # a free object segment
 BLUE = 2     # a segment a robot holds
+
+# beacon_on flags: the robot's field is in the grid (and goes when it turns
+# off); the robot pins its own patch's field to LEADER_FIELD every tick
+EMITS = 1
+PINS = 2
+LEADER_FIELD = 10   # Appendix A, go: `set field 10` for a leader
+
+# per-run modes (Scenario.CHOICES order: 0 is the project's default)
+ORDERED = 0         # uphillTies: first in N, NE, E, ... order
+AT_RANDOM = 1       # uphillTies: NetLogo's random winner
+ON_PATCH = 0        # signalMode: every holder, centred on its patch
+LAST_FINDER = 1     # signalMode: the tick's last finder, on its position
+
+# the per-robot tie-break stream of uphill (a 31-bit LCG, so numba's int64
+# and Python's ints agree without overflow)
+TIE_MUL = 1103515245
+TIE_ADD = 12345
+TIE_MOD = 2147483648
 
 # the neighbours `uphill` looks at, in the order it breaks ties
 UPHILL_H = (0, 45, 90, 135, 180, 225, 270, 315)
@@ -83,13 +101,25 @@ def field_here(field, base, w, n, x, y):
     return field[base + cell(w, n, fx.patch(x), fx.patch(y))]
 
 
-def uphill(field, base, w, n, x, y):
-    """Heading to the strongest neighbour if stronger than here, else -1;
-    ties go to the first in N, NE, E, ... order."""
+def tie_seed(seed, node):
+    """Start of robot `node`'s uphill tie stream in run `seed`."""
+    return (seed * 7919 + node * 104729 + 1) % TIE_MOD
+
+
+def uphill(field, base, w, n, x, y, ties, tie, i):
+    """Heading to the strongest neighbour if stronger than here, else -1.
+
+    Ties (ties == ORDERED) go to the first in N, NE, E, ... order; with
+    AT_RANDOM one of the tied neighbours is drawn from robot i's stream
+    tie[i], as NetLogo's uphill draws `random.nextInt(winners.size)` among
+    the neighbours of the greatest value (prim/etc HillCommand, NetLogo
+    sources), moving only if that value is greater than here."""
     px = fx.patch(x)
     py = fx.patch(y)
-    best = field[base + cell(w, n, px, py)]
+    here = field[base + cell(w, n, px, py)]
+    best = here
     out = -1
+    count = 0
     for j in range(8):
         qx = px + UPHILL_DX[j]
         qy = py + UPHILL_DY[j]
@@ -98,6 +128,20 @@ def uphill(field, base, w, n, x, y):
             if v > best:
                 best = v
                 out = UPHILL_H[j]
+                count = 1
+            elif v == best and count > 0:
+                count += 1
+    if ties == ORDERED or out < 0:
+        return out
+    tie[i] = (tie[i] * TIE_MUL + TIE_ADD) % TIE_MOD
+    k = (tie[i] >> 16) % count
+    for j in range(8):
+        qx = px + UPHILL_DX[j]
+        qy = py + UPHILL_DY[j]
+        if inside(w, qx, qy) and field[base + cell(w, n, qx, qy)] == best:
+            if k == 0:
+                return UPHILL_H[j]
+            k -= 1
     return out
 
 
@@ -118,6 +162,88 @@ def signal(field, base, w, n, tdx, tdy, tv, t0, t1, px, py, sign):
             field[base + cell(w, n, x, y)] += sign * tv[t]
 
 
+def signal_value(d2):
+    """round(10 / (1 + d)) for d = sqrt(d2) / fx.ONE, halves rounded up, in
+    integers: the value is the number of k in 0..9 with 10 / (1 + d) >= k + 1/2,
+    that is d <= (19 - 2k) / (2k + 1), so no float rounding can differ
+    between the engines."""
+    v = 0
+    for k in range(10):
+        a = 19 - 2 * k
+        b = 2 * k + 1
+        if d2 * b * b <= a * a * fx.ONE * fx.ONE:
+            v += 1
+    return v
+
+
+def signal_at(field, base, w, n, radius, x, y, sign):
+    """Signal as Appendix A writes it, centred on the Q8 position (x, y):
+    every patch within `radius` of the patch holding it (`patches in-radius`,
+    by patch centres) gets round(10 / (1 + d)), d its centre's distance from
+    the position itself (`distancexy tempx tempy`); NetLogo rounds halves up."""
+    px = fx.patch(x)
+    py = fx.patch(y)
+    for ddy in range(-radius, radius + 1):
+        for ddx in range(-radius, radius + 1):
+            if ddx * ddx + ddy * ddy > radius * radius:
+                continue
+            qx = px + ddx
+            qy = py + ddy
+            if not inside(w, qx, qy):
+                continue
+            ex = qx * fx.ONE - x
+            ey = qy * fx.ONE - y
+            field[base + cell(w, n, qx, qy)] += sign * signal_value(ex * ex + ey * ey)
+
+
+def beacons(field, base, w, n, tdx, tdy, tv, t0, t1, xs, ys, lo, hi, beacon_set,
+            beacon_on, bsx, bsy, sigmode, radius):
+    """Beacons turned on or off this tick, then every leader's pinned patch.
+
+    BEACON_ON lights a beacon, BEACON_LEADER a leader's (it pins its patch to
+    LEADER_FIELD every tick, Appendix A go's `set field 10`). ON_PATCH: each
+    beacon turned on adds the Signal table centred on its robot's patch.
+    LAST_FINDER: only the highest node turning on this tick signals (go
+    calls Signal once, for the global `found`'s last setter), centred on its
+    Q8 position. A beacon turned off takes its field with it (our addition).
+    Pins come before the new fields, as go's ask precedes its Signal."""
+    last = -1
+    for i in range(lo, hi):
+        b = beacon_set[i]
+        if b >= 1 and beacon_on[i] == 0:
+            last = i
+    for i in range(lo, hi):
+        b = beacon_set[i]
+        if b == 0 and beacon_on[i] != 0:
+            if beacon_on[i] & EMITS:
+                # our addition: a beacon switched off takes its field with it
+                if sigmode == ON_PATCH:
+                    signal(field, base, w, n, tdx, tdy, tv, t0, t1, bsx[i], bsy[i], -1)
+                else:
+                    signal_at(field, base, w, n, radius, bsx[i], bsy[i], -1)
+            beacon_on[i] = 0
+    for i in range(lo, hi):
+        if (beacon_on[i] & PINS) or (beacon_set[i] == BEACON_LEADER and beacon_on[i] == 0):
+            field[base + cell(w, n, fx.patch(xs[i]), fx.patch(ys[i]))] = LEADER_FIELD
+    for i in range(lo, hi):
+        b = beacon_set[i]
+        if b < 1 or beacon_on[i] != 0:
+            continue
+        pins = PINS if b == BEACON_LEADER else 0
+        if sigmode == ON_PATCH:
+            bsx[i] = fx.patch(xs[i])
+            bsy[i] = fx.patch(ys[i])
+            beacon_on[i] = EMITS | pins
+            signal(field, base, w, n, tdx, tdy, tv, t0, t1, bsx[i], bsy[i], 1)
+        elif i == last:
+            bsx[i] = xs[i]
+            bsy[i] = ys[i]
+            beacon_on[i] = EMITS | pins
+            signal_at(field, base, w, n, radius, bsx[i], bsy[i], 1)
+        else:
+            beacon_on[i] = pins
+
+
 def recount(occ, base, w, n, xs, ys, lo, hi):
     for k in range(base, base + n * n):
         occ[k] = 0
@@ -130,7 +256,7 @@ def recount(occ, base, w, n, xs, ys, lo, hi):
 def apply_tick(obj, owner, field, occ, stamp, base, w, n, tdx, tdy, tv, t0, t1,
                xs, ys, lo, hi, held, mv_on, mv_h, mv_step, claim, beacon_set,
                beacon_on, bsx, bsy, carry_on, carry_dx, carry_dy,
-               cx, cy, cv, cw, c0, c1, tick):
+               cx, cy, cv, cw, c0, c1, tick, sigmode, radius):
     """Apply every robot's intents of tick `tick` (>= 1) in the fixed order:
     claims (lowest node wins a segment), beacons, the carried group, moves in
     node order; then recount occupancy. `stamp` marks the patches entered
@@ -141,17 +267,8 @@ def apply_tick(obj, owner, field, occ, stamp, base, w, n, tdx, tdy, tv, t0, t1,
             obj[base + k] = BLUE
             owner[base + k] = i - lo + 1
             held[i] = k
-    for i in range(lo, hi):
-        b = beacon_set[i]
-        if b == 1 and beacon_on[i] == 0:
-            bsx[i] = fx.patch(xs[i])
-            bsy[i] = fx.patch(ys[i])
-            beacon_on[i] = 1
-            signal(field, base, w, n, tdx, tdy, tv, t0, t1, bsx[i], bsy[i], 1)
-        elif b == 0 and beacon_on[i] == 1:
-            # our addition: a beacon switched off takes its field with it
-            signal(field, base, w, n, tdx, tdy, tv, t0, t1, bsx[i], bsy[i], -1)
-            beacon_on[i] = 0
+    beacons(field, base, w, n, tdx, tdy, tv, t0, t1, xs, ys, lo, hi, beacon_set,
+            beacon_on, bsx, bsy, sigmode, radius)
     carry_group(obj, owner, occ, stamp, base, w, n, xs, ys, lo, hi, held,
                 carry_on, carry_dx, carry_dy, cx, cy, cv, cw, c0, c1, tick)
     for i in range(lo, hi):

@@ -1,67 +1,156 @@
-"""PNG of a finished run: the world beside the perceived and the true shape."""
+"""PNG of a finished run: the world beside the perceived and the true shape.
+
+The drawing helpers here (field, object, trails, touch numbers) are shared
+with the animation (sim_backend/animate.py), so a frame of the GIF and
+world.png read the same way.
+"""
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.collections import LineCollection  # noqa: E402
+from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.patches import Circle, Patch  # noqa: E402
 
 from firmware_logic import fixedpoint as fx  # noqa: E402
+from firmware_logic import registry  # noqa: E402
 from sim_backend.engine import RunResult  # noqa: E402
 from sim_backend.world import BLUE, YELLOW  # noqa: E402
 
+FIELD_CMAP = "Reds"
+OBJECT_RGB = (1.0, 0.85, 0.0)
+HELD_RGB = (0.1, 0.3, 0.9)
+HOME_RADIUS = 2
 
-def render(result: RunResult, path: Path) -> Path:
+
+def state_colours(names: tuple[str, ...]) -> list[tuple]:
+    """One colour per state code, the same in every figure."""
+    cmap = plt.get_cmap("tab10")
+    return [cmap(i % 10) for i in range(len(names))]
+
+
+def extent(w: Any) -> tuple[float, float, float, float]:
+    return (-w.w - 0.5, w.w + 0.5, -w.w - 0.5, w.w + 0.5)
+
+
+def object_rgba(obj: np.ndarray) -> np.ndarray:
+    """The object's patches (yellow) and held segments (blue), transparent elsewhere."""
+    rgba = np.zeros(obj.shape + (4,))
+    rgba[obj == YELLOW] = (*OBJECT_RGB, 1.0)
+    rgba[obj == BLUE] = (*HELD_RGB, 1.0)
+    return rgba
+
+
+def draw_base(ax: Any, w: Any, field: np.ndarray, vmax: float) -> tuple[Any, Any]:
+    """The field (with a colour bar) and the home; returns the two images to update."""
+    ext = extent(w)
+    img = ax.imshow(field, origin="lower", extent=ext, cmap=FIELD_CMAP, vmin=0,
+                    vmax=max(vmax, 1), alpha=0.7)
+    ax.figure.colorbar(img, ax=ax, fraction=0.046, pad=0.02,
+                       label="potential field (sum of lit beacons, thesis eq. 3)")
+    objimg = ax.imshow(np.zeros(field.shape + (4,)), origin="lower", extent=ext)
+    ax.add_patch(Circle((w.sc.homeX, w.sc.homeY), HOME_RADIUS, color="c", alpha=0.4))
+    ax.set_xlim(ext[0], ext[1])
+    ax.set_ylim(ext[2], ext[3])
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (patches)")
+    ax.set_ylabel("y (patches)")
+    return img, objimg
+
+
+def trail_segments(xs: np.ndarray, ys: np.ndarray, states: np.ndarray,
+                   colours: list[tuple]) -> tuple[np.ndarray, list[tuple]]:
+    """Line segments of every robot's path, tick to tick, each coloured by
+    the state the robot was in at the segment's end. xs, ys, states: (ticks, robots)."""
+    if len(xs) < 2:
+        return np.zeros((0, 2, 2)), []
+    a = np.stack([xs[:-1], ys[:-1]], axis=-1)       # (ticks-1, robots, 2)
+    b = np.stack([xs[1:], ys[1:]], axis=-1)
+    segs = np.stack([a, b], axis=2).reshape(-1, 2, 2)
+    return segs, [colours[s] for s in states[1:].reshape(-1)]
+
+
+def touch_labels(ax: Any, touches: tuple, xs: tuple, ys: tuple) -> list[Any]:
+    """Number the accepted touches in arrival order beside the robot that
+    made each (it holds the object, so the number moves with the object)."""
+    out = []
+    seen: set[int] = set()
+    for node, *_ in touches:
+        if node in seen:
+            continue
+        seen.add(node)
+        out.append(ax.annotate(str(len(seen)), (xs[node - 1], ys[node - 1]), xytext=(3, 3),
+                               textcoords="offset points", fontsize=7, weight="bold",
+                               color="black"))
+    return out
+
+
+def state_legend(names: tuple[str, ...], colours: list[tuple]) -> list[Any]:
+    return [Line2D([], [], color=c, lw=2, label=f"state {n}") for n, c in zip(names, colours)]
+
+
+def render(result: RunResult, path: Path, trails: Any = None) -> Path:
+    """world.png; with `trails` (observe.Trails) also start positions, every
+    robot's path coloured by state, and the object's path home."""
     w = result.world
-    n, half = w.n, w.w
-    field = np.array(w.field, dtype=float).reshape(n, n)
-    obj = np.array(w.obj).reshape(n, n)
-    ext = (-half - 0.5, half + 0.5, -half - 0.5, half + 0.5)
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 6))
-    ax1.imshow(field, origin="lower", extent=ext, cmap="Reds", alpha=0.6)
-    rgba = np.zeros((n, n, 4))
-    rgba[obj == YELLOW] = (1.0, 0.85, 0.0, 1.0)
-    rgba[obj == BLUE] = (0.1, 0.3, 0.9, 1.0)
-    ax1.imshow(rgba, origin="lower", extent=ext)
-    ax1.add_patch(Circle((w.sc.homeX, w.sc.homeY), 2, color="c", alpha=0.5))
-    # the robots the coordinator counts: carriers for the thesis; any
-    # behaviour's reporters otherwise (the seam asks only for `touches`)
-    carriers = {t.node for t in result.coordinator.touches}
-    leader = result.coordinator.leader
-    for r, x, y in zip(result.robots, w.xs, w.ys):
-        colour = "red" if r.node == leader else ("green" if r.node in carriers else "dimgray")
-        ax1.plot(x / fx.ONE, y / fx.ONE, "o", color=colour, ms=6)
-    ax1.set_title(f"world at tick {result.ticks} (seed {result.seed}, "
-                  f"{w.sc.agents} {w.sc.movementModel} robots)")
-    ax1.legend(handles=[Patch(color=(1, .85, 0), label="object"),
-                        Patch(color=(.1, .3, .9), label="held segment"),
-                        Patch(color="red", label="leader"), Patch(color="green", label="carrier"),
-                        Patch(color="dimgray", label="other robot"),
-                        Patch(color="c", label="home")], loc="upper right", fontsize=7)
+    snap_field = np.array(w.field, dtype=float).reshape(w.n, w.n)
+    names = tuple(registry.load(result.scenario.behaviour).spec.STATES)
+    colours = state_colours(names)
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(13, 6), width_ratios=(1.15, 1))
+    _, objimg = draw_base(ax1, w, snap_field, snap_field.max())
+    objimg.set_data(object_rgba(np.array(w.obj).reshape(w.n, w.n)))
+    handles = [Patch(color=OBJECT_RGB, label="object at the end"),
+               Patch(color=HELD_RGB, label="held segment"), Patch(color="c", label="home")]
+    if trails is not None:
+        xs, ys, states = trails.arrays()
+        segs, cols = trail_segments(xs, ys, states, colours)
+        ax1.add_collection(LineCollection(segs, colors=cols, linewidths=0.4, alpha=0.5))
+        ax1.plot(xs[0], ys[0], "o", mfc="none", mec="black", ms=5)
+        centre = np.array(trails.centre)
+        ax1.plot(centre[:, 0], centre[:, 1], "--", color="darkcyan", lw=2)
+        handles += [Line2D([], [], marker="o", mfc="none", mec="black", ls="",
+                           label="start position"),
+                    Line2D([], [], ls="--", color="darkcyan", lw=2,
+                           label="object's path (its centre)")]
+        handles += state_legend(names, colours)
+    xs_now = tuple(x / fx.ONE for x in w.xs)
+    ys_now = tuple(y / fx.ONE for y in w.ys)
+    final_states = [r.state for r in result.robots]
+    ax1.scatter(xs_now, ys_now, s=30, c=[colours[s] for s in final_states],
+                edgecolors="black", linewidths=0.5, zorder=3)
+    touches = tuple((t.node, t.tick) for t in result.coordinator.touches)
+    touch_labels(ax1, touches, xs_now, ys_now)
+    handles.append(Line2D([], [], marker="$1$", color="black", ls="",
+                          label="touch order (by the robot that made it)"))
+    lit = sum(w.beacon_on)
+    ax1.set_title(f"world at tick {result.ticks} (seed {result.seed}, {w.sc.agents} "
+                  f"{w.sc.movementModel} robots)\nfield as the world holds it then: "
+                  f"{lit} beacon(s) lit where their robots lit them", fontsize=9)
+    ax1.legend(handles=handles, loc="upper left", fontsize=6, framealpha=0.8)
     truth = set(result.true_cells())
     seen = result.perceived_cells()
     pts = truth | seen
-    xs = [p[0] for p in pts]
-    ys = [p[1] for p in pts]
     for (x, y) in truth:
-        ax2.add_patch(plt.Rectangle((x - .5, y - .5), 1, 1, color=(1, .85, 0), alpha=.6))
+        ax2.add_patch(plt.Rectangle((x - .5, y - .5), 1, 1, color=OBJECT_RGB, alpha=.6))
     for (x, y) in seen:
         ax2.add_patch(plt.Rectangle((x - .5, y - .5), 1, 1, fill=False, ec="blue", lw=2))
-    for sx, sy in result.coordinator.segments_now():   # where the touched cells are now
-        ax2.plot(sx, sy, "x", color="navy")
-    ax2.set_xlim(min(xs) - 1.5, max(xs) + 1.5)
-    ax2.set_ylim(min(ys) - 1.5, max(ys) + 1.5)
+    for i, (sx, sy) in enumerate(result.coordinator.segments_now(), 1):
+        ax2.plot(sx, sy, "x", color="navy")   # where the touched cells are now
+        ax2.annotate(str(i), (sx, sy), xytext=(3, 3), textcoords="offset points", fontsize=8)
+    ax2.set_xlim(min(p[0] for p in pts) - 1.5, max(p[0] for p in pts) + 1.5)
+    ax2.set_ylim(min(p[1] for p in pts) - 1.5, max(p[1] for p in pts) + 1.5)
     ax2.set_aspect("equal")
-    ax2.set_title(f"perceived (blue outline, x = touched) vs true (yellow): "
-                  f"IoU {result.shape_iou():.2f}")
-    for ax in (ax1, ax2):
-        ax.set_xlabel("x (patches)")
-        ax.set_ylabel("y (patches)")
+    ax2.set_xlabel("x (patches)")
+    ax2.set_ylabel("y (patches)")
+    ax2.set_title(f"perceived (blue outline, x = touched, numbered in order) vs true "
+                  f"(yellow): IoU {result.shape_iou():.2f}", fontsize=9)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=80, metadata={"Software": None})

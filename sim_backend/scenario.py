@@ -25,6 +25,32 @@ MODELS = {"firefly": 1, "ant": 2}
 SEED_MIN, SEED_MAX = 0, 1_000_002
 
 
+# Departures from the NetLogo code of Appendix A, each a named choice; the
+# first choice is the default (docs/tick-semantics.md, "Departures from
+# Appendix A", gives each one's thesis rule and measured effect). "netlogo"
+# is always the thesis's rule.
+CHOICES: dict[str, tuple[str, ...]] = {
+    # Signal centred on the holder's patch for every holder, or on the
+    # finder's continuous position once per tick for the last finder (go, Signal)
+    "signalMode": ("patch", "netlogo"),
+    # uphill ties: first in N, NE, E, ... order, or at random (NetLogo's uphill)
+    "uphillTies": ("ordered", "netlogo"),
+    # `set field 10` on a leader's patch every tick (go): off, or as NetLogo
+    "leaderField": ("off", "netlogo"),
+    # delivered when a holder or segment is within 4 of home, or when a holder
+    # is within 1 (`distancexy -15 -15 < 1`, which writes tt.txt)
+    "arrival": ("within4", "netlogo"),
+    # starts redrawn off the object and other robots with a fresh heading, or
+    # CreateSwarm's `fd random max-pxcor` keeping the walk's heading
+    "starts": ("redraw", "netlogo"),
+}
+
+
+def departures(sc: "Scenario") -> list[str]:
+    """The NetLogo options of `sc` set to anything but their default."""
+    return [k for k, ch in CHOICES.items() if getattr(sc, k) != ch[0]]
+
+
 def check_seed(seed: Any, source: str = "seed") -> int:
     """The seed as an int; ScenarioError naming the range when it is outside."""
     if isinstance(seed, bool) or not isinstance(seed, int):
@@ -57,6 +83,11 @@ class Scenario:
     maxTicks: int = 20000
     behaviour: str = "thesis"    # a name from `touchswarm behaviours` or a folder
     quorum: int = 80             # aggregate: percent of the swarm that must stop
+    signalMode: str = CHOICES["signalMode"][0]
+    uphillTies: str = CHOICES["uphillTies"][0]
+    leaderField: str = CHOICES["leaderField"][0]
+    arrival: str = CHOICES["arrival"][0]
+    starts: str = CHOICES["starts"][0]
 
     @property
     def model(self) -> int:
@@ -145,6 +176,11 @@ def validate(raw: dict[str, Any], source: str = "scenario") -> Scenario:
             values[key] = str(value)
         elif key == "behaviour":
             values[key] = _behaviour_name(value)
+        elif key in CHOICES:
+            if value not in CHOICES[key]:
+                raise ScenarioError(f"{key}: expected one of {', '.join(CHOICES[key])}, "
+                                    f"got {value!r}")
+            values[key] = value
         elif key in ("objectX", "objectY") and value is None:
             values[key] = None
         else:

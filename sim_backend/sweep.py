@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
 
 from sim_backend.errors import ScenarioError
-from sim_backend.scenario import FIELDS, Scenario, check_seed, validate
+from sim_backend.scenario import FIELDS, Scenario, check_seed, departures, validate
 
 log = logging.getLogger(__name__)
 # how long to wait for a dask scheduler to answer before calling it unreachable
@@ -103,11 +103,12 @@ def _scenario(base: dict[str, Any], params: dict[str, Any]) -> Scenario:
         f"{k}={v}" for k, v in params.items()))
 
 
-def pick_engine(engine: str, behaviour: str) -> str:
-    """The engine `auto` stands for, for runs of `behaviour`."""
+def pick_engine(engine: str, sc: Scenario) -> str:
+    """The engine `auto` stands for, for runs of `sc`: the hand-vectorised
+    engine for the thesis behaviour with the default rules only."""
     if engine != "auto":
         return engine
-    return "vector" if behaviour == "thesis" else "batch"
+    return "vector" if sc.behaviour == "thesis" and not departures(sc) else "batch"
 
 
 def run_chunk(jobs: Sequence[tuple[dict, dict, int]], engine: str = "auto",
@@ -122,7 +123,7 @@ def run_chunk(jobs: Sequence[tuple[dict, dict, int]], engine: str = "auto",
         out: list[dict | None] = [None] * len(jobs)
         groups: dict[str, list[int]] = {}
         for j, sc in enumerate(scs):
-            groups.setdefault(pick_engine(engine, sc.behaviour), []).append(j)
+            groups.setdefault(pick_engine(engine, sc), []).append(j)
         for eng, idx in groups.items():
             for j, summ in zip(idx, run_chunk([jobs[j] for j in idx], eng, until)):
                 out[j] = summ

@@ -15,7 +15,7 @@ from firmware_logic import fixedpoint as fx
 from firmware_logic.rng import Rng
 from sim_backend import kernel, objects
 from sim_backend.kernel import BLUE, FREE, YELLOW  # noqa: F401  (the cell values)
-from sim_backend.scenario import Scenario
+from sim_backend.scenario import CHOICES, Scenario
 
 
 def signal_table(radius: int) -> list[tuple[int, int, int]]:
@@ -55,22 +55,12 @@ class World:
         self.object_cells = objects.cells(sc.object, self.obj_x, self.obj_y)
         for x, y in self.object_cells:
             self.obj[self.idx(x, y)] = YELLOW
-        # CreateSwarm: each robot faces `random 360` and walks `random max-pxcor`
-        # from the origin; a start on the object or on another robot is redrawn.
         self.xs: list[int] = []
         self.ys: list[int] = []
-        taken = set()
-        while len(self.xs) < sc.agents:
-            h = setup.below(360)
-            dist = setup.below(self.w) * fx.ONE
-            x = fx.dx(h, dist)
-            y = fx.dy(h, dist)
-            p = (fx.patch(x), fx.patch(y))
-            if not self.inside(*p) or self.obj[self.idx(*p)] != FREE or p in taken:
-                continue
-            taken.add(p)
-            self.xs.append(x)
-            self.ys.append(y)
+        if sc.starts == "netlogo":
+            self._netlogo_starts(sc, seed, setup)
+        else:
+            self._redrawn_starts(sc, setup)
         # every robot's intents and holdings, as the kernel reads them
         a = sc.agents
         self.held = [-1] * a             # held cell, -1: none
@@ -85,7 +75,40 @@ class World:
         self.carry_on = [0] * a          # a carry() asked and not yet consumed
         self.carry_dx = [0] * a
         self.carry_dy = [0] * a
+        # the NetLogo options the kernel reads (scenario.CHOICES; index 0 the default)
+        self.sigmode = CHOICES["signalMode"].index(sc.signalMode)
+        self.ties = CHOICES["uphillTies"].index(sc.uphillTies)
+        self.tie = [kernel.tie_seed(seed, node) for node in range(1, a + 1)]
         self.recount()
+
+    def _redrawn_starts(self, sc: Scenario, setup: Rng) -> None:
+        """Our CreateSwarm: each robot walks `random max-pxcor` from the origin
+        along a `random 360` heading; a start on the object or on another
+        robot is redrawn, and the robot draws its own heading afresh."""
+        taken = set()
+        while len(self.xs) < sc.agents:
+            h = setup.below(360)
+            dist = setup.below(self.w) * fx.ONE
+            x = fx.dx(h, dist)
+            y = fx.dy(h, dist)
+            p = (fx.patch(x), fx.patch(y))
+            if not self.inside(*p) or self.obj[self.idx(*p)] != FREE or p in taken:
+                continue
+            taken.add(p)
+            self.xs.append(x)
+            self.ys.append(y)
+
+    def _netlogo_starts(self, sc: Scenario, seed: int, setup: Rng) -> None:
+        """CreateSwarm as Appendix A writes it: `fd random max-pxcor` from the
+        origin along the robot's own heading, which it keeps; robots may share
+        a patch or stand on the object (NetLogo turtles do). The heading is
+        the first draw of the robot's RNG, the one a thesis Robot takes as
+        its starting heading (robot.py, __init__)."""
+        for node in range(1, sc.agents + 1):
+            h = Rng(seed, node).below(360)
+            dist = setup.below(self.w) * fx.ONE
+            self.xs.append(fx.dx(h, dist))
+            self.ys.append(fx.dy(h, dist))
 
     def cell_arrays(self) -> tuple[list[int], list[int], list[int], list[int]]:
         """The object's cells as the kernel moves them: xs, ys and scratch."""
@@ -101,7 +124,7 @@ class World:
                           self.ys, 0, len(self.xs), self.held, self.mv_on, self.mv_h,
                           self.mv_step, self.claim, self.beacon_set, self.beacon_on,
                           self.bsx, self.bsy, self.carry_on, self.carry_dx, self.carry_dy,
-                          cx, cy, cv, cw, 0, len(cx), tick)
+                          cx, cy, cv, cw, 0, len(cx), tick, self.sigmode, self.sc.sigRadius)
         self.object_cells = list(zip(cx, cy))
 
     def idx(self, px: int, py: int) -> int:
@@ -112,6 +135,11 @@ class World:
 
     def recount(self) -> None:
         kernel.recount(self.occ, 0, self.w, self.n, self.xs, self.ys, 0, len(self.xs))
+
+    def uphill(self, i: int) -> int:
+        """kernel.uphill for robot index i."""
+        return kernel.uphill(self.field, 0, self.w, self.n, self.xs[i], self.ys[i],
+                             self.ties, self.tie, i)
 
     def signal(self, px: int, py: int, sign: int = 1) -> None:
         """Add (or, sign=-1, remove) one beacon's field centred on a patch."""

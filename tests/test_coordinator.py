@@ -60,13 +60,10 @@ def test_leader_is_first_finder_and_transport_commands_only_holders():
     assert transports[0][2] == (1, -1, -1)                          # toward (-15, -15)
 
 
-def test_transport_advances_on_leader_progress_and_detects_home():
-    c = Coordinator(100)
-    hello(c, 1)
-    touch(c, 1, 1, (-9, -9), 5, robot=(-10, -9))
-    c.tick(5)
-    pose = [-10, -9]
-    for t in range(6, 60):
+def drive_home(c, pose, ticks=range(6, 80)):
+    """Node 1, the leader, executes every step it is given until delivery;
+    its pose then."""
+    for t in ticks:
         step = c.step
         # the leader reports the pose after executing the current step
         pose = [pose[0] + c.dx, pose[1] + c.dy]
@@ -74,6 +71,15 @@ def test_transport_advances_on_leader_progress_and_detects_home():
         c.tick(t)
         if c.delivered_tick >= 0:
             break
+    return pose
+
+
+def test_transport_advances_on_leader_progress_and_detects_home():
+    c = Coordinator(100)
+    hello(c, 1)
+    touch(c, 1, 1, (-9, -9), 5, robot=(-10, -9))
+    c.tick(5)
+    pose = drive_home(c, [-10, -9])
     assert c.delivered_tick > 0
     assert (c.moved_x, c.moved_y) == (pose[0] + 10, pose[1] + 9)
     # the holder ended within 4 patches of home (the thesis's wayHome < 4)

@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from typing import Callable
 
 from bridge.commands.paths import path_arg
 from bridge.errors import UsageError
@@ -85,7 +86,9 @@ def scenario_from_args(args: argparse.Namespace):
 
 
 def register(sub) -> None:
+    from bridge.commands.numbers import count
     from bridge.record.formats import FORMATS
+    from sim_backend.animate import MAX_FRAMES
     p = sub.add_parser(
         "run", help="run the whole mission in the simulated world",
         description="Run one scenario to the end with no hardware: robots search, touch, "
@@ -111,6 +114,20 @@ def register(sub) -> None:
                    help="record all traffic, SENSOR and ACTION capture frames included, as a "
                         "python-can log plus FILE.json (scenario, seed, frame count, summary); "
                         "the suffix picks the format: " + ", ".join(FORMATS))
+    p.add_argument("--trace", type=path_arg, metavar="FILE",
+                   help="one row per tick: robots per state, power, IoU, touches, messages, "
+                        "bad frames and the behaviour's reporters (docs/outputs.md); the "
+                        "suffix picks the format: .csv or .parquet")
+    p.add_argument("--animate", type=path_arg, metavar="FILE",
+                   help="draw the run over time to FILE.gif (or .mp4 when ffmpeg is on PATH): "
+                        "trails coloured by state, the field, touches in order, the perceived "
+                        "shape, the path home. Frames: the start, every --frame-every ticks "
+                        f"and the last tick; by default the stride doubles until at most "
+                        f"{MAX_FRAMES} frames are kept (the default scenario: 87 frames, "
+                        "about 1.3 MB)")
+    p.add_argument("--frame-every", type=count(1, what="ticks per frame"), metavar="K",
+                   help="with --animate: one frame every K ticks (default: automatic, see "
+                        "--animate)")
     p.set_defaults(func=cmd_run)
 
 
@@ -124,6 +141,25 @@ def check_outputs(args: argparse.Namespace) -> None:
         record_format(args.record)
         check_out_file(args.record, "--record", "run.blf")
         check_out_file(meta_path(args.record), "--record (its sidecar)", "run.blf.json")
+    if args.trace is not None:
+        from sim_backend.trace import trace_format
+        _check_media(args.trace, "--trace", "trace.csv", trace_format)
+    if args.animate is not None:
+        from sim_backend.animate import animation_format
+        _check_media(args.animate, "--animate", "run.gif", animation_format)
+    elif args.frame_every is not None:
+        raise UsageError(f"--frame-every {args.frame_every}: only with --animate FILE")
+
+
+def _check_media(path: Path, option: str, example: str, fmt: Callable[[Path], str]) -> None:
+    """A writable file path whose suffix names a format we can write here."""
+    from bridge.commands.paths import check_out_file
+    from sim_backend.observe import OutputFormatError
+    check_out_file(path, option, example)
+    try:
+        fmt(path)
+    except OutputFormatError as err:
+        raise UsageError(f"{option} {err}") from None
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -155,7 +191,23 @@ def cmd_run(args: argparse.Namespace) -> int:
             link.close()
 
 
+def _watchers(args: argparse.Namespace, engine) -> tuple:
+    """The per-tick observers the options ask for: (trails, trace, animation)."""
+    trails = trace = anim = None
+    if args.out or args.animate:
+        from sim_backend.observe import Trails
+        trails = Trails(engine)
+    if args.trace:
+        from sim_backend.trace import Trace
+        trace = Trace(engine)
+    if args.animate:
+        from sim_backend.animate import Animation
+        anim = Animation(engine, trails, every=args.frame_every)
+    return trails, trace, anim
+
+
 def _run(args: argparse.Namespace, sc, engine, recorder) -> int:
+    trails, trace, anim = _watchers(args, engine)
     bar = None
     if sys.stderr.isatty() and not args.json:
         from tqdm import tqdm
@@ -171,7 +223,11 @@ def _run(args: argparse.Namespace, sc, engine, recorder) -> int:
         from sim_backend.records import write_records
         from sim_backend.render import render
         write_records(result, args.out)
-        render(result, args.out / "world.png")
+        render(result, args.out / "world.png", trails)
+    if trace is not None:
+        trace.write(args.trace)
+    if anim is not None:
+        frames = anim.write(args.animate)
     if args.json:
         print(json.dumps(summary, sort_keys=True))
     else:
@@ -180,6 +236,11 @@ def _run(args: argparse.Namespace, sc, engine, recorder) -> int:
             print(f"records and world.png written to {args.out}/")
         if args.record:
             print(f"traffic recorded to {args.record} ({recorder.frames} frames)")
+        if trace is not None:
+            print(f"per-tick trace written to {args.trace} ({len(trace.rows)} rows)")
+        if anim is not None:
+            print(f"animation written to {args.animate} ({frames} frames, one every "
+                  f"{anim.every} ticks)")
     return 0 if summary["delivered"] else 1
 
 

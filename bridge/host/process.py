@@ -37,6 +37,7 @@ from bridge.host.journal import Journal, Report
 from bridge.transport import RobotTransport
 from firmware_logic import messages as msg
 from firmware_logic import registry
+from sim_backend.scenario import CHOICES
 
 # A coordinator is any behaviour's that meets the host contract
 # (firmware_logic/roster.py); this alias only documents what the host handles.
@@ -84,14 +85,17 @@ class HostProcess:
                  on_event: Callable[[str], None] | None = None,
                  world_size: int | None = None,
                  cells: list[tuple[int, int]] | None = None,
-                 behaviour: str | None = None, scenario: Any = None) -> None:
+                 behaviour: str | None = None, arrival: str = CHOICES["arrival"][0],
+                 scenario: Any = None) -> None:
         """world_size: the arena's half width in patches (None: what a byte
         carries); cells: the object's cells when the host knows them (a
         simulated swarm), else a touch need only be plausible. behaviour: a
         name or folder (default thesis) whose coordinator the host runs; it
-        must pass host_behaviour(). scenario: the whole scenario, for a
-        behaviour whose coordinator needs more than the arena and the weight
-        (aggregation: the swarm's size and quorum)."""
+        must pass host_behaviour(). arrival: the scenario's arrival rule
+        (sim_backend/scenario.py CHOICES), which the host's coordinator applies.
+        scenario: the whole scenario (its arrival wins), for a behaviour whose
+        coordinator needs more than the arena and the weight (aggregation: the
+        swarm's size and quorum)."""
         self.transport = transport
         self.journal = journal
         self.tick_seconds = tick_seconds
@@ -101,7 +105,8 @@ class HostProcess:
         # the host knows the arena and the object's weight, not a whole scenario
         # (the robots may be real): the coordinator's view of one
         sc = scenario if scenario is not None else SimpleNamespace(
-            weight_centi=weight, homeX=home_x, homeY=home_y, worldSize=world_size)
+            weight_centi=weight, homeX=home_x, homeY=home_y, worldSize=world_size,
+            arrival=arrival)
         self.behaviour = host_behaviour(behaviour, sc)
         if journal is not None:
             journal.bind(str(behaviour or "thesis"))    # JournalError: another behaviour's

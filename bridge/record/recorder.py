@@ -64,6 +64,11 @@ class RecordingLink:
         self.down.append((node, kind, tuple(fields)))
         self.inner.host_send(node, kind, fields)
 
+    def bad_frames(self) -> dict[str, int]:
+        """The wrapped link's refused frames (the per-tick trace counts them)."""
+        counter = getattr(self.inner, "bad_frames", None)
+        return counter() if counter is not None else {}
+
     def take(self) -> tuple[list[Message], list[Message]]:
         up, down = self.up, self.down
         self.up, self.down = [], []

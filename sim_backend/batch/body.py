@@ -29,7 +29,8 @@ CARRY_DY = 13
 RUN = 14        # the robot's run
 IN_HEAD = 15    # inbox ring: next message to read
 IN_TAIL = 16    # inbox ring: next free slot
-ROBOT_ROWS = 17
+TIE = 17        # uphill's tie-break stream (kernel.tie_seed)
+ROBOT_ROWS = 18
 
 # rows of the per-run table (int64[RUN_ROWS, runs])
 BASE = 0        # first cell of the run's grids
@@ -42,7 +43,10 @@ T1 = 6
 C0 = 7          # the run's object cells
 C1 = 8
 LIVE = 9        # 1 while the run goes on
-RUN_ROWS = 10
+SIGMODE = 10    # signalMode (kernel.ON_PATCH, LAST_FINDER)
+RADIUS = 11     # sigRadius
+TIES = 12       # uphillTies (kernel.ORDERED, AT_RANDOM)
+RUN_ROWS = 13
 
 # rows of the grids (int64[GRID_ROWS, runs * stride])
 OBJ = 0
@@ -81,6 +85,7 @@ class BatchBody:
         self.run = robots[RUN]
         self.in_head = robots[IN_HEAD]
         self.in_tail = robots[IN_TAIL]
+        self.tie = robots[TIE]
         self.base = runs[BASE]
         self.w = runs[W]
         self.n = runs[N]
@@ -91,6 +96,9 @@ class BatchBody:
         self.c0 = runs[C0]
         self.c1 = runs[C1]
         self.live = runs[LIVE]
+        self.sigmode = runs[SIGMODE]
+        self.radius = runs[RADIUS]
+        self.ties = runs[TIES]
         self.cx = cells[0]
         self.cy = cells[1]
         self.cv = cells[2]
@@ -132,7 +140,7 @@ class BatchBody:
     def uphill(self):
         r = self.run[self.i]
         return kernel.uphill(self.field, self.base[r], self.w[r], self.n[r],
-                             self.xs[self.i], self.ys[self.i])
+                             self.xs[self.i], self.ys[self.i], self.ties[r], self.tie, self.i)
 
     def holding(self):
         r = self.run[self.i]
@@ -197,7 +205,7 @@ class BatchBody:
                           self.held, self.mv_on, self.mv_h, self.mv_step, self.claim_k,
                           self.beacon_set, self.beacon_on, self.bsx, self.bsy, self.carry_on,
                           self.carry_dx, self.carry_dy, self.cx, self.cy, self.cv, self.cw,
-                          self.c0[r], self.c1[r], tick)
+                          self.c0[r], self.c1[r], tick, self.sigmode[r], self.radius[r])
 
 
 def tick_all(robots, body, tick):

@@ -70,6 +70,9 @@ class BatchArrays:
             rt[B.HI, r] = starts[r + 1]
             rt[B.T0, r], rt[B.T1, r] = tstarts[r], tstarts[r + 1]
             rt[B.C0, r], rt[B.C1, r] = cstarts[r], cstarts[r + 1]
+            rt[B.SIGMODE, r] = w.sigmode
+            rt[B.RADIUS, r] = w.sc.sigRadius
+            rt[B.TIES, r] = w.ties
         rt[B.LIVE] = 1
         table = np.zeros((3, max(1, int(tstarts[-1]))), dtype=np.int64)
         cell = np.zeros((4, max(1, int(cstarts[-1]))), dtype=np.int64)
@@ -89,6 +92,7 @@ class BatchArrays:
             rb[B.XS, lo:hi] = w.xs
             rb[B.YS, lo:hi] = w.ys
             rb[B.RUN, lo:hi] = r
+            rb[B.TIE, lo:hi] = w.tie
         rb[B.HELD] = -1
         rb[B.CLAIM] = -1
         rb[B.BEACON_SET] = -1

@@ -46,3 +46,11 @@ MEASURES = (
     ("clusters", "groups of stopped robots touching each other (8-neighbours)"),
     ("largest", "robots in the largest cluster"),
 )
+
+# values the coordinator gives at every tick (coordinator.reporters(); one
+# column each in `touchswarm run --trace`)
+REPORTERS = (
+    ("stopped", "robots that stopped"),
+    ("clusters", "groups of stopped robots touching each other (8-neighbours)"),
+    ("largest", "robots in the largest cluster"),
+)

@@ -7,7 +7,8 @@ SUBSET_SETUP = ("robot_args", "make_coordinator")   # host side: may allocate
 
 def robot_args(node, seed, sc):
     """The FSM's constructor arguments for robot `node` of scenario `sc`."""
-    return (node, seed, sc.model, sc.robotVisionSpan, sc.fieldDefiance, sc.power_centi)
+    return (node, seed, sc.model, sc.robotVisionSpan, sc.fieldDefiance, sc.power_centi,
+            1 if sc.leaderField == "netlogo" else 0)
 
 
 def make_coordinator(sc, journal=None, cells=None, on_reject=None):
@@ -20,5 +21,7 @@ def make_coordinator(sc, journal=None, cells=None, on_reject=None):
     (firmware_logic/roster.py).
     """
     from firmware_logic.behaviours.thesis.coordinator import Coordinator
+    netlogo = sc.arrival == "netlogo"
     return Coordinator(sc.weight_centi, sc.homeX, sc.homeY, journal=journal,
+                       home_radius=1 if netlogo else 4, by_carrier=netlogo,
                        world_size=sc.worldSize, cells=cells, on_reject=on_reject)

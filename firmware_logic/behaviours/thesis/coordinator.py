@@ -68,11 +68,11 @@ class Touch:
 
 
 class Coordinator(Roster):
-    NOT_SNAPSHOT = Roster.NOT_SNAPSHOT + ("home_x", "home_y", "home_r2")
+    NOT_SNAPSHOT = Roster.NOT_SNAPSHOT + ("home_x", "home_y", "home_r2", "by_carrier")
     VOLATILE = ("step_sent_tick",)     # a resend of the same TRANSPORT
 
     def __init__(self, weight, home_x=-15, home_y=-15, home_radius=4, journal=None,
-                 world_size=None, cells=None, on_reject=None):
+                 world_size=None, cells=None, on_reject=None, by_carrier=False):
         """weight: the object's weight in hundredths (objectWeight * 100).
 
         journal: optional callable(node, kind, fields, tick) called for every
@@ -90,6 +90,11 @@ class Coordinator(Roster):
         self.home_x = home_x
         self.home_y = home_y
         self.home_r2 = home_radius * home_radius
+        # arrival: False, a carrier or segment within home_radius (the
+        # project's default, 4); True, only carriers count and the plan
+        # brings the nearest carrier home (Appendix A writes tt.txt when a
+        # holder is within 1 of home; scenario arrival = "netlogo")
+        self.by_carrier = by_carrier
         self.world_size = BYTE_ARENA if world_size is None else world_size
         self.cells = None if cells is None else frozenset(cells)
         self.touches = []        # accepted, in order of acceptance
@@ -290,6 +295,10 @@ class Coordinator(Roster):
         elif tick - self.step_sent_tick >= RESEND_AFTER:
             self._command(tick)
 
+    def reporters(self):
+        """spec.REPORTERS by name, for the per-tick trace."""
+        return {"holders": len(self.carriers()), "home_d2": self._home_d2(0, 0)}
+
     def leader_touch(self):
         for t in self.touches:
             if t.node == self.leader:
@@ -298,23 +307,29 @@ class Coordinator(Roster):
 
     def _points_now(self):
         """Segments and carriers where they are now."""
-        pts = self.segments_now()
+        return self.segments_now() + self._carriers_now()
+
+    def _carriers_now(self):
+        out = []
         for t in self.touches:
-            pts.append((t.rx + self.moved_x, t.ry + self.moved_y))
-        return pts
+            out.append((t.rx + self.moved_x, t.ry + self.moved_y))
+        return out
 
     def _home_d2(self, ddx, ddy):
         best = -1
-        for x, y in self.segments_now():
+        pts = self._carriers_now() if self.by_carrier else self.segments_now()
+        for x, y in pts:
             d = (x + ddx - self.home_x) ** 2 + (y + ddy - self.home_y) ** 2
             if best < 0 or d < best:
                 best = d
         return best
 
     def _home_reached(self):
-        # the thesis stops transport when a robot is within 4 of home
-        # (`wayHome < 4`); a segment that close counts as well
-        for x, y in self._points_now():
+        # ours: a robot or a segment within 4 of home (`wayHome < 4` only
+        # sets canTransport in Appendix A); by_carrier: a robot within
+        # home_radius, as the thesis's tt.txt (`distancexy -15 -15 < 1`)
+        pts = self._carriers_now() if self.by_carrier else self._points_now()
+        for x, y in pts:
             ddx = x - self.home_x
             ddy = y - self.home_y
             if ddx * ddx + ddy * ddy < self.home_r2:

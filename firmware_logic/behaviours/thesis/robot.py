@@ -19,7 +19,8 @@ from firmware_logic.rng import Rng
 
 from firmware_logic.behaviours.thesis.spec import (ANT, CARRY, FIELD, FIREFLY,  # noqa: F401
                                                    GRASP, HALT, HOLD, SEARCH, STATES)
-from firmware_logic.hal import CLAIMED, NOTHING, OBJECT, ROBOT, WALL  # noqa: F401
+from firmware_logic.hal import (BEACON_LEADER, BEACON_ON, CLAIMED, NOTHING,  # noqa: F401
+                               OBJECT, ROBOT, WALL)
 
 STATE_NAMES = STATES
 
@@ -30,8 +31,12 @@ HEARTBEAT_EVERY = 64
 
 
 class Robot:
-    def __init__(self, node, seed, model, vision_span, field_defiance, power):
+    def __init__(self, node, seed, model, vision_span, field_defiance, power, leader_field=0):
         self.node = node
+        # 1: a leader (found the object from outside any field) lights its
+        # beacon as BEACON_LEADER, and the world pins its patch's field to 10
+        # every tick (Appendix A go's `set field 10`; scenario leaderField)
+        self.leader_field = leader_field
         self.model = model
         self.span = vision_span
         self.defiance = field_defiance
@@ -42,7 +47,7 @@ class Robot:
         self.state = SEARCH
         self.resume = SEARCH          # where to go back to if a grasp fails
         self.phase = 0                # position in the in-field cycle
-        self.first = 0                # found the object from outside any field
+        self.first = 0                # touched the object from outside any field
         self.claim_heading = 0
         self.ticks = 0
         # touch report and its retransmission
@@ -114,7 +119,10 @@ class Robot:
             self.phase = 0
             return
         self.state = HOLD
-        hal.beacon(1)
+        if self.leader_field and self.first:
+            hal.beacon(BEACON_LEADER)
+        else:
+            hal.beacon(BEACON_ON)
         x = hal.x()
         y = hal.y()
         self.rx = fx.patch(x)
@@ -160,8 +168,9 @@ class Robot:
         self.heading = h
         self.claim_heading = h
         self.resume = self.state
-        if self.state == SEARCH:
-            self.first = 1
+        # go's `not foundField`: judged at this touch (a failed grasp from
+        # SEARCH and a later touch from FIELD make no leader)
+        self.first = 1 if self.state == SEARCH else 0
         self.state = GRASP
         return 1
 

@@ -49,3 +49,10 @@ MEASURES = (
     ("leader", "node of the first finder"),
     ("delivered", "the object is home"),
 )
+
+# -- reporters: values the coordinator gives at every tick (the per-tick trace,
+# `touchswarm run --trace`, has one column each; coordinator.reporters()) -----
+REPORTERS = (
+    ("holders", "robots holding the object (accepted touches)"),
+    ("home_d2", "squared patch distance from the object's nearest segment to home, -1 before a touch"),
+)

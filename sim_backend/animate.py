@@ -1,0 +1,189 @@
+"""`touchswarm run --animate FILE`: the run drawn over time as a GIF (or an
+MP4 where ffmpeg is on PATH), from the engine's per-tick snapshots.
+
+Each frame shows the field with a colour bar, the object and its held
+segments, every robot's recent trail coloured by its state, the touches
+numbered in order, the perceived shape (blue squares) and the object's
+path home. Frames: the start, then every `every` ticks, then the last tick.
+With no `every`, the stride starts at 1 and doubles whenever more than
+MAX_FRAMES frames are kept, so a long run stays a small file.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import shutil
+import subprocess
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Iterator
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.collections import LineCollection  # noqa: E402
+from matplotlib.lines import Line2D  # noqa: E402
+from matplotlib.patches import Patch  # noqa: E402
+
+from sim_backend import render as rd  # noqa: E402
+from sim_backend.observe import OutputFormatError, Snapshot, Trails, output_format  # noqa: E402
+
+SUFFIXES = (".gif", ".mp4")
+MAX_FRAMES = 120
+FPS = 10
+TRAIL_TICKS = 30          # how far back a frame draws each robot's trail
+FIGSIZE = (6.4, 5.6)      # inches; at DPI this gives 448 x 392 pixels
+DPI = 70
+
+
+def animation_format(path: Path) -> str:
+    """"gif" or "mp4" from the suffix; mp4 needs ffmpeg on PATH."""
+    fmt = output_format(path, SUFFIXES, "animation")
+    if fmt == "mp4" and shutil.which("ffmpeg") is None:
+        raise OutputFormatError(f"{path}: .mp4 needs ffmpeg on PATH, which is not there; "
+                                "use .gif or install ffmpeg")
+    return fmt
+
+
+def frame_count(ticks: int, every: int) -> int:
+    """Frames a run of `ticks` ticks gives at a stride of `every`."""
+    return 1 + math.ceil(ticks / every)
+
+
+@dataclass
+class Frame:
+    tick: int
+    field: np.ndarray
+    obj: np.ndarray
+    touches: tuple
+    perceived: tuple
+    xs: tuple
+    ys: tuple
+    power: float
+    iou: float
+
+
+def _frame(s: Snapshot) -> Frame:
+    return Frame(s.tick, s.field(), s.obj(), s.touches, tuple(s.perceived), s.xs, s.ys,
+                 s.power, s.iou)
+
+
+class Animation:
+    """Keeps frames from an engine's snapshots; `write` draws them."""
+
+    def __init__(self, engine: Any, trails: Trails, every: int | None = None) -> None:
+        self.world = engine.world
+        self.names = tuple(engine.behaviour.spec.STATES)
+        self.trails = trails
+        self.fixed = every is not None
+        self.every = every or 1
+        self.frames = [_frame(engine.snapshot())]
+        self.last: Snapshot | None = None
+        engine.observe(self.add)
+
+    def add(self, s: Snapshot) -> None:
+        self.last = s
+        if s.tick % self.every:
+            return
+        self.frames.append(_frame(s))
+        if not self.fixed and len(self.frames) > MAX_FRAMES:
+            self.every *= 2
+            self.frames = [f for f in self.frames if f.tick % self.every == 0]
+
+    def finish(self) -> None:
+        """Keep the last tick's frame. Only valid once the run has ended: a
+        snapshot's grids are read from the world as it stands."""
+        if self.last is not None and self.frames[-1].tick != self.last.tick:
+            self.frames.append(_frame(self.last))
+
+    def write(self, path: Path) -> int:
+        """Draw every kept frame and the last tick's to path; returns the count."""
+        self.finish()
+        frames = self.frames
+        fmt = animation_format(path)
+        w = self.world
+        colours = rd.state_colours(self.names)
+        vmax = max(float(f.field.max()) for f in frames)
+        fig, ax = plt.subplots(figsize=FIGSIZE, dpi=DPI)
+        img, objimg = rd.draw_base(ax, w, frames[0].field, vmax)
+        trail = LineCollection([], linewidths=1.0, alpha=0.8)
+        ax.add_collection(trail)
+        start_x, start_y = self.trails.xs[0], self.trails.ys[0]
+        ax.plot(start_x, start_y, "o", mfc="none", mec="gray", ms=3)
+        path_line, = ax.plot([], [], "--", color="darkcyan", lw=2)
+        seen = ax.scatter([], [], marker="s", s=22, facecolors="none", edgecolors="blue",
+                          linewidths=1.0, zorder=2)
+        dots = ax.scatter(start_x, start_y, s=18, edgecolors="black", linewidths=0.4, zorder=3)
+        title = ax.set_title("tick 0: 0 touches", fontsize=8)   # sized for tight_layout
+        ax.legend(handles=[Patch(color=rd.OBJECT_RGB, label="object"),
+                           Patch(color=rd.HELD_RGB, label="held segment"),
+                           Line2D([], [], marker="s", mfc="none", mec="blue", ls="",
+                                  label="perceived shape"),
+                           Line2D([], [], ls="--", color="darkcyan", label="object's path"),
+                           *rd.state_legend(self.names, colours)],
+                  loc="upper left", fontsize=5, framealpha=0.7)
+        fig.tight_layout()
+        # blitting: the axes' tick labels and the colour bar are drawn once;
+        # each frame redraws only the artists inside the axes (a full redraw
+        # lays out every text again and costs several times more)
+        dynamic = [*ax.images, *ax.collections, *ax.lines, *ax.patches, ax.get_legend(),
+                   title, *ax.spines.values()]
+        for a in dynamic:
+            a.set_animated(True)
+        fig.canvas.draw()
+        background = fig.canvas.copy_from_bbox(fig.bbox)
+        labels: list[Any] = []
+        with _sink(fmt, path, fig.canvas.get_width_height()) as sink:
+            for f in frames:
+                img.set_data(f.field)
+                objimg.set_data(rd.object_rgba(f.obj))
+                lo = max(0, f.tick - TRAIL_TICKS)
+                xs, ys, states = (a[lo:] for a in self.trails.arrays(f.tick))
+                segs, cols = rd.trail_segments(xs, ys, states, colours)
+                trail.set_segments(segs)
+                trail.set_color(cols)
+                centre = np.array(self.trails.centre[:f.tick + 1])
+                path_line.set_data(centre[:, 0], centre[:, 1])
+                seen.set_offsets(np.array(f.perceived, dtype=float).reshape(-1, 2))
+                dots.set_offsets(np.column_stack([f.xs, f.ys]))
+                dots.set_facecolor([colours[s] for s in self.trails.states[f.tick]])
+                for t in labels:
+                    t.remove()
+                labels = rd.touch_labels(ax, f.touches, f.xs, f.ys)
+                title.set_text(f"tick {f.tick}: {len(f.touches)} touches, power {f.power:g}, "
+                               f"shape IoU {f.iou:.2f}")
+                fig.canvas.restore_region(background)
+                for a in sorted(dynamic + labels, key=lambda a: a.get_zorder()):
+                    ax.draw_artist(a)
+                sink(np.asarray(fig.canvas.buffer_rgba())[..., :3])
+        plt.close(fig)
+        return len(frames)
+
+
+@contextlib.contextmanager
+def _sink(fmt: str, path: Path, size: tuple[int, int]) -> Iterator[Callable[[np.ndarray], None]]:
+    """A function taking RGB frames (h, w, 3) that end up in path as a GIF
+    (Pillow, one adaptive palette per frame) or an MP4 (ffmpeg, H.264)."""
+    if fmt == "gif":
+        from PIL import Image
+        images: list[Any] = []
+        yield lambda rgb: images.append(
+            Image.fromarray(rgb).convert("P", palette=Image.Palette.ADAPTIVE))
+        images[0].save(path, save_all=True, append_images=images[1:],
+                       duration=1000 // FPS, loop=0)
+        return
+    width, height = size
+    proc = subprocess.Popen(
+        [shutil.which("ffmpeg") or "ffmpeg", "-loglevel", "error", "-y", "-f", "rawvideo",
+         "-pix_fmt", "rgb24", "-s", f"{width}x{height}", "-r", str(FPS), "-i", "-",
+         "-pix_fmt", "yuv420p", "-vf", "pad=ceil(iw/2)*2:ceil(ih/2)*2", str(path)],
+        stdin=subprocess.PIPE)
+    try:
+        yield lambda rgb: proc.stdin.write(np.ascontiguousarray(rgb).tobytes())
+    finally:
+        proc.stdin.close()
+        if proc.wait() != 0:
+            raise OSError(f"ffmpeg failed writing {path} (exit status {proc.returncode})")

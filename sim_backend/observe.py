@@ -1,0 +1,132 @@
+"""Per-tick snapshots of a run, built in one place for every observer.
+
+`Engine.observe(fn)` calls fn(snapshot) after each tick (tick semantics:
+after the moves and the host exchange). The trace (sim_backend/trace.py),
+the animation (sim_backend/animate.py) and the trails on world.png
+(`Trails` here) all read these. An engine with no observer builds none, so
+a plain run pays nothing.
+
+The cheap parts are copied into the snapshot; the two grids (field, object
+colours) are copied only when an observer asks, and only during its call.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from firmware_logic import fixedpoint as fx
+from firmware_logic import perception
+from sim_backend.engine import power_held, shape_iou
+
+
+class OutputFormatError(ValueError):
+    """An output path (trace, animation) whose suffix names no format we write."""
+
+
+def output_format(path: Any, suffixes: tuple[str, ...], what: str) -> str:
+    """The format a path's suffix picks among `suffixes` ("csv" for ".csv")."""
+    from pathlib import Path
+    suffix = Path(path).suffix.lower()
+    if suffix not in suffixes:
+        raise OutputFormatError(f"{path}: unknown {what} format {suffix or '(no suffix)'!r}; "
+                                f"expected one of {', '.join(suffixes)}")
+    return suffix[1:]
+
+
+class Snapshot:
+    """The world and the host's view after one tick (tick 0: the start).
+
+    xs, ys        robot positions in patches (floats), node order
+    states        robot state codes; state_names maps a code to its name
+    touches       accepted touches in arrival order: (node, tick, rx, ry)
+    holders       nodes whose touch the host accepted, first touch first
+    power         holders' power in weight units (summary "power")
+    perceived     cells of the perceived shape; iou its IoU with the object
+    object_cells  the object's cells where they are now
+    msgs_up/down  messages the host received / sent this tick
+    bad_frames    frames the link refused this tick (0 on an in-process link)
+    reporters     the behaviour's declared per-tick reporters (spec.REPORTERS)
+    """
+
+    __slots__ = ("tick", "xs", "ys", "states", "state_names", "touches", "holders", "power",
+                 "perceived", "iou", "object_cells", "msgs_up", "msgs_down", "bad_frames",
+                 "reporters", "home", "_world")
+
+    def __init__(self, **kw: Any) -> None:
+        for k, v in kw.items():
+            setattr(self, k, v)
+
+    def field(self) -> np.ndarray:
+        """The potential field now, (n, n), row = y; a copy."""
+        w = self._world
+        return np.array(w.field, dtype=np.int32).reshape(w.n, w.n)
+
+    def obj(self) -> np.ndarray:
+        """The patches' object colours now (kernel FREE/YELLOW/BLUE), (n, n); a copy."""
+        w = self._world
+        return np.array(w.obj, dtype=np.int8).reshape(w.n, w.n)
+
+    def counts(self) -> dict[str, int]:
+        """Robots per state, by state name, every declared state present."""
+        out = dict.fromkeys(self.state_names, 0)
+        for s in self.states:
+            out[self.state_names[s]] += 1
+        return out
+
+
+def bad_frames_total(link: Any) -> int:
+    """Every frame the link has refused so far (links without a count: 0)."""
+    counter = getattr(link, "bad_frames", None)
+    return sum(counter().values()) if counter is not None else 0
+
+
+def snapshot(engine: Any) -> Snapshot:
+    """The one builder of a Snapshot; it also advances the engine's bad-frame
+    mark, so call it once per tick (Engine.step does)."""
+    w = engine.world
+    c = engine.coordinator
+    bad = bad_frames_total(engine.link)
+    fresh, engine.bad_seen = bad - engine.bad_seen, bad
+    cells = list(w.object_cells)
+    perceived = perception.outline_cells(c.segments_now())
+    one = float(fx.ONE)
+    return Snapshot(
+        tick=engine.tick,
+        xs=tuple(x / one for x in w.xs), ys=tuple(y / one for y in w.ys),
+        states=tuple(r.state for r in engine.robots),
+        state_names=tuple(engine.behaviour.spec.STATES),
+        touches=tuple((t.node, t.tick, t.rx, t.ry) for t in c.touches),
+        holders=tuple(dict.fromkeys(t.node for t in c.touches)),
+        power=power_held(c),
+        perceived=perceived, iou=shape_iou(c, cells, perceived), object_cells=cells,
+        msgs_up=engine.msgs_up, msgs_down=engine.msgs_down, bad_frames=fresh,
+        reporters=engine.behaviour.report(c),
+        home=(w.sc.homeX, w.sc.homeY), _world=w)
+
+
+class Trails:
+    """Every robot's position and state at every tick from the start, and the
+    object's centre: what world.png and the animation draw trails from."""
+
+    def __init__(self, engine: Any) -> None:
+        self.xs: list[tuple[float, ...]] = []
+        self.ys: list[tuple[float, ...]] = []
+        self.states: list[tuple[int, ...]] = []
+        self.centre: list[tuple[float, float]] = []
+        self.add(engine.snapshot())
+        engine.observe(self.add)
+
+    def add(self, s: Snapshot) -> None:
+        self.xs.append(s.xs)
+        self.ys.append(s.ys)
+        self.states.append(s.states)
+        cx = sum(c[0] for c in s.object_cells) / len(s.object_cells)
+        cy = sum(c[1] for c in s.object_cells) / len(s.object_cells)
+        self.centre.append((cx, cy))
+
+    def arrays(self, upto: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """xs, ys, states as (ticks, robots) arrays up to index `upto` (inclusive)."""
+        end = len(self.xs) if upto is None else upto + 1
+        return (np.array(self.xs[:end]), np.array(self.ys[:end]), np.array(self.states[:end]))
