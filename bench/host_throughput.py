@@ -83,7 +83,7 @@ def host(ch: str, fs: list, tmp: Path) -> tuple[float, dict]:
         t = time.perf_counter()
         drain(tr, h)
         journal_ms = (time.perf_counter() - t) * 1000 / ROBOTS
-        assert len(j.touches()) == ROBOTS and h.messages == len(setup)
+        assert len(j.reports(msg.TOUCH)) == ROBOTS and h.messages == len(setup)
         h.messages = 0
         tr.frames_in = 0
         for f in fs:
@@ -93,7 +93,7 @@ def host(ch: str, fs: list, tmp: Path) -> tuple[float, dict]:
         dt = time.perf_counter() - t
         stats = {"handled": h.messages, "touches": len(h.coord.touches),
                  "journal_ms_per_touch": journal_ms,
-                 "journalled": len(j.touches()), "bad_frames": h.bad_frames(),
+                 "journalled": len(j.reports(msg.TOUCH)), "bad_frames": h.bad_frames(),
                  "acks_sent": tr.frames_out}
     assert tr.frames_in == len(fs) and h.messages == len(fs), (tr.frames_in, h.messages)
     return len(fs) / dt, stats

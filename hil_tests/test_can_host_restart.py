@@ -61,7 +61,7 @@ def stop_all(procs):
 
 def journal_touches(path):
     with sqlite3.connect(str(path)) as db:
-        return db.execute("SELECT node, seq FROM touches").fetchall()
+        return db.execute("SELECT node, seq FROM reports_touch").fetchall()
 
 
 def test_host_sigkill_and_resume_over_slcan_pty(tmp_path):
@@ -78,7 +78,7 @@ def test_host_sigkill_and_resume_over_slcan_pty(tmp_path):
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         procs.append(host)
         wait_for(lines_of(host.stderr),
-                 lambda s: sum("touch from robot" in x for x in s) >= 2)
+                 lambda s: sum("TOUCH from robot" in x for x in s) >= 2)
         os.kill(host.pid, signal.SIGKILL)
         host.wait(10)
         before = journal_touches(journal)
@@ -118,7 +118,7 @@ def journal_progress(path):
         return 0, ()
     try:
         with sqlite3.connect(f"file:{path}?mode=ro", uri=True, timeout=5) as db:
-            t = db.execute("SELECT COUNT(*) FROM touches").fetchone()[0]
+            t = db.execute("SELECT COUNT(*) FROM reports_touch").fetchone()[0]
             kinds = tuple(k for (k,) in db.execute("SELECT kind FROM decisions ORDER BY id"))
     except sqlite3.OperationalError:      # tables not created yet
         return 0, ()
@@ -127,7 +127,7 @@ def journal_progress(path):
 
 MAX_KILLS = 24
 # the host's events that follow a journal write (a touch, a decision)
-JOURNALLED = ("touch from robot", "converged", "transport step", "object home")
+JOURNALLED = ("TOUCH from robot", "converged", "transport step", "object home")
 
 
 def next_event(q, words, timeout):
@@ -174,7 +174,7 @@ def test_host_sigkilled_at_every_journalled_step_resumes_to_delivery(tmp_path):
             out = lines_of(host.stderr)
             if first:
                 # before the first touch: as soon as a robot announced itself
-                wait_for(out, lambda s: any("announced" in x for x in s), 60)
+                wait_for(out, lambda s: any("HELLO from robot" in x for x in s), 60)
             elif next_event(out, JOURNALLED, 60) is None:
                 break                                   # delivered before the next kill
             touches, kinds = journal_progress(journal)

@@ -22,6 +22,7 @@ from bridge.host.swarm import swarm_engine
 from bridge.host.transport import CanTransport
 from bridge.links import open_bus
 from bridge.links.canlink import Faults, private_channel
+from firmware_logic import messages as msg
 from sim_backend import scenario
 
 TICK = 0.01
@@ -126,7 +127,7 @@ def check_exactly_once(out, faults=False, journal=None):
         assert r["unacked"] == []                   # every robot's report was ACKed
     assert h["power"] == len(touches)           # rPower 1.0: one unit per touch
     if journal is not None:
-        assert sorted((t.node, t.seq) for t in journal.touches()) == sorted(touches)
+        assert sorted((r.node, r.fields[0]) for r in journal.reports(msg.TOUCH)) == sorted(touches)
     # with loss, a report may overtake a robot's lost HELLOs: dropped, then retransmitted
     allowed = {"unannounced node"} if faults else set()
     assert set(h["bad_frames"]) <= allowed and r["bad_frames"] == {}
@@ -157,7 +158,7 @@ def test_host_restart_mid_run_loses_no_touch(tmp_path):
         check_exactly_once(out)
         first, second = out["hosts"]
         assert len(first.coord.touches) >= 2 and second.resumed >= 2
-        assert sorted((t.node, t.seq) for t in j.touches()) == sorted(
+        assert sorted((r.node, r.fields[0]) for r in j.reports(msg.TOUCH)) == sorted(
             tuple(t) for t in out["host"]["touches"])
 
 
@@ -214,7 +215,7 @@ def test_host_killed_at_20_plus_points_resumes_to_delivery_exactly_once(tmp_path
         with last.transport:
             after = last.run(max_ticks=50, clock=clock)
         robots = swarm_summary(engine)
-        journalled = sorted((t.node, t.seq) for t in j.touches())
+        journalled = sorted((r.node, r.fields[0]) for r in j.reports(msg.TOUCH))
     assert len(deaths) >= 20, deaths
     assert {"before the first touch", "between touches", "transport"} <= set(deaths), deaths
     touches = [tuple(t) for t in out["touches"]]

@@ -80,7 +80,8 @@ def test_host_serves_a_serial_robot_and_journals_before_ack(tmp_path):
     assert summary["duplicates"] >= 1
     assert summary["delivered"] is False             # one robot of power 1 < weight 3
     with Journal(journal) as db:
-        assert [(t.node, t.seq, t.sx, t.sy) for t in db.touches()] == [(7, 1, 3, 5)]
+        assert [(r.node, r.fields[0], r.fields[3], r.fields[4])
+                for r in db.reports(msg.TOUCH)] == [(7, 1, 3, 5)]
 
 
 def test_host_needs_a_bus_or_a_serial_port():

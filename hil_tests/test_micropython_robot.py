@@ -69,9 +69,11 @@ class Mission:
         self.tick = 0
         self.touch_msgs = 0
 
-    def _journal(self, t: Touch) -> None:
-        self.db.add_touch(t)
-        self.journal.append(t)
+    def _journal(self, node: int, kind: int, f: tuple, tick: int) -> None:
+        self.db.add_report(node, kind, f, tick)
+        if kind != msg.TOUCH:
+            return
+        self.journal.append(Touch(node, *f, tick))
         if self.journalled_at < 0:
             self.journalled_at = self.link.applied_ticks
 
@@ -128,9 +130,9 @@ def check_outcome(m: Mission, robot: dict[str, int]) -> None:
     t = m.journal[0]
     assert t.node == 1 and t.seq == 1
     assert (t.sx, t.sy) in m.engine.world.object_cells
-    assert m.coord.touches == m.journal
+    assert [x.as_tuple() for x in m.coord.touches] == [t.as_tuple()]
     with Journal(m.journal_path) as db:        # durable, as a restarted host reads it
-        assert [x.as_tuple() for x in db.touches()] == [t.as_tuple()]
+        assert [(r.node,) + r.fields for r in db.reports(msg.TOUCH)] == [(1,) + t.report()]
     assert robot["state"] == 5, robot           # HALT
     assert robot["pending"] == 0, robot         # the acknowledged touch is known acked
     assert robot["seq"] == 1, robot

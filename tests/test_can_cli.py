@@ -9,14 +9,15 @@ import time
 from bridge.cli import main
 from bridge.host.journal import Journal
 from bridge.links import open_bus
-from firmware_logic.behaviours.thesis.coordinator import Touch
+from firmware_logic import messages as msg
 
 
 def test_host_gives_up_without_robots_and_resumes_into_a_new_journal(tmp_path, capsys):
     old = tmp_path / "old.sqlite"
     with Journal(old) as j:
-        j.add_node(2, 1, 100)
-        j.add_touch(Touch(2, 1, 3, 3, 4, 3, 100, 9))
+        j.bind("thesis")
+        j.add_report(2, msg.HELLO, (1, 100, 1), 8)
+        j.add_report(2, msg.TOUCH, (1, 3, 3, 4, 3, 100), 9)
     new = tmp_path / "new.sqlite"
     with open_bus(f"slcan-pty://{tmp_path / 'ada'}"):        # an adapter, no robots
         rc = main(["host", "--bus", f"slcan://{tmp_path / 'ada'}?settle_ms=0", "--resume",
@@ -28,7 +29,7 @@ def test_host_gives_up_without_robots_and_resumes_into_a_new_journal(tmp_path, c
     assert s["resumed"] == 1 and s["touches"] == [[2, 1]] and not s["delivered"]
     assert "resumed 1 touches" in cap.err and "gave up after 3 ticks" in cap.err
     with Journal(new) as j:
-        assert [t.as_tuple() for t in j.touches()] == [(2, 1, 3, 3, 4, 3, 100, 9)]
+        assert [r.fields for r in j.reports(msg.TOUCH)] == [(1, 3, 3, 4, 3, 100)]
     assert main(["host", "--bus", "virtual://x", "--resume", str(tmp_path / "none")]) == 2
 
 
@@ -52,7 +53,8 @@ def test_robots_and_host_commands_over_the_slcan_pty_face(tmp_path, capsys):
     assert "DELIVERED" in out
     robots = json.loads([line for line in out.splitlines() if line.startswith("{")][-1])
     with Journal(jp) as j:
-        assert sorted([t.node, t.seq] for t in j.touches()) == sorted(robots["reported"])
+        assert sorted([r.node, r.fields[0]] for r in j.reports(msg.TOUCH)) == sorted(
+            robots["reported"])
 
 
 def test_host_and_robots_refuse_the_in_process_virtual_bus(capsys):

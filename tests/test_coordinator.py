@@ -35,12 +35,14 @@ def test_duplicates_are_acknowledged_but_counted_once():
 
 def test_journal_is_written_before_the_ack():
     order = []
-    c = Coordinator(300, journal=lambda t: order.append(("journal", t.node, t.seq)))
+    c = Coordinator(300, journal=lambda node, kind, f, tick: order.append(
+        ("journal", node, kind, f[0])))
     hello(c, 2)
-    c.tick(1)
+    order += [("sent",) + cmd[:2] for cmd in c.tick(1)]
     touch(c, 2, 1, (5, 5), 10)
     order += [("sent",) + cmd[:2] for cmd in c.tick(10)]
-    assert order == [("journal", 2, 1), ("sent", 2, msg.ACK)]
+    assert order == [("journal", 2, msg.HELLO, 1), ("sent", 2, msg.ACK),
+                     ("journal", 2, msg.TOUCH, 1), ("sent", 2, msg.ACK)]
 
 
 def test_leader_is_first_finder_and_transport_commands_only_holders():
@@ -96,36 +98,36 @@ def test_blocked_step_tries_the_next_direction():
     assert (c.dx, c.dy) != first and c.blocked == 1
 
 
-def test_restore_readopts_journalled_touches_without_double_counting():
-    a = Coordinator(300)
+def test_replay_readopts_journalled_reports_without_double_counting_or_acks():
+    journalled = []
+    a = Coordinator(300, journal=lambda *r: journalled.append(r))
     hello(a, 1)
     touch(a, 1, 1, (5, 5), 10)
     b = Coordinator(300)
-    hello(b, 1)
-    b.tick(1)
-    b.restore(a.touches)
-    b.restore(a.touches)
+    for r in journalled + journalled:
+        b.replay(*r)
     assert b.power == 100 and len(b.touches) == 1 and b.leader == 1
+    assert b.tick(11) == [] and b.duplicates == 1
 
 
 def test_a_touch_at_home_never_crashes_or_delivers() -> None:
     """Issue 8: a TOUCH at (-15,-15) raised ZeroDivisionError in step planning,
     and since the touch was journalled first, every resume crashed again. It
     is now rejected before the journal, and a journal that holds one (an
-    older host's) is rejected on restore."""
+    older host's) is rejected on replay."""
     journalled = []
-    c = Coordinator(600, journal=journalled.append)
+    c = Coordinator(600, journal=lambda *r: journalled.append(r))
     hello(c, 7, power=600)
     c.tick(1)
     touch(c, 7, 1, (-15, -15), 2, power=600, robot=(-15, -16))
     out = c.tick(2) + c.tick(3)
-    assert journalled == [] and c.touches == [] and c.rejected == {"segment at home": 1}
+    assert journalled == [(7, msg.HELLO, (1, 600, 1), 1)]        # the touch is not
+    assert c.touches == [] and c.rejected == {"segment at home": 1}
     assert c.converged_tick == -1 and c.delivered_tick == -1
     assert (7, msg.ACK, (1,)) not in out           # rejected reports are not ACKed
-    from firmware_logic.behaviours.thesis.coordinator import Touch
     r = Coordinator(600)
     hello(r, 7, power=600)
-    r.restore([Touch(7, 1, -15, -16, -15, -15, 600, 2)])
+    r.replay(7, msg.TOUCH, (1, -15, -16, -15, -15, 600), 2)
     r.tick(4)
     r.tick(5)
     assert r.touches == [] and r.delivered_tick == -1 and r.rejected == {"segment at home": 1}

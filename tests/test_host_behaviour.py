@@ -1,7 +1,8 @@
 """`touchswarm host --behaviour NAME` builds its coordinator through the
 registry and serves any behaviour whose coordinator meets the host contract
 (firmware_logic/roster.py, bridge/host/process.py): the thesis and
-aggregation both run in the host process with journal and resume; a
+aggregation both run in the host process with journal and resume; the
+journal holds each behaviour's reports in the message table's layout; a
 behaviour that lacks the contract is refused in one line."""
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from bridge.links import open_bus
 from bridge.links.canlink import private_channel
 from firmware_logic import messages as msg
 from firmware_logic import registry
+from firmware_logic.behaviours.aggregate.spec import LEAVE
 from hil_tests.test_can_mission import TICK, Lockstep, SimClock
 from sim_backend import scenario
 from tests.test_journal import FakeTransport
@@ -33,25 +35,47 @@ def test_host_runs_thesis_and_aggregate_through_the_registry() -> None:
     assert type(a.coord).__module__ == "firmware_logic.behaviours.aggregate.coordinator"
 
 
-def test_a_behaviour_without_the_host_contract_is_refused_in_one_line(tmp_path, capsys) -> None:
-    """A behaviour folder whose make_coordinator takes no journal_node and
-    on_reject (what an old scaffold wrote) cannot be journalled: refused
-    before any port or journal is touched."""
-    src = registry.load("aggregate").folder
-    folder = tmp_path / "oldstyle"
-    shutil.copytree(src, folder, ignore=shutil.ignore_patterns("__pycache__"))
+def oldstyle(tmp_path, name, body):
+    """A copy of aggregate whose make_coordinator is `body`."""
+    folder = tmp_path / name
+    shutil.copytree(registry.load("aggregate").folder, folder,
+                    ignore=shutil.ignore_patterns("__pycache__"))
     init = folder / "__init__.py"
     text = init.read_text()
-    start = text.index("def make_coordinator(")
-    init.write_text(text[:start] + "def make_coordinator(sc, journal=None, cells=None):\n"
-                    "    from firmware_logic.behaviours.aggregate.coordinator import "
-                    "Coordinator\n    return Coordinator(sc.agents, 80, journal=journal)\n")
+    init.write_text(text[:text.index("def make_coordinator(")] + body)
+    return folder
+
+
+def test_a_behaviour_without_the_host_contract_is_refused_in_one_line(tmp_path, capsys) -> None:
+    """A behaviour folder whose make_coordinator takes no on_reject (what an
+    old scaffold wrote), or whose coordinator is no Roster (cannot replay a
+    journal, snapshot its state or say it is done), is refused before any
+    port or journal is touched."""
     from bridge.errors import UsageError
-    with pytest.raises(UsageError, match="lacks journal_node, on_reject"):
+    folder = oldstyle(tmp_path, "nokeywords", (
+        "def make_coordinator(sc, journal=None, cells=None):\n"
+        "    from firmware_logic.behaviours.aggregate.coordinator import Coordinator\n"
+        "    return Coordinator(sc.agents, 80, journal=journal)\n"))
+    with pytest.raises(UsageError, match="lacks on_reject"):
         host_behaviour(str(folder))
     assert main(["host", "--behaviour", str(folder), "--bus", "slcan:///nonexistent"]) == 2
     err = capsys.readouterr().err.strip()
     assert "cannot run in the host process" in err and "\n" not in err
+    bare = oldstyle(tmp_path, "noroster", (
+        "class Bare:\n"
+        "    def __init__(self):\n"
+        "        self.nodes, self.touches, self.rejected = {}, [], {}\n"
+        "    def on_message(self, node, kind, f, tick):\n"
+        "        pass\n"
+        "    def tick(self, tick):\n"
+        "        return []\n\n\n"
+        "def make_coordinator(sc, journal=None, cells=None, on_reject=None):\n"
+        "    return Bare()\n"))
+    with pytest.raises(UsageError, match="lacks replay, snapshot, adopt, decision, done, "
+                                         "carriers, status, quiet"):
+        host_behaviour(str(bare), AGG)
+    assert main(["host", "--behaviour", str(bare), "--bus", "slcan:///nonexistent"]) == 2
+    assert "derive it from firmware_logic.roster.Roster" in capsys.readouterr().err
     assert main(["host", "--behaviour", "nosuch", "--bus", "slcan:///nonexistent"]) == 2
     assert "not an installed behaviour" in capsys.readouterr().err
 
@@ -95,16 +119,27 @@ def aggregate_mission(url, engine, clock, journal, stop_after=None, resumed=Fals
     return h, out
 
 
+def stops(c):
+    return sorted((s.node, s.seq) for s in c.touches)
+
+
+def replayed(journal, sc):
+    """A fresh host's coordinator after replaying the journal."""
+    h = HostProcess(FakeTransport(), sc.weight_centi, behaviour="aggregate", scenario=sc)
+    h.resume(journal)
+    return h.coord
+
+
 def check_stops(h, out, engine, journal):
     """The quorum reached and the swarm halted; every robot counted at most
-    once; the journal's held records are exactly the coordinator's stops."""
+    once; replaying the journal gives exactly the coordinator's stops."""
     c = h.coord
     nodes = [s.node for s in c.touches]
     assert out["delivered"] and c.power == len(nodes) >= c.need
     assert len(nodes) == len(set(nodes))
     assert swarm_summary(engine)["halted"]
-    assert sorted((s.node, s.seq) for s in journal.touches()) == sorted(
-        (s.node, s.seq) for s in c.touches)
+    again = replayed(journal, engine.sc)
+    assert stops(again) == stops(c) and again.done()
 
 
 def test_aggregate_runs_in_the_host_process_with_its_journal(tmp_path) -> None:
@@ -129,10 +164,12 @@ def test_aggregate_host_killed_and_resumed_counts_every_stop_once(tmp_path) -> N
         engine = swarm_engine(sc, 4, rb)
         first, out = aggregate_mission(url, engine, clock, j, stop_after=12)
         assert not out["delivered"]
-        held = sorted((s.node, s.seq) for s in first.coord.touches)
-        assert len(held) >= 12 and sorted((s.node, s.seq) for s in j.touches()) == held
+        held = stops(first.coord)
+        assert len(held) >= 12 and stops(replayed(j, sc)) == held
         second, out = aggregate_mission(url, engine, clock, j, resumed=True)
         assert second.resumed == len(held)
         check_stops(second, out, engine, j)
-        # robots left their stops on the way: journalled as released, not restored
-        assert len(j.rows(released=True)) > len(j.touches())
+        # robots left their stops on the way: their LEAVEs (or HEARTBEATs out
+        # of STAY) are journalled and replayed, so those stops are not restored
+        left = len(j.reports(LEAVE)) + len(j.reports(msg.HEARTBEAT))
+        assert left > 0 and len(j.reports(msg.TOUCH)) > len(second.coord.touches)

@@ -4,10 +4,9 @@ import sqlite3
 
 import pytest
 
-from bridge.host.journal import Journal, JournalError
+from bridge.host.journal import Journal, JournalError, Report
 from bridge.host.process import HostProcess
 from firmware_logic import messages as msg
-from firmware_logic.behaviours.thesis.coordinator import Touch
 
 
 class FakeTransport:
@@ -32,18 +31,25 @@ class FakeTransport:
 def test_wal_and_roundtrip(tmp_path):
     p = tmp_path / "j.sqlite"
     with Journal(p) as j:
-        j.add_node(3, 1, 100)
-        j.add_touch(Touch(3, 1, 2, 3, 3, 3, 100, 17))
-        j.add_touch(Touch(3, 1, 2, 3, 3, 3, 100, 17))     # idempotent
-        assert j.touches()[0].as_tuple() == (3, 1, 2, 3, 3, 3, 100, 17)
-        assert j.last_tick() == 17
+        j.bind("thesis")
+        j.add_report(3, msg.HELLO, (1, 100, 1), 2)
+        j.add_report(3, msg.TOUCH, (1, 2, 3, 3, 3, 100), 17)
+        j.add_decision(18, "converged", {"host": {"tick": 18}})
+        assert j.reports(msg.TOUCH) == [Report(3, msg.TOUCH, (1, 2, 3, 3, 3, 100), 17)]
+        assert j.last_tick() == 18
     with sqlite3.connect(str(p)) as db:
         assert db.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
+        # the columns of each report's view are the message table's field names
+        assert db.execute("SELECT node, seq, rx, ry, sx, sy, power, tick FROM "
+                          "reports_touch").fetchall() == [(3, 1, 2, 3, 3, 3, 100, 17)]
+        assert db.execute("SELECT model, power, version FROM reports_hello").fetchall() == [
+            (1, 100, 1)]
     with Journal(p) as j:
-        assert j.nodes() == {3: (1, 100)} and len(j.touches()) == 1
+        assert j.nodes() == {3: (1, 100)} and len(j.reports()) == 2
+        assert [type(e).__name__ for e in j.entries()] == ["Report", "Report", "Decision"]
     j.close()   # idempotent
     with pytest.raises(JournalError):
-        j.touches()
+        j.reports()
 
 
 def test_touch_is_journalled_before_its_ack(tmp_path):
@@ -51,20 +57,23 @@ def test_touch_is_journalled_before_its_ack(tmp_path):
     order = []
     with Journal(tmp_path / "j.sqlite") as j:
         h = HostProcess(tr, weight=500, journal=j)
-        real = j.add_touch
-        j.add_touch = lambda t: (order.append(("journal", t.node, len(tr.sent))), real(t))
+        real = j.add_report
+        j.add_report = lambda node, kind, f, tick: (
+            order.append(("journal", node, msg.SCHEMA[kind][0], len(tr.sent))),
+            real(node, kind, f, tick))
         h.handle([(4, msg.HELLO, (1, 100, 1))])
+        assert order == [("journal", 4, "HELLO", 0)]          # before its ACK
         h.step()
         assert (4, msg.ACK, (0,)) in tr.sent and j.nodes() == {4: (1, 100)}
         h.handle([(4, msg.TOUCH, (1, 2, 2, 3, 2, 100))])
         acks_before = len(tr.sent)
-        assert order == [("journal", 4, acks_before)]          # nothing sent yet
+        assert order[1:] == [("journal", 4, "TOUCH", acks_before)]     # nothing sent yet
         h.step()
         assert tr.sent[-1] == (4, msg.ACK, (1,))
         # a duplicate is ACKed again but not journalled or counted again
         h.handle([(4, msg.TOUCH, (1, 2, 2, 3, 2, 100))])
         h.step()
-        assert tr.sent[-1] == (4, msg.ACK, (1,)) and len(order) == 1
+        assert tr.sent[-1] == (4, msg.ACK, (1,)) and len(order) == 2
         assert h.coord.power == 100 and h.coord.duplicates == 1
 
 
@@ -86,12 +95,13 @@ def test_resume_restores_touches_and_nodes(tmp_path):
         h2.step()
         assert tr.sent == [(5, msg.ACK, (1,))]
         assert h2.coord.power == 200 and h2.bad_frames() == {}
-        assert len(j.touches()) == 2
+        assert len(j.reports(msg.TOUCH)) == 2
 
 
-def test_a_journal_without_displacement_columns_is_migrated(tmp_path):
-    """Touches now keep the object's displacement at acceptance (mx, my); a
-    journal written before has no such columns and reads as displacement 0."""
+def test_a_version_1_journal_is_refused_in_one_line(tmp_path, capsys):
+    """Layout version 1 held thesis touches in their own columns; version 2
+    holds any behaviour's reports. An old journal is refused, naming the
+    version, before any port opens (docs/protocol.md)."""
     p = tmp_path / "old.sqlite"
     with sqlite3.connect(str(p)) as db:
         db.executescript(
@@ -103,9 +113,45 @@ def test_a_journal_without_displacement_columns_is_migrated(tmp_path):
             " PRIMARY KEY (node, seq));"
             "INSERT INTO nodes VALUES (3, 1, 100);"
             "INSERT INTO touches VALUES (3, 1, 2, 3, 3, 3, 100, 17);")
+    with pytest.raises(JournalError, match="layout version 1"):
+        Journal(p)
+    from bridge.cli import main
+    assert main(["host", "--resume", str(p), "--bus", "slcan:///dev/null"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "layout version 1" in err and "version 2" in err and "\n" not in err
+
+
+def test_resume_replays_reports_and_decisions_in_their_order(tmp_path):
+    """A touch accepted during the transport is stored in the frame the
+    object had then: the resumed host replays the leader's journalled
+    HEARTBEATs and the decisions in order, and recognises the robot's
+    retransmission as a duplicate, not a second touch."""
+    p = tmp_path / "j.sqlite"
+    tr = FakeTransport()
     with Journal(p) as j:
-        (t,) = j.touches()
-        assert t.as_tuple() == (3, 1, 2, 3, 3, 3, 100, 17) and (t.mx, t.my) == (0, 0)
-        j.add_touch(Touch(4, 1, 2, 3, 3, 3, 100, 20, -2, -1))
+        h = HostProcess(tr, weight=100, journal=j)
+        h.handle([(4, msg.HELLO, (1, 100, 1)), (5, msg.HELLO, (1, 100, 1))])
+        h.step()
+        h.handle([(4, msg.TOUCH, (1, 2, 2, 3, 2, 100))])
+        h.step()                                      # converged: step 1 to robot 4
+        c = h.coord
+        assert c.step == 1 and c.converged_tick == h.tick
+        dx, dy = c.dx, c.dy
+        # the leader moved the object one step and says so; robot 5 touches
+        # the moved object before the host's next tick (no decision between)
+        late = (1, 3 + dx, 3 + dy, 4 + dx, 3 + dy, 100)
+        h.handle([(4, msg.HEARTBEAT, (4, (2 + dx) * 256, (2 + dy) * 256, 0, 1)),
+                  (5, msg.TOUCH, late)])
+        h.step()
+        assert (c.moved_x, c.moved_y) == (dx, dy) and len(c.touches) == 2
+        state, segments = c.snapshot(), sorted(c.segments_now())
+        assert (4 + dx, 3 + dy) in segments
+        kinds = [d.kind for d in j.decisions()]
+        assert kinds[:2] == ["converged", "step"]
     with Journal(p) as j:
-        assert [(t.node, t.mx, t.my) for t in j.touches()] == [(3, 0, 0), (4, -2, -1)]
+        r = HostProcess(FakeTransport(), weight=100, journal=j)
+        assert r.resume(j) == 2
+        assert r.coord.snapshot() == state and sorted(r.coord.segments_now()) == segments
+        r.handle([(5, msg.TOUCH, late)])
+        r.step()
+        assert r.coord.duplicates == 1 and r.coord.rejected == {}

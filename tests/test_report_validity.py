@@ -33,8 +33,12 @@ def touch(c: Coordinator, node: int, seq: int, seg: tuple[int, int],
 
 
 def coordinator(**kw) -> tuple[Coordinator, list[Touch]]:
-    journalled: list[Touch] = []
-    c = Coordinator(300, world_size=18, journal=journalled.append, **kw)
+    journalled: list[Touch] = []     # the TOUCH reports journalled, as the robot sent them
+
+    def journal(node: int, kind: int, f: tuple, tick: int) -> None:
+        if kind == msg.TOUCH:
+            journalled.append(Touch(node, *f, tick))
+    c = Coordinator(300, world_size=18, journal=journal, **kw)
     for n in (1, 2, 3):
         hello(c, n)
     c.tick(1)
@@ -148,7 +152,7 @@ def test_memory_journal_and_a_resumed_host_agree_on_a_changed_hello(tmp_path: Pa
         assert r.coord.nodes == {4: (1, 100)}
         r.handle([(4, msg.HELLO, (2, 600, 1)), (4, msg.TOUCH, (1, 2, 2, 3, 2, 600))])
         r.step()
-        assert r.coord.nodes == j.nodes() == {4: (1, 100)} and j.touches() == []
+        assert r.coord.nodes == j.nodes() == {4: (1, 100)} and j.reports(msg.TOUCH) == []
         assert r.coord.rejected == {co.CHANGED_HELLO: 1, co.WRONG_POWER: 1}
 
 
@@ -162,7 +166,7 @@ def test_rejections_are_logged_once_per_reason_and_never_journalled(tmp_path: Pa
             h.handle([(4, msg.TOUCH, (1, 120, 119, 120, 120, 100)),
                       (4, msg.TOUCH, (1, 2, 2, 3, 2, 65535))])
         h.step()
-        assert j.touches() == [] and h.coord.power == 0
+        assert j.reports(msg.TOUCH) == [] and h.coord.power == 0
         assert h.summary()["rejected"] == {co.OUTSIDE: 3, co.WRONG_POWER: 3}
         lines = [r.getMessage() for r in caplog.records if "rejected" in r.getMessage()]
         assert len(lines) == 2
@@ -204,14 +208,13 @@ def test_a_poisoned_journal_never_crashes_or_fools_a_resumed_host(tmp_path: Path
     the arena, with a forged power) is resumed without them."""
     p = tmp_path / "old.sqlite"
     with Journal(p) as j:
-        j.add_node(7, 1, 600)
-        j.add_touch(Touch(7, 1, -15, -16, -15, -15, 600, 2))      # at home
-        j.add_node(8, 1, 100)
-        j.add_touch(Touch(8, 1, 120, 119, 120, 120, 100, 3))      # outside
-        j.add_node(9, 1, 100)
-        j.add_touch(Touch(9, 1, 2, 2, 3, 2, 65535, 4))           # power
-        j.add_node(10, 1, 100)
-        j.add_touch(Touch(10, 1, 2, 3, 3, 3, 100, 5))            # a good one
+        for node, power, touch, tick in (
+                (7, 600, (1, -15, -16, -15, -15, 600), 2),      # at home
+                (8, 100, (1, 120, 119, 120, 120, 100), 3),      # outside
+                (9, 100, (1, 2, 2, 3, 2, 65535), 4),            # power
+                (10, 100, (1, 2, 3, 3, 3, 100), 5)):            # a good one
+            j.add_report(node, msg.HELLO, (1, power, 1), tick)
+            j.add_report(node, msg.TOUCH, touch, tick)
     with Journal(p) as j:
         h = HostProcess(FakeTransport(), weight=600, journal=j, world_size=18)
         assert h.resume(j) == 1

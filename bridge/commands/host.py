@@ -47,7 +47,8 @@ def register(sub) -> None:
                    help="SQLite (WAL) journal written before every ACK "
                         "(default: the --resume journal, else none)")
     p.add_argument("--resume", type=path_arg, metavar="JOURNAL",
-                   help="recover nodes and touches from a journal after a crash")
+                   help="replay a journal's reports and decisions after a crash "
+                        "(layout version 2; an older journal is refused)")
     p.add_argument("--tick-ms", type=N.positive("milliseconds"), default=10.0, metavar="MS",
                    help="host tick period (default: %(default)s)")
     p.add_argument("--max-ticks", type=N.count(1, what="ticks"), metavar="N", help="give up after N host ticks")
@@ -154,7 +155,7 @@ def cmd_host(args: argparse.Namespace) -> int:
                                    node_timeout=args.node_timeout or None,
                                    bus_timeout=args.bus_timeout or None)
             except LinkError as err:
-                if not host.coord.delivered_tick >= 0:
+                if not host.coord.done():
                     raise
                 event(f"bus closed after delivery ({err})")
                 summary = host.summary()

@@ -1,3 +1,3 @@
-"""The host controller as its own process: the coordinator of
-firmware_logic/behaviours/thesis/coordinator.py against a bus, with a SQLite (WAL) journal
-written before every acknowledgement."""
+"""The host controller as its own process: any behaviour's coordinator (the
+host contract, firmware_logic/roster.py) against a bus, with a SQLite (WAL)
+journal written before every acknowledgement."""

@@ -1,72 +1,74 @@
-"""SQLite journal of the host: announced nodes, accepted touches, and every
-decision the host acts on.
+"""SQLite journal of the host: every report that changed what its
+coordinator knows, and every decision the host acts on, in one order.
 
 Opened in WAL mode with synchronous=FULL; every write is committed before the
-call returns. The host writes a touch before it sends the touch's ACK, and a
-decision (convergence, each transport step, delivery, each HALT) before it
-sends the decision's command, so whatever a robot was told survives a SIGKILL
-(and a power cut) of the host process, and a resumed host goes on from the
-last decision instead of starting the transport again.
+call returns. The host writes a report before it sends the report's ACK, and
+a decision (for the thesis: convergence, each transport step, delivery, each
+HALT) before it sends the decision's command, so whatever a robot was told
+survives a SIGKILL (and a power cut) of the host process.
 
-A decision row holds the state the host needs to go on from there, as JSON
-(`HostProcess.snapshot`): the coordinator's scalar attributes (step, dx, dy,
-converged_tick, delivered_tick, ...) and the host's tick and HALT count.
-
-Records (a thesis touch, an aggregation stop) share the TOUCH row layout;
-they are read back as the journal's behaviour's RECORD class (its
-coordinator module's). A record a behaviour withdraws (a robot that left its
-stop) is marked released, not deleted, and is no longer restored. A journal
-belongs to one behaviour (the `meta` table; journals written before it are
-the thesis's), and a host of another behaviour refuses it.
+Behaviour-neutral (layout version 2):
+- `reports`: (id, node, kind, tick, f1..f6), the message's fields in the
+  order messages.MESSAGES (or the behaviour's spec.MESSAGES) declares them;
+  a view per reported message, `reports_<name>` (reports_touch,
+  reports_hello, reports_leave, ...), names the columns as that table does.
+  Which reports a coordinator journals is its own rule
+  (firmware_logic/roster.py): a HELLO of a new node, an accepted TOUCH, ...
+- `decisions`: (id, tick, kind, state, after): `state` is the snapshot the
+  host needs to go on from there (JSON, `HostProcess.snapshot`), `after`
+  the last report journalled before it.
+- `meta`: the behaviour the journal belongs to and the layout version.
+A resumed host replays the reports in order into a fresh coordinator,
+adopting each decision's snapshot at its place (`entries`). Journals of
+layout version 1 (a thesis-only `touches` table, before this layout) are
+refused in one line naming the version.
 """
 
 from __future__ import annotations
 
-import importlib
 import json
 import sqlite3
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, Union
 
 from bridge.errors import BridgeError
-from firmware_logic import registry
+from firmware_logic import messages as msg
 
 
-DEFAULT_BEHAVIOUR = "thesis"    # what a journal without a `meta` row was written by
-
-
-def record_class(behaviour: str) -> Any:
-    """The class a journalled row is read back as: RECORD of the behaviour's
-    coordinator module (the host process checks it is there)."""
-    b = registry.load(behaviour)
-    return importlib.import_module(b.module_name + ".coordinator").RECORD
-
-
-Touch = Any   # a behaviour's RECORD (see record_class)
+DEFAULT_BEHAVIOUR = "thesis"
+VERSION = 2
+MAX_FIELDS = 6          # messages.declare: at most 6 fields fit a frame
+FIELD_COLUMNS = tuple("f%d" % (i + 1) for i in range(MAX_FIELDS))
 
 SCHEMA = """
-CREATE TABLE IF NOT EXISTS nodes (node INTEGER PRIMARY KEY, model INTEGER NOT NULL,
-                                  power INTEGER NOT NULL);
-CREATE TABLE IF NOT EXISTS touches (node INTEGER NOT NULL, seq INTEGER NOT NULL,
-    rx INTEGER NOT NULL, ry INTEGER NOT NULL, sx INTEGER NOT NULL, sy INTEGER NOT NULL,
-    power INTEGER NOT NULL, tick INTEGER NOT NULL, mx INTEGER NOT NULL DEFAULT 0,
-    my INTEGER NOT NULL DEFAULT 0, PRIMARY KEY (node, seq));
+CREATE TABLE IF NOT EXISTS reports (id INTEGER PRIMARY KEY AUTOINCREMENT,
+    node INTEGER NOT NULL, kind INTEGER NOT NULL, tick INTEGER NOT NULL,
+    %s);
 CREATE TABLE IF NOT EXISTS decisions (id INTEGER PRIMARY KEY AUTOINCREMENT,
-    tick INTEGER NOT NULL, kind TEXT NOT NULL, state TEXT NOT NULL);
-CREATE TABLE IF NOT EXISTS released (node INTEGER NOT NULL, seq INTEGER NOT NULL,
-    tick INTEGER NOT NULL, PRIMARY KEY (node, seq));
+    tick INTEGER NOT NULL, kind TEXT NOT NULL, state TEXT NOT NULL,
+    after INTEGER NOT NULL);
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
-"""
+""" % ", ".join(c + " INTEGER" for c in FIELD_COLUMNS)
 
 
 class JournalError(BridgeError):
     """The journal cannot be opened, read or written (names the file)."""
 
 
+class Report(NamedTuple):
+    node: int
+    kind: int
+    fields: tuple[int, ...]
+    tick: int
+
+
 class Decision(NamedTuple):
     tick: int
-    kind: str               # converged, step, delivered, halt
+    kind: str               # the coordinator's name for it (thesis: converged, step, ...)
     state: dict[str, Any]   # HostProcess.snapshot() after the decision
+
+
+Entry = Union[Report, Decision]
 
 
 class Journal:
@@ -80,24 +82,20 @@ class Journal:
             if mode.lower() != "wal":
                 raise JournalError(f"{self.path}: SQLite refused WAL mode ({mode})")
             self.db.execute("PRAGMA synchronous=FULL")
+            tables = {r[0] for r in self.db.execute(
+                "SELECT name FROM sqlite_master WHERE type = 'table'")}
+            if "touches" in tables:
+                raise JournalError(
+                    f"journal {self.path} has layout version 1 (the thesis-only touches "
+                    f"table); this host reads version {VERSION}: finish that mission with "
+                    f"the touchswarm that wrote it, or start a new journal")
             self.db.executescript(SCHEMA)
-            self._migrate(self.db)
+            self.db.execute("INSERT OR IGNORE INTO meta VALUES ('version', ?)", (str(VERSION),))
         except (sqlite3.Error, JournalError) as err:
             self.close()
             if isinstance(err, JournalError):
                 raise
             raise JournalError(f"cannot open journal {self.path}: {err}") from err
-
-    @staticmethod
-    def _migrate(db: sqlite3.Connection) -> None:
-        # journals from before touches kept the object's displacement at
-        # acceptance (mx, my) lack those columns; 0 is exact for a touch
-        # accepted before the transport began; for a later one only the
-        # recognition of its retransmissions as duplicates is lost
-        cols = {r[1] for r in db.execute("PRAGMA table_info(touches)")}
-        for c in ("mx", "my"):
-            if c not in cols:
-                db.execute(f"ALTER TABLE touches ADD COLUMN {c} INTEGER NOT NULL DEFAULT 0")
 
     def _sql(self, sql: str, args: tuple = ()) -> list[tuple]:
         """Run one statement (committed on return: autocommit); every SQLite
@@ -109,19 +107,24 @@ class Journal:
         except sqlite3.Error as err:
             raise JournalError(f"journal {self.path}: {err}") from err
 
-    def add_node(self, node: int, model: int, power: int) -> None:
-        self._sql("INSERT OR REPLACE INTO nodes VALUES (?, ?, ?)", (node, model, power))
+    def _views(self) -> None:
+        """One view per reported message, its columns named as the message
+        table names its fields (the behaviour's kinds are declared by now)."""
+        for kind, name, direction, _, fields in msg.rows():
+            if direction != msg.UP:
+                continue
+            cols = ", ".join(f"{c} AS {f[0]}" for c, f in zip(FIELD_COLUMNS, fields))
+            self._sql(f"CREATE VIEW IF NOT EXISTS reports_{name.lower()} AS SELECT id, node, "
+                      f"tick, {cols} FROM reports WHERE kind = {kind}")
 
-    def add_touch(self, t: Touch) -> None:
-        self._add_row(t.as_tuple() + (t.mx, t.my))
-
-    def _add_row(self, row: tuple) -> None:
-        self._sql("INSERT OR IGNORE INTO touches (node, seq, rx, ry, sx, sy, power, tick, mx, my) "
-                  "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)", row)
-
-    def release(self, node: int, seq: int, tick: int) -> None:
-        """The record (node, seq) was withdrawn; it is no longer restored."""
-        self._sql("INSERT OR IGNORE INTO released VALUES (?, ?, ?)", (node, seq, tick))
+    def add_report(self, node: int, kind: int, fields: tuple[int, ...], tick: int) -> None:
+        """One report as the coordinator accepted it (before its ACK)."""
+        if len(fields) > MAX_FIELDS:
+            raise JournalError(f"journal {self.path}: a {len(fields)}-field report "
+                               f"(at most {MAX_FIELDS})")
+        row = tuple(fields) + (None,) * (MAX_FIELDS - len(fields))
+        self._sql(f"INSERT INTO reports (node, kind, tick, {', '.join(FIELD_COLUMNS)}) "
+                  f"VALUES (?, ?, ?, {', '.join('?' * MAX_FIELDS)})", (node, kind, tick) + row)
 
     def behaviour(self) -> str:
         rows = self._sql("SELECT value FROM meta WHERE key = 'behaviour'")
@@ -129,35 +132,51 @@ class Journal:
 
     def bind(self, behaviour: str) -> None:
         """Mark the journal as `behaviour`'s; JournalError if it holds another's
-        records (it would be read back as the wrong kind of record)."""
-        has = self._sql("SELECT COUNT(*) FROM touches")[0][0] or \
-            self._sql("SELECT COUNT(*) FROM meta")[0][0]
+        reports (its coordinator would read them with other rules)."""
+        has = self._sql("SELECT COUNT(*) FROM reports")[0][0] or \
+            self._sql("SELECT COUNT(*) FROM meta WHERE key = 'behaviour'")[0][0]
         if has and self.behaviour() != behaviour:
             raise JournalError(f"journal {self.path} was written by a host of behaviour "
                                f"{self.behaviour()!r}, not {behaviour!r}; resume it with "
                                f"--behaviour {self.behaviour()}")
         self._sql("INSERT OR REPLACE INTO meta VALUES ('behaviour', ?)", (behaviour,))
+        self._views()
 
     def add_decision(self, tick: int, kind: str, state: dict[str, Any]) -> None:
-        self._sql("INSERT INTO decisions (tick, kind, state) VALUES (?, ?, ?)",
+        self._sql("INSERT INTO decisions (tick, kind, state, after) VALUES (?, ?, ?, "
+                  "(SELECT COALESCE(MAX(id), 0) FROM reports))",
                   (tick, kind, json.dumps(state, sort_keys=True)))
 
+    def reports(self, kind: int | None = None) -> list[Report]:
+        """The journalled reports in journal order (of one kind)."""
+        where = "" if kind is None else f" WHERE kind = {int(kind)}"
+        return [self._report(r) for r in self._sql(
+            f"SELECT node, kind, tick, {', '.join(FIELD_COLUMNS)} FROM reports{where} "
+            "ORDER BY id")]
+
+    @staticmethod
+    def _report(r: tuple) -> Report:
+        # a field's column is NULL past the message's last field
+        return Report(r[0], r[1], tuple(v for v in r[3:] if v is not None), r[2])
+
     def nodes(self) -> dict[int, tuple[int, int]]:
-        return {n: (m, p) for n, m, p in
-                self._sql("SELECT node, model, power FROM nodes ORDER BY node")}
+        """node -> (model, power) of each journalled HELLO."""
+        return {r.node: (r.fields[0], r.fields[1]) for r in self.reports(msg.HELLO)}
 
-    def rows(self, released: bool = False) -> list[tuple]:
-        """The records' rows in journal order; without `released`, only those
-        still held."""
-        where = "" if released else \
-            " WHERE NOT EXISTS (SELECT 1 FROM released r WHERE r.node = t.node AND r.seq = t.seq)"
-        return self._sql("SELECT node, seq, rx, ry, sx, sy, power, tick, mx, my FROM touches t"
-                         + where + " ORDER BY rowid")
-
-    def touches(self) -> list[Touch]:
-        """The records still held, as the journal's behaviour's RECORD."""
-        record = record_class(self.behaviour())
-        return [record(*r) for r in self.rows()]
+    def entries(self) -> list[Entry]:
+        """Reports and decisions in the order they were journalled."""
+        reports = self._sql(f"SELECT node, kind, tick, {', '.join(FIELD_COLUMNS)}, id "
+                            "FROM reports ORDER BY id")
+        decisions = self._sql("SELECT tick, kind, state, after FROM decisions ORDER BY id")
+        out: list[Entry] = []
+        i = 0
+        for r in reports:
+            while i < len(decisions) and decisions[i][3] < r[-1]:
+                out.append(self._decision(decisions[i]))
+                i += 1
+            out.append(self._report(r[:-1]))
+        out.extend(self._decision(d) for d in decisions[i:])
+        return out
 
     def decisions(self) -> list[Decision]:
         return [self._decision(r) for r in
@@ -177,22 +196,19 @@ class Journal:
 
     def last_tick(self) -> int:
         """The latest host tick anything was journalled at."""
-        v = self._sql("SELECT MAX(t) FROM (SELECT MAX(tick) AS t FROM touches "
+        v = self._sql("SELECT MAX(t) FROM (SELECT MAX(tick) AS t FROM reports "
                       "UNION ALL SELECT MAX(tick) FROM decisions)")[0][0]
         return int(v) if v is not None else 0
 
     def copy_from(self, other: "Journal") -> None:
-        """Carry another journal's nodes, touches and decisions over (resume
-        into a new file); decisions keep their order."""
+        """Carry another journal's reports and decisions over in their order
+        (resume into a new file)."""
         self.bind(other.behaviour())
-        for n, (m, pw) in other.nodes().items():
-            self.add_node(n, m, pw)
-        for r in other.rows(released=True):
-            self._add_row(r)
-        for node, seq, tick in other._sql("SELECT node, seq, tick FROM released"):
-            self.release(node, seq, tick)
-        for d in other.decisions():
-            self.add_decision(d.tick, d.kind, d.state)
+        for e in other.entries():
+            if isinstance(e, Report):
+                self.add_report(*e)
+            else:
+                self.add_decision(*e)
 
     def close(self) -> None:
         """Idempotent; never raises."""

@@ -1,26 +1,30 @@
-"""The host controller process: coordinator + transport + journal.
+"""The host controller process: any behaviour's coordinator + transport + journal.
 
-One host tick every `tick_seconds` of wall time: frames that arrived since
-the last tick are handed to the coordinator as they come (a TOUCH is
-journalled before its ACK is queued; a HELLO's node before its ACK), and at
-the tick the coordinator's commands go out. Frames from nodes that never
-announced themselves with HELLO (and are not in a resumed journal) are
-counted as bad frames and never reach the coordinator.
+It knows no behaviour's rules, only the host contract
+(firmware_logic/roster.py). One host tick every `tick_seconds` of wall
+time: frames that arrived since the last tick are handed to the coordinator
+as they come (each report it accepts is journalled, through its `journal`
+callback, before its ACK is queued), and at the tick the coordinator's
+commands go out. Frames from nodes that never announced themselves with
+HELLO (and are not in a resumed journal) are counted as bad frames and never
+reach the coordinator.
 
-Every decision the host acts on (convergence, each transport step, delivery,
-each HALT) is journalled with a snapshot of the state it leads to BEFORE its
-command is sent; `resume` restores the last snapshot, so a host killed at any
-moment goes on where it stopped: it never plans a step twice, never starts
-the transport again after delivery.
+Every decision the host acts on (the coordinator's `decision`: for the
+thesis convergence, each transport step, delivery, each HALT) is journalled
+with a snapshot of the state it leads to BEFORE its command is sent; `resume`
+replays the journal's reports into a fresh coordinator and adopts each
+snapshot at its place, so a host killed at any moment goes on where it
+stopped: it never makes a decision twice (a transport step, the start of the
+transport after delivery).
 
 Liveness: `run` gives up when no robot has been heard for `bus_timeout`
-seconds, or a carrier (a robot whose touch was accepted: the object cannot
-move without it) for `node_timeout` seconds; the summary then says why.
+seconds, or one of the coordinator's `carriers()` (the thesis: a robot whose
+touch was accepted, the object cannot move without it) for `node_timeout`
+seconds; the summary then says why.
 """
 
 from __future__ import annotations
 
-import importlib
 import inspect
 import logging
 import time
@@ -29,87 +33,48 @@ from typing import Any, Callable
 
 from bridge.errors import UsageError
 from bridge.links.codec import UNANNOUNCED, BadFrames, Message
-from bridge.host.journal import Journal
+from bridge.host.journal import Journal, Report
 from bridge.transport import RobotTransport
 from firmware_logic import messages as msg
 from firmware_logic import registry
 from sim_backend.scenario import CHOICES
 
-# A coordinator is any behaviour's (registry); these aliases only document
-# what the host handles: the thesis's Coordinator and its Touch records.
+# A coordinator is any behaviour's that meets the host contract
+# (firmware_logic/roster.py); this alias only documents what the host handles.
 Coordinator = Any
-Touch = Any
 
 log = logging.getLogger(__name__)
 
-HALT_REPEATS = 10   # HALT is broadcast on this many ticks after delivery (it is not ACKed)
+HALT_REPEATS = 10   # HALT is broadcast on this many ticks after the mission is done (not ACKed)
 
-# Coordinator attributes a snapshot leaves out: the configuration (from the
-# command line), what the journalled touches rebuild (power, leader,
-# found_tick), and this process's own counters.
-NOT_SNAPSHOT = frozenset(("weight", "home_x", "home_y", "home_r2", "world_size", "power",
-                          "leader", "found_tick", "duplicates", "models"))
-
-
-def coordinator_state(c: Coordinator) -> dict[str, Any]:
-    """The coordinator's scalar attributes (its transport state), JSON-ready."""
-    out: dict[str, Any] = {}
-    for k, v in vars(c).items():
-        if k in NOT_SNAPSHOT:
-            continue
-        if isinstance(v, (bool, int, float, str)):
-            out[k] = v
-        elif isinstance(v, tuple) and all(isinstance(x, (int, float)) for x in v):
-            out[k] = list(v)
-    return out
-
-
-def restore_coordinator(c: Coordinator, state: dict[str, Any]) -> None:
-    """Set the attributes of a `coordinator_state` snapshot back (after the
-    touches were restored: the snapshot's pose overrides the first touch's)."""
-    for k, v in state.items():
-        if k in NOT_SNAPSHOT or not hasattr(c, k):
-            log.warning("journal snapshot: ignoring unknown coordinator attribute %r", k)
-            continue
-        setattr(c, k, tuple(v) if isinstance(getattr(c, k), tuple) else v)
-
-
-# What the host process needs of a behaviour's coordinator beyond what every
-# engine uses (docs/writing-a-behaviour.md, "What the host needs"):
-# make_coordinator keywords for journalling each record and node before its
-# ACK and logging rejected reports; the attributes resume and the liveness
-# checks read (a Coordinator deriving from firmware_logic.roster.Roster has
-# `nodes`); and RECORD in its coordinator module, the class journalled rows
-# (the TOUCH layout) are read back as. journal_release is optional: a
-# behaviour whose robots can withdraw a report takes it.
-HOST_KEYWORDS = ("journal", "cells", "journal_node", "on_reject")
-HOST_ATTRIBUTES = ("carriers", "restore", "nodes")
-OPTIONAL_KEYWORDS = ("journal_release",)
+# The host contract (firmware_logic/roster.py, docs/writing-a-behaviour.md
+# "What the host needs"): make_coordinator keywords for journalling each
+# report before its ACK and logging refused ones, and what resume, the
+# decisions and the liveness checks call. A Coordinator deriving from
+# firmware_logic.roster.Roster has all of HOST_ATTRIBUTES.
+HOST_KEYWORDS = ("journal", "cells", "on_reject")
+HOST_ATTRIBUTES = ("nodes", "touches", "rejected", "on_message", "tick", "replay", "snapshot",
+                   "adopt", "decision", "done", "carriers", "status", "quiet")
 
 
 def host_behaviour(name: str | None, sc: Any = None) -> registry.Behaviour:
-    """The behaviour `touchswarm host` runs, checked to have what the host
-    process needs; UsageError (one line) for an unknown one or one whose
-    coordinator lacks it, before any port or journal is touched."""
+    """The behaviour `touchswarm host` runs, checked to meet the host
+    contract; UsageError (one line) for an unknown one or one whose
+    coordinator does not, before any port or journal is touched."""
     try:
         b = registry.load(name)
     except registry.BehaviourError as err:
         raise UsageError(f"host: {err}") from None
     params = inspect.signature(b.package.make_coordinator).parameters
     missing = [k for k in HOST_KEYWORDS if k not in params]
-    try:
-        if not hasattr(importlib.import_module(b.module_name + ".coordinator"), "RECORD"):
-            missing.append("RECORD (in coordinator.py)")
-    except ImportError:
-        missing.append("a coordinator module")
     if not missing and sc is not None:
-        coord = b.coordinator(sc, journal=None, cells=None, journal_node=None, on_reject=None)
+        coord = b.coordinator(sc, journal=None, cells=None, on_reject=None)
         missing = [a for a in HOST_ATTRIBUTES if not hasattr(coord, a)]
     if missing:
         raise UsageError(f"host: behaviour {b.name!r} cannot run in the host process: its "
-                         f"coordinator lacks {', '.join(missing)} (what the journal, resume "
-                         f"and liveness checks need); run it with `touchswarm run "
-                         f"--behaviour {b.name} --link can`")
+                         f"coordinator lacks {', '.join(missing)} (the host contract: "
+                         f"derive it from firmware_logic.roster.Roster); run it with "
+                         f"`touchswarm run --behaviour {b.name} --link can`")
     return b
 
 
@@ -145,11 +110,8 @@ class HostProcess:
         self.behaviour = host_behaviour(behaviour, sc)
         if journal is not None:
             journal.bind(str(behaviour or "thesis"))    # JournalError: another behaviour's
-        params = inspect.signature(self.behaviour.package.make_coordinator).parameters
-        extra = {k: getattr(self, "_" + k) for k in OPTIONAL_KEYWORDS if k in params}
-        self.coord = self.behaviour.coordinator(sc, journal=self._journal_touch, cells=cells,
-                                                journal_node=self._journal_node,
-                                                on_reject=self._rejected, **extra)
+        self.coord = self.behaviour.coordinator(sc, journal=self._journal_report, cells=cells,
+                                                on_reject=self._rejected)
         self.tick = 0
         self.halts_sent = 0
         self.resumed = 0
@@ -162,56 +124,47 @@ class HostProcess:
     def snapshot(self) -> dict[str, Any]:
         """What a resumed host needs to go on from this moment."""
         return {"host": {"tick": self.tick, "halts_sent": self.halts_sent},
-                "coordinator": coordinator_state(self.coord)}
+                "coordinator": self.coord.snapshot()}
 
     def resume(self, journal: Journal) -> int:
-        """Adopt the nodes, touches and last decision of a journal; return the
-        touches restored."""
-        for node, (model, power) in journal.nodes().items():
-            self.coord.nodes[node] = (model, power)
-        touches = journal.touches()
-        self.coord.restore(touches)       # checked again: an older host's journal may hold poison
+        """Replay a journal into this (fresh) host: its reports in order
+        through the coordinator's own checks, each decision's snapshot
+        adopted at its place; return the reports the coordinator holds."""
+        c = self.coord
+        refused = sum(c.rejected.values())
+        replayed = 0
+        for e in journal.entries():
+            if isinstance(e, Report):
+                c.replay(e.node, e.kind, e.fields, e.tick)
+                replayed += 1
+            else:
+                unknown = c.adopt(e.state.get("coordinator", {}))
+                if unknown:
+                    log.warning("journal snapshot: ignoring unknown coordinator "
+                                "attributes %s", ", ".join(sorted(unknown)))
+                self.halts_sent = int(e.state.get("host", {}).get("halts_sent", 0))
         self.tick = max(self.tick, journal.last_tick())
-        self.resumed = len(self.coord.touches)
-        last = journal.last_decision()
-        if last is not None:
-            restore_coordinator(self.coord, last.state.get("coordinator", {}))
-            self.halts_sent = int(last.state.get("host", {}).get("halts_sent", 0))
-        dropped = len(touches) - self.resumed
-        self._event(f"resumed {self.resumed} touches from {len(self.coord.nodes)} nodes "
-                    f"({journal.path}); power {self.coord.power}/{self.coord.weight}; "
-                    f"{self.phase()}"
-                    + (f"; {dropped} journalled touches rejected" if dropped else ""))
+        self.resumed = len(c.touches)
+        dropped = sum(c.rejected.values()) - refused
+        self._event(f"resumed {self.resumed} touches from {len(c.nodes)} nodes "
+                    f"({journal.path}, {replayed} reports); {self.phase()}"
+                    + (f"; {dropped} journalled reports rejected" if dropped else ""))
         return self.resumed
 
     def phase(self) -> str:
-        c = self.coord
-        if c.delivered_tick >= 0:
-            return (f"delivered at tick {c.delivered_tick}, HALT sent "
-                    f"{self.halts_sent}/{HALT_REPEATS}")
-        if c.converged_tick >= 0:
-            return (f"transport step {getattr(c, 'step', 0)} "
-                    f"(leader done {getattr(c, 'leader_done', 0)})")
-        return "collecting touches"
+        text = self.coord.status()
+        if self.coord.done():
+            text += f", HALT sent {self.halts_sent}/{HALT_REPEATS}"
+        return text
 
-    def _journal_touch(self, t: Touch) -> None:
+    def _journal_report(self, node: int, kind: int, fields: tuple, tick: int) -> None:
+        # called by the coordinator for a report that changed what it knows,
+        # before the report's ACK is queued
         if self.journal is not None:
-            self.journal.add_touch(t)
-        self._event(f"tick {self.tick}: touch from robot {t.node} seq {t.seq} at "
-                    f"({t.rx},{t.ry}) segment ({t.sx},{t.sy}); power "
-                    f"{self.coord.power + t.power}/{self.coord.weight}")
-
-    def _journal_release(self, node: int, seq: int, tick: int) -> None:
-        # called by the coordinator when a robot withdraws its report
-        if self.journal is not None:
-            self.journal.release(node, seq, self.tick)
-        self._event(f"tick {self.tick}: robot {node} withdrew its report seq {seq}")
-
-    def _journal_node(self, node: int, model: int, power: int) -> None:
-        # called by the coordinator for a valid HELLO of a new node, before its ACK
-        if self.journal is not None:
-            self.journal.add_node(node, model, power)
-        self._event(f"tick {self.tick}: robot {node} announced (model {model}, power {power})")
+            self.journal.add_report(node, kind, fields, self.tick)
+        name, layout = msg.SCHEMA[kind]
+        self._event(f"tick {self.tick}: {name} from robot {node} journalled ("
+                    + ", ".join(f"{f[0]} {v}" for f, v in zip(layout, fields)) + ")")
 
     def _rejected(self, reason: str, node: int, fields: tuple) -> None:
         # like a bad frame: the first of each reason is logged, the rest counted
@@ -246,37 +199,26 @@ class HostProcess:
         """One host tick: decide, journal the decision, then send the commands."""
         self.tick += 1
         c = self.coord
-        converged, step, delivered = c.converged_tick, getattr(c, "step", 0), c.delivered_tick
+        repeat = c.done() and self.halts_sent < HALT_REPEATS
+        # a quiet coordinator's tick changes nothing: no snapshot to compare
+        # (most ticks; a snapshot costs more than the rest of the tick)
+        quiet = c.quiet() and not repeat
+        before = None if quiet else c.snapshot()
         out = c.tick(self.tick)
-        if c.delivered_tick >= 0 and delivered >= 0 and self.halts_sent < HALT_REPEATS:
+        if repeat:
             out.append((msg.HOST, msg.HALT, (0,)))          # a repeat: HALT is not ACKed
-        halts = sum(1 for m in out if m[1] == msg.HALT)
-        if c.delivered_tick != delivered:
-            kind = "delivered"
-        elif c.converged_tick != converged:
-            kind = "converged"
-        elif getattr(c, "step", 0) != step:
-            kind = "step"
-        elif halts:
-            kind = "halt"
-        else:
-            kind = ""
-        self.halts_sent += halts
-        if kind and self.journal is not None:
+        self.halts_sent += sum(1 for m in out if m[1] == msg.HALT)
+        decided = None if before is None else c.decision(before, out)
+        if decided is not None and self.journal is not None:
             # before anything is sent: a command on the bus is always journalled
-            self.journal.add_decision(self.tick, kind, self.snapshot())
-        for node, kind_, fields in out:
-            self.transport.send(node, kind_, fields)
-        if kind == "converged":
-            self._event(f"tick {self.tick}: converged, power {c.power}/{c.weight}; "
-                        f"leader robot {c.leader}; transport begins")
-        elif kind == "step":
-            self._event(f"tick {self.tick}: transport step {c.step} ({c.dx:+d}, {c.dy:+d})")
-        elif kind == "delivered":
-            self._event(f"tick {self.tick}: object home; HALT")
+            self.journal.add_decision(self.tick, decided[0], self.snapshot())
+        for node, kind, fields in out:
+            self.transport.send(node, kind, fields)
+        if decided is not None and decided[1]:
+            self._event(f"tick {self.tick}: {decided[1]}")
 
     def done(self) -> bool:
-        return self.coord.delivered_tick >= 0 and self.halts_sent >= HALT_REPEATS
+        return self.coord.done() and self.halts_sent >= HALT_REPEATS
 
     def run(self, stop: Callable[[], bool] | None = None, max_ticks: int | None = None,
             clock: Callable[[], float] = time.monotonic, node_timeout: float | None = None,
@@ -321,7 +263,7 @@ class HostProcess:
                  heard_bus: float, node_timeout: float | None,
                  bus_timeout: float | None) -> tuple[str, str] | None:
         """(limit, why) when the host should stop waiting for the robots."""
-        if self.coord.delivered_tick >= 0:
+        if self.coord.done():
             return None              # only HALTs left to send; halted robots may fall silent
         if bus_timeout is not None and now - heard_bus >= bus_timeout:
             return "bus", f"no message from any robot for {now - heard_bus:.1f} s"
@@ -354,7 +296,7 @@ class HostProcess:
             "rejected": dict(c.rejected),
             "converged_tick": c.converged_tick if c.converged_tick >= 0 else None,
             "home_tick": c.delivered_tick if c.delivered_tick >= 0 else None,
-            "delivered": c.delivered_tick >= 0,
+            "delivered": c.done(),
             "transport_step": getattr(c, "step", 0),
             "gave_up": self.gave_up,
             "gave_up_on": self.gave_up_on,

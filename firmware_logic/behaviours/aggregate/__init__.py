@@ -10,15 +10,12 @@ def robot_args(node, seed, sc):
     return (node, seed, sc.model, sc.robotVisionSpan, sc.fieldDefiance, sc.power_centi)
 
 
-def make_coordinator(sc, journal=None, cells=None, journal_node=None, on_reject=None,
-                     journal_release=None):
+def make_coordinator(sc, journal=None, cells=None, on_reject=None):
     """The host coordinator: halt once `quorum` percent of the swarm stopped.
 
     cells (the object's cells) is accepted like the thesis's and unused:
-    aggregation has no object. journal, journal_node, on_reject: see
-    coordinator.Coordinator."""
+    aggregation has no object. journal, on_reject: the host contract
+    (firmware_logic/roster.py)."""
     from firmware_logic.behaviours.aggregate.coordinator import Coordinator
     return Coordinator(sc.agents, getattr(sc, "quorum", 80), journal=journal,
-                       journal_node=journal_node, on_reject=on_reject,
-                       world_size=getattr(sc, "worldSize", None),
-                       journal_release=journal_release)
+                       on_reject=on_reject, world_size=getattr(sc, "worldSize", None))

@@ -3,7 +3,10 @@
 Fed decoded messages (node, kind, fields) like the thesis coordinator and
 exposing the same run-facing attributes (found_tick, converged_tick,
 delivered_tick, touches, power, leader, segments_now), so every engine,
-link and the host process drive it unchanged.
+link and the host process drive it unchanged. The host contract
+(firmware_logic/roster.py): it journals a HELLO of a new node, each new
+stop (TOUCH), and each report that withdraws a stop (LEAVE, or a HEARTBEAT
+whose state is no longer STAY); replaying them in order rebuilds the stops.
 """
 
 from firmware_logic import messages as msg
@@ -18,10 +21,10 @@ STOP_OUT_OF_RANGE = "stop outside the arena"
 
 
 class Stop:
-    """A stop as the host journals it: the TOUCH row layout (node, seq, robot
-    patch, touched patch, power, tick; mx, my always 0: nothing is carried)."""
+    """A robot's stop: its report (TOUCH: seq, robot patch, touched patch,
+    power) and the host tick it was accepted at."""
 
-    def __init__(self, node, seq, rx, ry, sx, sy, power, tick, mx=0, my=0):
+    def __init__(self, node, seq, rx, ry, sx, sy, power, tick):
         self.node = node
         self.seq = seq
         self.rx = rx
@@ -30,33 +33,20 @@ class Stop:
         self.sy = sy
         self.power = power
         self.tick = tick
-        self.mx = mx
-        self.my = my
-
-    def as_tuple(self):
-        return (self.node, self.seq, self.rx, self.ry, self.sx, self.sy,
-                self.power, self.tick)
-
-
-# a journalled record of this behaviour (bridge/host/journal.py reads rows back as these)
-RECORD = Stop
 
 
 class Coordinator(Roster):
-    def __init__(self, robots, quorum_percent, journal=None, journal_node=None,
-                 on_reject=None, world_size=None, journal_release=None):
-        """journal: callable(stop) for every new stop, called BEFORE its ACK;
-        journal_release: callable(node, seq, tick) when a stop is withdrawn
-        (the robot left), so a resumed host does not count it again;
-        journal_node, on_reject: see firmware_logic/roster.py."""
+    NOT_SNAPSHOT = Roster.NOT_SNAPSHOT + ("robots", "need")
+
+    def __init__(self, robots, quorum_percent, journal=None, on_reject=None,
+                 world_size=None):
+        """journal, on_reject: see firmware_logic/roster.py."""
         codes = []
         for m in MODELS:
             codes.append(m[0])
-        Roster.__init__(self, tuple(codes), journal_node, on_reject)
+        Roster.__init__(self, tuple(codes), journal, on_reject)
         self.robots = robots
         self.need = (robots * quorum_percent + 99) // 100
-        self.journal = journal
-        self.journal_release = journal_release
         self.world_size = 127 if world_size is None else world_size
         self.touches = []         # one Stop per stopped robot, in order
         self.stopped = {}         # node -> Stop
@@ -71,7 +61,7 @@ class Coordinator(Roster):
 
     def on_message(self, node, kind, f, tick):
         if kind == msg.HELLO:
-            self._hello(node, f)
+            self._hello(node, f, tick)
         elif node not in self.nodes:
             self._reject(UNANNOUNCED_STOP if kind == msg.TOUCH else UNANNOUNCED_REPORT,
                          node, f)
@@ -83,10 +73,9 @@ class Coordinator(Roster):
                 self._reject(STOP_OUT_OF_RANGE, node, f)
                 return
             else:
-                self._leave(node, tick)      # a new stop withdraws the old one first
+                self._record(node, kind, f, tick)
+                self._leave(node)      # a new stop withdraws the old one first
                 s = Stop(node, f[0], f[1], f[2], f[3], f[4], f[5], tick)
-                if self.journal is not None:
-                    self.journal(s)
                 self.stopped[node] = s
                 self.touches.append(s)
                 self.power = len(self.touches)
@@ -97,10 +86,12 @@ class Coordinator(Roster):
         elif kind == LEAVE:
             # only the stop it reported: a stale LEAVE cannot undo a newer stop
             if node in self.stopped and self.stopped[node].seq == f[0]:
-                self._leave(node, tick)
+                self._record(node, kind, f, tick)
+                self._leave(node)
         elif kind == msg.HEARTBEAT:
             if node in self.stopped and f[0] != STAY:
-                self._leave(node, tick)
+                self._record(node, kind, f, tick)
+                self._leave(node)
 
     def _invalid(self, f):
         w = self.world_size
@@ -109,35 +100,25 @@ class Coordinator(Roster):
                 return True
         return False
 
-    def _leave(self, node, tick):
+    def _leave(self, node):
         if node in self.stopped:
             s = self.stopped[node]
-            if self.journal_release is not None:
-                self.journal_release(node, s.seq, tick)
             del self.stopped[node]
             self.touches.remove(s)
             self.power = len(self.touches)
 
-    def restore(self, stops):
-        """Re-adopt stops recovered from a journal (no ACKs are sent); a stop of
-        a node the journal never announced, or outside the arena, is refused."""
-        for s in stops:
-            if s.node not in self.nodes:
-                self._reject(UNANNOUNCED_STOP, s.node, s.as_tuple())
-            elif self._invalid(s.as_tuple()[1:]):
-                self._reject(STOP_OUT_OF_RANGE, s.node, s.as_tuple())
-            elif s.node not in self.stopped:
-                self.stopped[s.node] = s
-                self.touches.append(s)
-        self.power = len(self.touches)
-
     def segments_now(self):
         return []
 
-    def carriers(self):
-        """Robots the mission cannot go on without: none (a stopped robot that
-        falls silent still counts towards the quorum)."""
-        return []
+    # carriers(): none (Roster's): a stopped robot that falls silent still
+    # counts towards the quorum
+
+    def status(self):
+        if self.delivered_tick >= 0:
+            return "quorum reached at tick %d: %d of %d robots stopped; HALT" % (
+                self.delivered_tick, len(self.touches), self.robots)
+        return "%d of %d robots stopped (quorum %d)" % (len(self.touches), self.robots,
+                                                         self.need)
 
     def quiet(self):
         """True when tick() without a new message would neither send nor change

@@ -11,17 +11,17 @@ def robot_args(node, seed, sc):
             1 if sc.leaderField == "netlogo" else 0)
 
 
-def make_coordinator(sc, journal=None, cells=None, journal_node=None, on_reject=None):
+def make_coordinator(sc, journal=None, cells=None, on_reject=None):
     """The host coordinator of a mission in scenario `sc`.
 
     cells: the object's cells where it starts, when the host knows them (a
     simulation: `World(sc, seed).object_cells`); a TOUCH of any other cell is
     then rejected. Without them a touch need only be plausible (in the arena,
-    next to the robot, not at home). journal_node, on_reject: see Coordinator.
+    next to the robot, not at home). journal, on_reject: the host contract
+    (firmware_logic/roster.py).
     """
     from firmware_logic.behaviours.thesis.coordinator import Coordinator
     netlogo = sc.arrival == "netlogo"
     return Coordinator(sc.weight_centi, sc.homeX, sc.homeY, journal=journal,
                        home_radius=1 if netlogo else 4, by_carrier=netlogo,
-                       world_size=sc.worldSize, cells=cells, journal_node=journal_node,
-                       on_reject=on_reject)
+                       world_size=sc.worldSize, cells=cells, on_reject=on_reject)

@@ -66,25 +66,26 @@ class Touch:
                 self.sx + self.mx, self.sy + self.my, self.power)
 
 
-# a journalled record of this behaviour (bridge/host/journal.py reads rows back as these)
-RECORD = Touch
-
 
 class Coordinator(Roster):
+    NOT_SNAPSHOT = Roster.NOT_SNAPSHOT + ("home_x", "home_y", "home_r2", "by_carrier")
+    VOLATILE = ("step_sent_tick",)     # a resend of the same TRANSPORT
+
     def __init__(self, weight, home_x=-15, home_y=-15, home_radius=4, journal=None,
-                 world_size=None, cells=None, journal_node=None, on_reject=None,
-                 by_carrier=False):
+                 world_size=None, cells=None, on_reject=None, by_carrier=False):
         """weight: the object's weight in hundredths (objectWeight * 100).
 
-        journal: optional callable(touch) called for every newly accepted
-        touch BEFORE it is acknowledged (the host process makes it durable);
-        journal_node: the same, callable(node, model, power), for a newly
-        announced node. on_reject: optional callable(reason, node, fields).
+        journal: optional callable(node, kind, fields, tick) called for every
+        report that changed what the host knows (a HELLO of a new node, an
+        accepted TOUCH, a leader HEARTBEAT that moved the object during the
+        transport) BEFORE it is acknowledged (the host process makes it
+        durable; firmware_logic/roster.py). on_reject: optional
+        callable(reason, node, fields).
         world_size: patches run from -world_size to +world_size (None: only
         what a byte carries). cells: the object's cells where it starts, when
         the host knows them (a simulation); None: any cell is plausible.
         """
-        Roster.__init__(self, MODELS, journal_node, on_reject)
+        Roster.__init__(self, MODELS, journal, on_reject)
         self.weight = weight
         self.home_x = home_x
         self.home_y = home_y
@@ -94,7 +95,6 @@ class Coordinator(Roster):
         # brings the nearest carrier home (Appendix A writes tt.txt when a
         # holder is within 1 of home; scenario arrival = "netlogo")
         self.by_carrier = by_carrier
-        self.journal = journal
         self.world_size = BYTE_ARENA if world_size is None else world_size
         self.cells = None if cells is None else frozenset(cells)
         self.touches = []        # accepted, in order of acceptance
@@ -125,24 +125,9 @@ class Coordinator(Roster):
 
     # -- input -------------------------------------------------------------
 
-    def restore(self, touches):
-        """Re-adopt touches recovered from a journal (no ACKs are sent).
-
-        They pass the same checks as on arrival (against the object's frame
-        they were stored in), so a journal written by an older, more trusting
-        host cannot crash or fool this one on every resume."""
-        for t in touches:
-            if t.node in self.by_node:
-                continue
-            why = self._invalid_touch(t.node, t.report(), t.mx, t.my)
-            if why is not None:
-                self._reject(why, t.node, t.report())
-                continue
-            self._adopt(t)
-
     def on_message(self, node, kind, f, tick):
         if kind == msg.HELLO:
-            self._hello(node, f)
+            self._hello(node, f, tick)
         elif kind == msg.TOUCH:
             self._touch(node, f, tick)
         elif kind == msg.HEARTBEAT:
@@ -150,8 +135,15 @@ class Coordinator(Roster):
                 self._reject(UNANNOUNCED_HEARTBEAT, node, f)
                 return
             if node == self.leader and self.step > 0:
-                self.leader_x = (f[1] + 128) >> 8
-                self.leader_y = (f[2] + 128) >> 8
+                x = (f[1] + 128) >> 8
+                y = (f[2] + 128) >> 8
+                if (x, y, f[4]) == (self.leader_x, self.leader_y, self.leader_done):
+                    return
+                # the object moved (or a step is done): a later touch is
+                # stored in the frame this sets, so a resumed host needs it
+                self._record(node, kind, f, tick)
+                self.leader_x = x
+                self.leader_y = y
                 self.leader_done = f[4]
                 lead = self.leader_touch()
                 self.moved_x = self.leader_x - lead.rx
@@ -181,8 +173,7 @@ class Coordinator(Roster):
         t = Touch(node, f[0], f[1] - self.moved_x, f[2] - self.moved_y,
                   f[3] - self.moved_x, f[4] - self.moved_y, f[5], tick,
                   self.moved_x, self.moved_y)
-        if self.journal is not None:
-            self.journal(t)
+        self._record(node, msg.TOUCH, f, tick)
         self._adopt(t)
         self._ack(node, f[0])
 
@@ -233,6 +224,27 @@ class Coordinator(Roster):
             if t.node not in out:
                 out.append(t.node)
         return out
+
+    def decision(self, before, out):
+        """The thesis names its decisions: converged, step, delivered, halt."""
+        if self.delivered_tick != before["delivered_tick"]:
+            return "delivered", "object home; HALT"
+        if self.converged_tick != before["converged_tick"]:
+            return "converged", ("converged, power %d/%d; leader robot %d; transport begins"
+                                 % (self.power, self.weight, self.leader))
+        if self.step != before["step"]:
+            return "step", "transport step %d (%+d, %+d)" % (self.step, self.dx, self.dy)
+        for m in out:
+            if m[1] == msg.HALT:
+                return "halt", ""
+        return None
+
+    def status(self):
+        if self.delivered_tick >= 0:
+            return "delivered at tick %d" % self.delivered_tick
+        if self.converged_tick >= 0:
+            return "transport step %d (leader done %d)" % (self.step, self.leader_done)
+        return "collecting touches, power %d/%d" % (self.power, self.weight)
 
     def segments_now(self):
         """Touched segments where they are now (they move with the object)."""
