@@ -62,6 +62,8 @@ def behaviour_modules(name: str, firmware_dir: Path = FIRMWARE_DIR) -> tuple[str
                  if p.stem not in HOST_SIDE)
 REMOTE_PKG = "firmware_logic"
 TIMEOUT_S = 60.0
+RAW_REPL_TRIES = 3
+RAW_REPL_FAILURE = "could not enter raw repl"   # mpremote's words (transport_serial.py)
 
 
 class DeployError(BridgeError):
@@ -147,6 +149,19 @@ class Deployer:
     # -- subprocesses ----------------------------------------------------------
 
     def _mpremote(self, *args: str) -> str:
+        # A board that is slow to answer Ctrl-C/Ctrl-A (busy, line noise, a loaded host
+        # running the unix port) makes mpremote give up before any code ran, so a
+        # retry cannot run anything twice; other failures are not retried.
+        for attempt in range(1, RAW_REPL_TRIES + 1):
+            try:
+                return self._mpremote_once(*args)
+            except DeployError as err:
+                if RAW_REPL_FAILURE not in str(err) or attempt == RAW_REPL_TRIES:
+                    raise
+                log.warning("%s; retrying (%d of %d)", err, attempt + 1, RAW_REPL_TRIES)
+        raise AssertionError("unreachable")
+
+    def _mpremote_once(self, *args: str) -> str:
         cmd = [self.mpremote, "connect", "port:" + self.port, "resume", *args]
         log.debug("running %s", " ".join(cmd))
         try:
