@@ -16,6 +16,10 @@ from pathlib import Path
 EXE = str(Path(sys.executable).with_name("touchswarm"))
 SC = ["--scenario", "default", "--seed", "2", "--set", "objectWeight=6",
       "--set", "maxTicks=4000"]
+# the robots tick on the wall clock while hosts die and start: with a tick
+# limit they could stop before delivery (their carriers then fall silent and
+# the host gives up; seen once under load 12), so their missions have none
+SC_UNLIMITED = SC[:-1] + ["maxTicks=1000000"]
 
 
 def lines_of(stream):
@@ -67,7 +71,7 @@ def journal_touches(path):
 def test_host_sigkill_and_resume_over_slcan_pty(tmp_path):
     adapter = tmp_path / "adapter"
     journal = tmp_path / "host.sqlite"
-    robots = start_robots(adapter, linger_ms=1500)
+    robots = start_robots(adapter, linger_ms=1500, sc=SC_UNLIMITED)
     procs = [robots]
     try:
         wait_for(lines_of(robots.stderr), lambda s: "robots on" in s[-1], 20)
@@ -141,10 +145,6 @@ def next_event(q, words, timeout):
             raise AssertionError(f"the host wrote none of {words} in {timeout} s") from None
         if line is None or any(w in line for w in words):
             return line
-# the robots tick on the wall clock while hosts die and start: with a tick
-# limit they could stop before delivery (their carriers then fall silent and
-# the host gives up), so this mission has none
-SC_UNLIMITED = SC[:-1] + ["maxTicks=1000000"]
 
 
 def test_host_sigkilled_at_every_journalled_step_resumes_to_delivery(tmp_path):
