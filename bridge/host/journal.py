@@ -18,6 +18,9 @@ Behaviour-neutral (layout version 2):
   host needs to go on from there (JSON, `HostProcess.snapshot`), `after`
   the last report journalled before it.
 - `meta`: the behaviour the journal belongs to and the layout version.
+- `live`: the latest live view (robots' last HEARTBEAT poses, bad-frame
+  counters), overwritten every few ticks for `touchswarm view`; never
+  replayed, not needed to resume (the table is additive: layout version 2).
 A resumed host replays the reports in order into a fresh coordinator,
 adopting each decision's snapshot at its place (`entries`). Journals of
 layout version 1 (a thesis-only `touches` table, before this layout) are
@@ -48,6 +51,7 @@ CREATE TABLE IF NOT EXISTS decisions (id INTEGER PRIMARY KEY AUTOINCREMENT,
     tick INTEGER NOT NULL, kind TEXT NOT NULL, state TEXT NOT NULL,
     after INTEGER NOT NULL);
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
+CREATE TABLE IF NOT EXISTS live (key TEXT PRIMARY KEY, value TEXT NOT NULL);
 """ % ", ".join(c + " INTEGER" for c in FIELD_COLUMNS)
 
 
@@ -72,9 +76,14 @@ Entry = Union[Report, Decision]
 
 
 class Journal:
-    def __init__(self, path: str | Path) -> None:
+    def __init__(self, path: str | Path, readonly: bool = False) -> None:
+        """readonly: only read a journal a host may be writing (`touchswarm
+        view`); the file must exist and hold a journal's tables."""
         self.path = Path(path)
         self.db: sqlite3.Connection | None = None
+        if readonly:
+            self._open_readonly()
+            return
         try:
             self.db = sqlite3.connect(str(self.path), isolation_level=None, timeout=5.0,
                                       check_same_thread=False)
@@ -96,6 +105,22 @@ class Journal:
             if isinstance(err, JournalError):
                 raise
             raise JournalError(f"cannot open journal {self.path}: {err}") from err
+
+    def _open_readonly(self) -> None:
+        try:
+            self.db = sqlite3.connect(f"{self.path.resolve().as_uri()}?mode=ro", uri=True,
+                                      isolation_level=None, timeout=5.0,
+                                      check_same_thread=False)
+            tables = {r[0] for r in self.db.execute(
+                "SELECT name FROM sqlite_master WHERE type = 'table'")}
+        except sqlite3.Error as err:
+            self.close()
+            raise JournalError(f"cannot open journal {self.path}: {err}") from err
+        missing = {"reports", "decisions", "meta"} - tables
+        if missing:
+            self.close()
+            raise JournalError(f"{self.path} is not a host journal (no {', '.join(sorted(missing))} "
+                               f"table{'s' if len(missing) > 1 else ''})")
 
     def _sql(self, sql: str, args: tuple = ()) -> list[tuple]:
         """Run one statement (committed on return: autocommit); every SQLite
@@ -199,6 +224,20 @@ class Journal:
         v = self._sql("SELECT MAX(t) FROM (SELECT MAX(tick) AS t FROM reports "
                       "UNION ALL SELECT MAX(tick) FROM decisions)")[0][0]
         return int(v) if v is not None else 0
+
+    def set_live(self, view: dict[str, Any]) -> None:
+        """Overwrite the live view (what `touchswarm view` shows besides the reports)."""
+        self._sql("INSERT OR REPLACE INTO live VALUES ('now', ?)",
+                  (json.dumps(view, sort_keys=True),))
+
+    def live(self) -> dict[str, Any] | None:
+        """The latest live view; None when none was written (or the journal
+        predates the live table)."""
+        try:
+            rows = self._sql("SELECT value FROM live WHERE key = 'now'")
+        except JournalError:
+            return None        # a read-only journal written before the live table
+        return json.loads(rows[0][0]) if rows else None
 
     def copy_from(self, other: "Journal") -> None:
         """Carry another journal's reports and decisions over in their order

@@ -46,6 +46,9 @@ Coordinator = Any
 log = logging.getLogger(__name__)
 
 HALT_REPEATS = 10   # HALT is broadcast on this many ticks after the mission is done (not ACKed)
+# the journal's live view (poses, bad frames; `touchswarm view`) is written at
+# most once per this many host ticks: each write is a synchronous commit
+LIVE_EVERY = 10
 
 # The host contract (firmware_logic/roster.py, docs/writing-a-behaviour.md
 # "What the host needs"): make_coordinator keywords for journalling each
@@ -118,6 +121,8 @@ class HostProcess:
         self.messages = 0
         self.gave_up: str | None = None       # why run() stopped waiting for the robots
         self.gave_up_on: str | None = None    # which limit: "bus" or "node"
+        self.poses: dict[int, list[int]] = {}     # node -> [tick, *its last HEARTBEAT fields]
+        self.live_written: dict[str, Any] | None = None
 
     # -- journal ----------------------------------------------------------------
 
@@ -191,6 +196,8 @@ class HostProcess:
             if kind != msg.HELLO and node not in nodes:
                 self.bad.add(UNANNOUNCED, "%s from node %d" % (msg.SCHEMA[kind][0], node))
                 continue
+            if kind == msg.HEARTBEAT:
+                self.poses[node] = [tick, *f]
             on_message(node, kind, f, tick)
 
     # -- ticks --------------------------------------------------------------------------
@@ -216,6 +223,17 @@ class HostProcess:
             self.transport.send(node, kind, fields)
         if decided is not None and decided[1]:
             self._event(f"tick {self.tick}: {decided[1]}")
+        if self.journal is not None and self.tick % LIVE_EVERY == 0:
+            self._journal_live()
+
+    def _journal_live(self) -> None:
+        """The live view for `touchswarm view`, when it changed."""
+        view = {"poses": {str(n): p for n, p in sorted(self.poses.items())},
+                "bad_frames": self.bad_frames(), "messages": self.messages}
+        if view != self.live_written:
+            assert self.journal is not None
+            self.journal.set_live({"tick": self.tick, **view})
+            self.live_written = view
 
     def done(self) -> bool:
         return self.coord.done() and self.halts_sent >= HALT_REPEATS
