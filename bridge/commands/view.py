@@ -100,5 +100,6 @@ def _screenshot(args: argparse.Namespace, server, source) -> int:
         screenshot(server.url, args.screenshot, tick)
     finally:
         server.stop()
-    print(f"live view at tick {tick} saved to {args.screenshot}")
+    ended = " (the run ended there)" if args.at_tick is not None and tick < args.at_tick else ""
+    print(f"live view at tick {tick}{ended} saved to {args.screenshot}")
     return 0

@@ -275,6 +275,8 @@ class HostProcess:
             next_tick += self.tick_seconds
             if next_tick < now:
                 next_tick = now + self.tick_seconds
+        if self.journal is not None:
+            self._journal_live()         # the last poses, between two LIVE_EVERY ticks
         return self.summary()
 
     def _silence(self, now: float, started: float, heard: dict[int, float],
