@@ -277,6 +277,7 @@ def test_a_port_in_use(capsys):
     (("--at-tick", "5"), "only with --screenshot"),
     (("--speed", "5000"), "--speed 5000"),
     (("--port", "70000"), "--port"),
+    (("--journal", "host.db", "--paused"), "--paused: only for a simulated run"),
 ])
 def test_bad_options(capsys, argv, words):
     code, err = run_cli(capsys, *argv)

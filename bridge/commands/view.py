@@ -9,6 +9,7 @@ from bridge.commands.paths import path_arg
 from bridge.commands.run import add_scenario_args, scenario_from_args
 
 DEFAULT_PORT = 8765
+DEFAULT_SPEED = 20.0     # ticks per second: the default scenario is home in about 9 s
 
 
 def register(sub) -> None:
@@ -35,10 +36,9 @@ def register(sub) -> None:
                    help="TCP port on 127.0.0.1 (0: any free port; default: %(default)s)")
     p.add_argument("--paused", action="store_true",
                    help="start the simulated run paused (default: playing)")
-    p.add_argument("--speed", type=N.positive("ticks per second"), default=20.0,
-                   metavar="TICKS_PER_S",
+    p.add_argument("--speed", type=N.positive("ticks per second"), metavar="TICKS_PER_S",
                    help=f"simulated ticks per second while playing, {SPEED_MIN:g}..{SPEED_MAX:g} "
-                        "(default: %(default)s)")
+                        f"(default: {DEFAULT_SPEED:g})")
     p.add_argument("--screenshot", type=path_arg, metavar="FILE.png",
                    help="save a PNG of the page in headless chromium and exit (a simulated "
                         "run is first stepped to --at-tick)")
@@ -54,6 +54,13 @@ def cmd_view(args: argparse.Namespace) -> int:
     from bridge.view.sources import SPEED_MAX, SPEED_MIN, JournalSource, SimSource
 
     sc = scenario_from_args(args)
+    if args.journal is not None:
+        for given, option in ((args.paused, "--paused"), (args.speed is not None, "--speed")):
+            if given:
+                raise UsageError(f"{option}: only for a simulated run, not with --journal "
+                                 "(the host sets the pace)")
+    if args.speed is None:
+        args.speed = DEFAULT_SPEED
     if not SPEED_MIN <= args.speed <= SPEED_MAX:
         raise UsageError(f"--speed {args.speed:g}: expected {SPEED_MIN:g}..{SPEED_MAX:g} "
                          "ticks per second")
