@@ -289,3 +289,10 @@ def test_a_missing_browser_fails_saying_how_to_install_it(monkeypatch, tmp_path)
     monkeypatch.setattr(browser, "CHROMIUM", tmp_path / "chromium")
     with pytest.raises(browser.BrowserMissing, match="`make venv` installs Debian's chromium"):
         browser.headless()
+
+
+def test_screenshot_option_saves_the_page_at_the_tick(capsys, tmp_path):
+    out = tmp_path / "live.png"
+    assert main(["view", "--screenshot", str(out), "--at-tick", "5", "--port", "0"]) == 0
+    assert capsys.readouterr().out.strip() == f"live view at tick 5 saved to {out}"
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
