@@ -59,7 +59,13 @@ class Handler(BaseHTTPRequestHandler):
         elif path == "/info.json":
             self._json(200, source.info())
         elif path == "/state.json":
-            self._json(200, source.state())
+            try:
+                state = source.state()
+            except Exception as err:       # the page shows it and keeps polling
+                log.exception("state of the live view")
+                self._error(500, f"{type(err).__name__}: {err}")
+                return
+            self._json(200, state)
         else:
             self._error(404, f"no such page {path}")
 

@@ -110,9 +110,9 @@ function panel(st) {
 
 async function poll() {
   try {
-    const st = await (await fetch("/state.json")).json();
-    draw(st);
-    panel(st);
+    const r = await fetch("/state.json");
+    const st = await r.json();
+    if (r.ok) { draw(st); panel(st); } else $("error").textContent = st.error;
   } catch (e) {
     $("error").textContent = "server gone: " + e;
   }
