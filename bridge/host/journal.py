@@ -81,6 +81,7 @@ class Journal:
         view`); the file must exist and hold a journal's tables."""
         self.path = Path(path)
         self.db: sqlite3.Connection | None = None
+        self.live_db: sqlite3.Connection | None = None     # set_live's own connection
         if readonly:
             self._open_readonly()
             return
@@ -226,9 +227,22 @@ class Journal:
         return int(v) if v is not None else 0
 
     def set_live(self, view: dict[str, Any]) -> None:
-        """Overwrite the live view (what `touchswarm view` shows besides the reports)."""
-        self._sql("INSERT OR REPLACE INTO live VALUES ('now', ?)",
-                  (json.dumps(view, sort_keys=True),))
+        """Overwrite the live view (what `touchswarm view` shows besides the
+        reports). Not durable, unlike everything else here: its own connection
+        commits without waiting for the disk (a synchronous commit costs ~9 ms,
+        most of a host tick); a crash may lose the last one, which only the
+        view reads."""
+        if self.db is None:
+            raise JournalError(f"journal {self.path} is closed")
+        try:
+            if self.live_db is None:
+                self.live_db = sqlite3.connect(str(self.path), isolation_level=None,
+                                               timeout=5.0, check_same_thread=False)
+                self.live_db.execute("PRAGMA synchronous=OFF")
+            self.live_db.execute("INSERT OR REPLACE INTO live VALUES ('now', ?)",
+                                 (json.dumps(view, sort_keys=True),))
+        except sqlite3.Error as err:
+            raise JournalError(f"journal {self.path}: {err}") from err
 
     def live(self) -> dict[str, Any] | None:
         """The latest live view; None when none was written (or the journal
@@ -251,12 +265,13 @@ class Journal:
 
     def close(self) -> None:
         """Idempotent; never raises."""
-        db, self.db = self.db, None
-        if db is not None:
-            try:
-                db.close()
-            except sqlite3.Error:
-                pass      # nothing uncommitted: every write committed on return
+        for db in (self.live_db, self.db):
+            if db is not None:
+                try:
+                    db.close()
+                except sqlite3.Error:
+                    pass      # nothing uncommitted: every write committed on return
+        self.db = self.live_db = None
 
     def __enter__(self) -> "Journal":
         return self
