@@ -47,7 +47,8 @@ log = logging.getLogger(__name__)
 
 HALT_REPEATS = 10   # HALT is broadcast on this many ticks after the mission is done (not ACKed)
 # the journal's live view (poses, bad frames; `touchswarm view`) is written at
-# most once per this many host ticks: each write is a synchronous commit
+# most once per this many host ticks: ten times a second at the 10 ms tick,
+# more often than the page polls (five times a second)
 LIVE_EVERY = 10
 
 # The host contract (firmware_logic/roster.py, docs/writing-a-behaviour.md
