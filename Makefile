@@ -6,10 +6,15 @@ STAMP := $(VENV)/.installed
 
 .PHONY: demo test venv bench clean
 
+# the last step installs Debian's chromium and its driver for the live view's
+# browser test (tests/test_view.py): nothing is downloaded at run time
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PY) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
 	$(BIN)/python -m pip install -q -e '.[dev]'
+	test -x /usr/bin/chromium -a -x /usr/bin/chromedriver || \
+	  DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends chromium chromium-driver || \
+	  { apt-get update && DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends chromium chromium-driver; }
 	touch $(STAMP)
 
 venv: $(STAMP)

@@ -33,6 +33,7 @@ COMMANDS = [
     "bridge.commands.deploy",
     "bridge.commands.sweep",
     "bridge.commands.keys",
+    "bridge.commands.view",
 ]
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130

@@ -18,6 +18,9 @@ Behaviour-neutral (layout version 2):
   host needs to go on from there (JSON, `HostProcess.snapshot`), `after`
   the last report journalled before it.
 - `meta`: the behaviour the journal belongs to and the layout version.
+- `live`: the latest live view (robots' last HEARTBEAT poses, bad-frame
+  counters), overwritten every few ticks for `touchswarm view`; never
+  replayed, not needed to resume (the table is additive: layout version 2).
 A resumed host replays the reports in order into a fresh coordinator,
 adopting each decision's snapshot at its place (`entries`). Journals of
 layout version 1 (a thesis-only `touches` table, before this layout) are
@@ -48,6 +51,7 @@ CREATE TABLE IF NOT EXISTS decisions (id INTEGER PRIMARY KEY AUTOINCREMENT,
     tick INTEGER NOT NULL, kind TEXT NOT NULL, state TEXT NOT NULL,
     after INTEGER NOT NULL);
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
+CREATE TABLE IF NOT EXISTS live (key TEXT PRIMARY KEY, value TEXT NOT NULL);
 """ % ", ".join(c + " INTEGER" for c in FIELD_COLUMNS)
 
 
@@ -72,9 +76,15 @@ Entry = Union[Report, Decision]
 
 
 class Journal:
-    def __init__(self, path: str | Path) -> None:
+    def __init__(self, path: str | Path, readonly: bool = False) -> None:
+        """readonly: only read a journal a host may be writing (`touchswarm
+        view`); the file must exist and hold a journal's tables."""
         self.path = Path(path)
         self.db: sqlite3.Connection | None = None
+        self.live_db: sqlite3.Connection | None = None     # set_live's own connection
+        if readonly:
+            self._open_readonly()
+            return
         try:
             self.db = sqlite3.connect(str(self.path), isolation_level=None, timeout=5.0,
                                       check_same_thread=False)
@@ -96,6 +106,22 @@ class Journal:
             if isinstance(err, JournalError):
                 raise
             raise JournalError(f"cannot open journal {self.path}: {err}") from err
+
+    def _open_readonly(self) -> None:
+        try:
+            self.db = sqlite3.connect(f"{self.path.resolve().as_uri()}?mode=ro", uri=True,
+                                      isolation_level=None, timeout=5.0,
+                                      check_same_thread=False)
+            tables = {r[0] for r in self.db.execute(
+                "SELECT name FROM sqlite_master WHERE type = 'table'")}
+        except sqlite3.Error as err:
+            self.close()
+            raise JournalError(f"cannot open journal {self.path}: {err}") from err
+        missing = {"reports", "decisions", "meta"} - tables
+        if missing:
+            self.close()
+            raise JournalError(f"{self.path} is not a host journal (no {', '.join(sorted(missing))} "
+                               f"table{'s' if len(missing) > 1 else ''})")
 
     def _sql(self, sql: str, args: tuple = ()) -> list[tuple]:
         """Run one statement (committed on return: autocommit); every SQLite
@@ -200,6 +226,33 @@ class Journal:
                       "UNION ALL SELECT MAX(tick) FROM decisions)")[0][0]
         return int(v) if v is not None else 0
 
+    def set_live(self, view: dict[str, Any]) -> None:
+        """Overwrite the live view (what `touchswarm view` shows besides the
+        reports). Not durable, unlike everything else here: its own connection
+        commits without waiting for the disk (a synchronous commit costs ~9 ms,
+        most of a host tick); a crash may lose the last one, which only the
+        view reads."""
+        if self.db is None:
+            raise JournalError(f"journal {self.path} is closed")
+        try:
+            if self.live_db is None:
+                self.live_db = sqlite3.connect(str(self.path), isolation_level=None,
+                                               timeout=5.0, check_same_thread=False)
+                self.live_db.execute("PRAGMA synchronous=OFF")
+            self.live_db.execute("INSERT OR REPLACE INTO live VALUES ('now', ?)",
+                                 (json.dumps(view, sort_keys=True),))
+        except sqlite3.Error as err:
+            raise JournalError(f"journal {self.path}: {err}") from err
+
+    def live(self) -> dict[str, Any] | None:
+        """The latest live view; None when none was written (or the journal
+        predates the live table)."""
+        try:
+            rows = self._sql("SELECT value FROM live WHERE key = 'now'")
+        except JournalError:
+            return None        # a read-only journal written before the live table
+        return json.loads(rows[0][0]) if rows else None
+
     def copy_from(self, other: "Journal") -> None:
         """Carry another journal's reports and decisions over in their order
         (resume into a new file)."""
@@ -212,12 +265,13 @@ class Journal:
 
     def close(self) -> None:
         """Idempotent; never raises."""
-        db, self.db = self.db, None
-        if db is not None:
-            try:
-                db.close()
-            except sqlite3.Error:
-                pass      # nothing uncommitted: every write committed on return
+        for db in (self.live_db, self.db):
+            if db is not None:
+                try:
+                    db.close()
+                except sqlite3.Error:
+                    pass      # nothing uncommitted: every write committed on return
+        self.db = self.live_db = None
 
     def __enter__(self) -> "Journal":
         return self

@@ -46,6 +46,10 @@ Coordinator = Any
 log = logging.getLogger(__name__)
 
 HALT_REPEATS = 10   # HALT is broadcast on this many ticks after the mission is done (not ACKed)
+# the journal's live view (poses, bad frames; `touchswarm view`) is written at
+# most once per this many host ticks: ten times a second at the 10 ms tick,
+# more often than the page polls (five times a second)
+LIVE_EVERY = 10
 
 # The host contract (firmware_logic/roster.py, docs/writing-a-behaviour.md
 # "What the host needs"): make_coordinator keywords for journalling each
@@ -118,6 +122,8 @@ class HostProcess:
         self.messages = 0
         self.gave_up: str | None = None       # why run() stopped waiting for the robots
         self.gave_up_on: str | None = None    # which limit: "bus" or "node"
+        self.poses: dict[int, list[int]] = {}     # node -> [tick, *its last HEARTBEAT fields]
+        self.live_written: dict[str, Any] | None = None
 
     # -- journal ----------------------------------------------------------------
 
@@ -191,6 +197,8 @@ class HostProcess:
             if kind != msg.HELLO and node not in nodes:
                 self.bad.add(UNANNOUNCED, "%s from node %d" % (msg.SCHEMA[kind][0], node))
                 continue
+            if kind == msg.HEARTBEAT:
+                self.poses[node] = [tick, *f]
             on_message(node, kind, f, tick)
 
     # -- ticks --------------------------------------------------------------------------
@@ -216,6 +224,17 @@ class HostProcess:
             self.transport.send(node, kind, fields)
         if decided is not None and decided[1]:
             self._event(f"tick {self.tick}: {decided[1]}")
+        if self.journal is not None and self.tick % LIVE_EVERY == 0:
+            self._journal_live()
+
+    def _journal_live(self) -> None:
+        """The live view for `touchswarm view`, when it changed."""
+        view = {"poses": {str(n): p for n, p in sorted(self.poses.items())},
+                "bad_frames": self.bad_frames(), "messages": self.messages}
+        if view != self.live_written:
+            assert self.journal is not None
+            self.journal.set_live({"tick": self.tick, **view})
+            self.live_written = view
 
     def done(self) -> bool:
         return self.coord.done() and self.halts_sent >= HALT_REPEATS
@@ -257,6 +276,8 @@ class HostProcess:
             next_tick += self.tick_seconds
             if next_tick < now:
                 next_tick = now + self.tick_seconds
+        if self.journal is not None:
+            self._journal_live()         # the last poses, between two LIVE_EVERY ticks
         return self.summary()
 
     def _silence(self, now: float, started: float, heard: dict[int, float],

@@ -1,0 +1,290 @@
+"""What the live view shows, from one of two sources.
+
+`SimSource` drives the reference engine itself: a runner thread steps it at
+the page's chosen speed while playing and sleeps on a condition while
+paused (no busy loop); `step` advances exactly the ticks asked for.
+`JournalSource` follows a `touchswarm host` journal read-only: on each poll
+it replays the journal into a fresh host coordinator (the host's own
+`resume`), so touches, power, state and the perceived shape are what a
+resumed host would hold; poses and bad frames come from the journal's live
+view (bridge/host/process.py writes it every LIVE_EVERY host ticks).
+
+Both give the page the same JSON: `info()` once, `state()` on every poll.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from pathlib import Path
+from typing import Any
+
+from bridge.errors import UsageError
+from firmware_logic import messages as msg
+from firmware_logic import perception
+
+log = logging.getLogger(__name__)
+
+EVENTS_SHOWN = 200        # the newest events the page gets
+SPEED_MIN, SPEED_MAX = 1.0, 1000.0      # ticks per second while playing
+STEP_MAX = 10000          # ticks one step request may ask for
+BATCH_HZ = 50             # above this speed the runner steps several ticks per wake
+
+
+class BadRequest(ValueError):
+    """A control request the source refuses (the server answers 400)."""
+
+
+def hex_colours(names: tuple[str, ...]) -> list[str]:
+    """The states' colours as CSS hex, the same as every figure's."""
+    from matplotlib.colors import to_hex
+    from sim_backend.render import state_colours
+    return [to_hex(c) for c in state_colours(names)]
+
+
+def coordinator_view(coord: Any) -> dict[str, Any]:
+    """What the page draws from the host coordinator: touches numbered in
+    order where their segments are now, the perceived shape, power, status."""
+    mx, my = getattr(coord, "moved_x", 0), getattr(coord, "moved_y", 0)
+    touches = [{"n": i + 1, "node": t.node, "tick": t.tick,
+                "rx": t.rx + mx, "ry": t.ry + my,
+                "sx": getattr(t, "sx", t.rx) + mx, "sy": getattr(t, "sy", t.ry) + my}
+               for i, t in enumerate(coord.touches)]
+    perceived = sorted(perception.outline_cells(coord.segments_now())) \
+        if hasattr(coord, "segments_now") else []
+    return {"touches": touches, "perceived": [list(c) for c in perceived],
+            "power": coord.power / 100, "weight": coord.weight / 100,
+            "status": coord.status(),
+            "found_tick": _tick_or_none(getattr(coord, "found_tick", -1)),
+            "converged_tick": _tick_or_none(getattr(coord, "converged_tick", -1)),
+            "home_tick": _tick_or_none(getattr(coord, "delivered_tick", -1)),
+            "delivered": coord.delivered_tick >= 0}
+
+
+def _tick_or_none(t: int) -> int | None:
+    return t if t >= 0 else None
+
+
+def speed_value(body: dict[str, Any]) -> float:
+    v = body.get("ticks_per_second")
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not SPEED_MIN <= v <= SPEED_MAX:
+        raise BadRequest(f"speed: ticks_per_second must be a number {SPEED_MIN:g}..{SPEED_MAX:g}, "
+                         f"got {v!r}")
+    return float(v)
+
+
+def step_count(body: dict[str, Any]) -> int:
+    v = body.get("ticks", 1)
+    if isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= STEP_MAX:
+        raise BadRequest(f"step: ticks must be an integer 1..{STEP_MAX}, got {v!r}")
+    return v
+
+
+class SimSource:
+    kind = "sim"
+
+    def __init__(self, sc: Any, seed: int, playing: bool = False, speed: float = 20.0) -> None:
+        from sim_backend.engine import Engine
+        self.sc = sc
+        self.engine = Engine(sc, seed)
+        self.lock = threading.Condition()
+        self.playing = playing
+        self.speed = speed_value({"ticks_per_second": speed})
+        self.closed = False
+        self.bad_frames = 0
+        self.events: list[str] = [f"tick 0: {sc.agents} robots, scenario {sc.name}, seed {seed}"]
+        self._seen = {"touches": 0, "converged": False, "delivered": False}
+        self.snap = self.engine.snapshot()
+        self.engine.observe(self._observe)
+        self.runner = threading.Thread(target=self._run, name="view-sim", daemon=True)
+        self.runner.start()
+
+    # -- the engine's observer (called under the lock, inside step) ----------
+
+    def _observe(self, snap: Any) -> None:
+        self.snap = snap
+        self.bad_frames += snap.bad_frames
+        c = self.engine.coordinator
+        for i in range(self._seen["touches"], len(c.touches)):
+            self.events.append(f"tick {snap.tick}: touch {i + 1} by robot {c.touches[i].node} "
+                               f"(power {c.power / 100:g} of {c.weight / 100:g})")
+        self._seen["touches"] = len(c.touches)
+        if getattr(c, "converged_tick", -1) >= 0 and not self._seen["converged"]:
+            self._seen["converged"] = True
+            self.events.append(f"tick {snap.tick}: converged, leader robot {c.leader}")
+        if c.delivered_tick >= 0 and not self._seen["delivered"]:
+            self._seen["delivered"] = True
+            self.events.append(f"tick {snap.tick}: delivered home")
+
+    # -- the runner: steps while playing, waits while paused -----------------
+
+    def _run(self) -> None:
+        with self.lock:
+            while not self.closed:
+                if not self.playing or self.engine.finished():
+                    self.lock.wait()
+                    continue
+                batch = max(1, int(self.speed // BATCH_HZ))
+                for _ in range(batch):
+                    if self.engine.finished():
+                        break
+                    self.engine.step()
+                if self.engine.finished():
+                    self.playing = False
+                    self.events.append(f"tick {self.engine.tick}: run finished")
+                # the lock is released while waiting: controls and polls get in
+                self.lock.wait(batch / self.speed)
+
+    def close(self) -> None:
+        with self.lock:
+            self.closed = True
+            self.lock.notify_all()
+        self.runner.join()
+
+    # -- controls (POST /control/ACTION) ------------------------------------
+
+    def control(self, action: str, body: dict[str, Any]) -> dict[str, Any]:
+        with self.lock:
+            if action == "play":
+                self.playing = not self.engine.finished()
+            elif action == "pause":
+                self.playing = False
+            elif action == "step":
+                n = step_count(body)
+                self.playing = False
+                for _ in range(n):
+                    if self.engine.finished():
+                        break
+                    self.engine.step()
+            elif action == "speed":
+                self.speed = speed_value(body)
+            else:
+                raise BadRequest(f"unknown control {action!r}; expected play, pause, step "
+                                 "or speed")
+            self.lock.notify_all()
+            return self._summary()
+
+    def _summary(self) -> dict[str, Any]:
+        c = self.engine.coordinator
+        return {"tick": self.engine.tick, "playing": self.playing, "speed": self.speed,
+                "finished": self.engine.finished(), "touches": len(c.touches),
+                "power": c.power / 100, "delivered": c.delivered_tick >= 0}
+
+    # -- what the page reads ------------------------------------------------------
+
+    def info(self) -> dict[str, Any]:
+        w = self.engine.world
+        names = tuple(self.engine.behaviour.spec.STATES)
+        return {"source": self.kind, "title": f"scenario {self.sc.name}, seed {self.engine.seed}",
+                "world": w.w, "home": [self.sc.homeX, self.sc.homeY],
+                "states": list(names), "colours": hex_colours(names), "controls": True}
+
+    def state(self) -> dict[str, Any]:
+        with self.lock:
+            s = self.snap
+            field = s.field()
+            out = {
+                **self._summary(),
+                **coordinator_view(self.engine.coordinator),
+                "robots": [{"node": i + 1, "x": x, "y": y, "state": st}
+                           for i, (x, y, st) in enumerate(zip(s.xs, s.ys, s.states))],
+                "object": [list(c) for c in s.object_cells],
+                "field": {"n": int(field.shape[0]), "max": int(field.max()),
+                          "cells": field.ravel().tolist()},
+                "iou": s.iou, "bad_frames": {"link": self.bad_frames} if self.bad_frames else {},
+                "events": self.events[-EVENTS_SHOWN:],
+            }
+        return out
+
+
+class JournalSource:
+    kind = "journal"
+
+    def __init__(self, path: Path, sc: Any) -> None:
+        from bridge.host.journal import Journal, JournalError
+        if not path.exists():
+            raise UsageError(f"--journal {path}: no such file")
+        if not path.is_file():
+            raise UsageError(f"--journal {path}: not a file")
+        try:
+            with Journal(path, readonly=True) as j:
+                behaviour = j.behaviour()
+                j.last_tick()
+        except JournalError as err:
+            raise UsageError(f"--journal {err}") from None
+        self.path = path
+        # the behaviour the journal was written by, whatever the scenario says
+        self.sc = sc.replace(behaviour=behaviour) if behaviour != sc.behaviour else sc
+        self.lock = threading.Lock()
+        self.cached: tuple[Any, dict[str, Any]] | None = None
+
+    def close(self) -> None:
+        pass
+
+    def control(self, action: str, body: dict[str, Any]) -> dict[str, Any]:
+        raise BadRequest(f"{action}: the journal source follows a host; it has no play, "
+                         "pause, step or speed")
+
+    def info(self) -> dict[str, Any]:
+        from firmware_logic import registry
+        names = tuple(registry.load(self.sc.behaviour).spec.STATES)
+        return {"source": self.kind, "title": f"host journal {self.path}",
+                "world": self.sc.worldSize, "home": [self.sc.homeX, self.sc.homeY],
+                "states": list(names), "colours": hex_colours(names), "controls": False}
+
+    def state(self) -> dict[str, Any]:
+        from bridge.host.journal import Journal, JournalError
+        try:
+            with Journal(self.path, readonly=True) as j:
+                entries, live = j.entries(), j.live()
+                # the journal only grows: its length and the live view mark a change
+                mark = (len(entries), live)
+                with self.lock:
+                    if self.cached is not None and self.cached[0] == mark:
+                        return self.cached[1]
+                out = self._read(j, entries, live)
+        except JournalError as err:
+            # the host may be mid-write or the file gone: show it, keep polling
+            return {"source": self.kind, "error": str(err), "tick": 0, "touches": [],
+                    "robots": [], "events": [str(err)]}
+        with self.lock:
+            self.cached = (mark, out)
+        return out
+
+    def _read(self, j: Any, entries: list[Any], live: dict[str, Any] | None) -> dict[str, Any]:
+        from bridge.host.journal import Report
+        from bridge.host.process import HostProcess
+        host = HostProcess(None, self.sc.weight_centi, self.sc.homeX, self.sc.homeY,  # type: ignore[arg-type]
+                           world_size=self.sc.worldSize, behaviour=self.sc.behaviour,
+                           scenario=self.sc)
+        host.resume(j)
+        events = []
+        for e in entries:
+            if isinstance(e, Report):
+                name, layout = msg.SCHEMA[e.kind]
+                events.append(f"tick {e.tick}: {name} from robot {e.node} ("
+                              + ", ".join(f"{f[0]} {v}" for f, v in zip(layout, e.fields)) + ")")
+            else:
+                events.append(f"tick {e.tick}: decision {e.kind}")
+        tick = max(host.tick, int(live["tick"]) if live else 0)
+        return {"tick": tick, "playing": False, "finished": host.coord.done(),
+                **coordinator_view(host.coord),
+                "robots": poses(live), "object": None, "field": None,
+                "bad_frames": (live or {}).get("bad_frames", {}),
+                "live": live is not None,
+                "events": events[-EVENTS_SHOWN:]}
+
+
+def poses(live: dict[str, Any] | None) -> list[dict[str, Any]]:
+    """Robots from the live view's last HEARTBEATs, positions in patches."""
+    if not live:
+        return []
+    layout = msg.spec(msg.HEARTBEAT)[4]
+    names = [f[0] for f in layout]
+    scale = {f[0]: f[3] for f in layout}      # a field's divisor: raw / divisor = patches
+    out = []
+    for node, p in sorted(live.get("poses", {}).items(), key=lambda kv: int(kv[0])):
+        f = dict(zip(names, p[1:]))
+        out.append({"node": int(node), "x": f["x"] / scale["x"], "y": f["y"] / scale["y"],
+                    "state": f["state"], "heard_tick": p[0]})
+    return out

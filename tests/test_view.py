@@ -1,0 +1,298 @@
+"""`touchswarm view`: the JSON and control endpoints, the page in headless
+chromium (Debian's, through selenium; `make venv` installs it), the host
+journal as a source, and the command's one-line errors.
+
+Nothing here waits on time: the simulated run is stepped through the control
+endpoint, and the browser is waited on with WebDriverWait on a DOM condition
+(the timeout is only a hang guard).
+"""
+
+from __future__ import annotations
+
+import json
+import socket
+import sqlite3
+import urllib.error
+import urllib.request
+
+import pytest
+
+from bridge.cli import main
+from bridge.host.journal import Journal
+from bridge.host.process import LIVE_EVERY, HostProcess
+from bridge.view.server import ViewServer
+from bridge.view.sources import JournalSource, SimSource
+from firmware_logic import messages as msg
+from sim_backend import scenario
+from tests.test_journal import FakeTransport
+
+HANG_GUARD = 120.0       # seconds; a hang guard only, never a measurement
+SEED = 1
+
+
+def get(server: ViewServer, path: str) -> dict:
+    with urllib.request.urlopen(server.url + path.lstrip("/"), timeout=HANG_GUARD) as r:
+        return json.loads(r.read())
+
+
+def post(server: ViewServer, path: str, body: bytes | dict | None = None) -> tuple[int, dict]:
+    data = body if isinstance(body, bytes) else json.dumps(body or {}).encode()
+    req = urllib.request.Request(server.url + path.lstrip("/"), data=data, method="POST",
+                                 headers={"Content-Type": "application/json"})
+    try:
+        with urllib.request.urlopen(req, timeout=HANG_GUARD) as r:
+            return r.status, json.loads(r.read())
+    except urllib.error.HTTPError as err:
+        return err.code, json.loads(err.read())
+
+
+@pytest.fixture
+def sim():
+    server = ViewServer(SimSource(scenario.load("default"), SEED), port=0).start()
+    yield server
+    server.stop()
+
+
+def write_hello(j: Journal, node: int) -> None:
+    j.add_report(node, msg.HELLO, (1, 100, 1), 0)       # firefly, power 1.00, version 1
+
+
+@pytest.fixture
+def journal_server(tmp_path):
+    path = tmp_path / "host.db"
+    with Journal(path) as j:
+        j.bind("thesis")
+        write_hello(j, 3)
+    server = ViewServer(JournalSource(path, scenario.load("default")), port=0).start()
+    yield server, path
+    server.stop()
+
+
+# -- (1) endpoints, no browser -----------------------------------------------
+
+
+def test_info_and_state_describe_the_run(sim):
+    info = get(sim, "/info.json")
+    assert info["source"] == "sim" and info["controls"] is True
+    assert info["world"] == 18 and info["home"] == [-15, -15]
+    assert len(info["colours"]) == len(info["states"]) and "hold" in info["states"]
+    st = get(sim, "/state.json")
+    assert st["tick"] == 0 and st["playing"] is False and st["touches"] == []
+    assert len(st["robots"]) == 20 and st["object"]
+    assert st["field"]["n"] == 37 and len(st["field"]["cells"]) == 37 * 37
+    assert st["weight"] == 5.0 and st["power"] == 0.0
+
+
+def test_step_advances_exactly_the_ticks_asked(sim):
+    code, s = post(sim, "/control/step")
+    assert (code, s["tick"]) == (200, 1)
+    code, s = post(sim, "/control/step", {"ticks": 1})
+    assert s["tick"] == 2
+    code, s = post(sim, "/control/step", {"ticks": 5})
+    assert s["tick"] == 7 and s["playing"] is False
+    assert get(sim, "/state.json")["tick"] == 7
+
+
+def test_play_runs_and_pause_stops_it(sim):
+    code, s = post(sim, "/control/speed", {"ticks_per_second": 1000})
+    assert code == 200 and s["speed"] == 1000
+    code, s = post(sim, "/control/play")
+    assert code == 200 and s["playing"] is True
+    st = get(sim, "/state.json")
+    for _ in range(100000):               # the runner steps it: wait for the first tick
+        if st["tick"] > 0:
+            break
+        st = get(sim, "/state.json")
+    assert st["tick"] > 0
+    code, paused = post(sim, "/control/pause")
+    assert code == 200 and paused["playing"] is False
+    # paused: nothing moves it but a step, which moves it by exactly one
+    code, s = post(sim, "/control/step")
+    assert s["tick"] == paused["tick"] + 1
+    assert get(sim, "/state.json")["tick"] == paused["tick"] + 1
+
+
+@pytest.mark.parametrize("path, body, words", [
+    ("/control/step", {"ticks": 0}, "ticks must be an integer"),
+    ("/control/step", {"ticks": "two"}, "ticks must be an integer"),
+    ("/control/speed", {"ticks_per_second": -3}, "ticks_per_second must be a number"),
+    ("/control/speed", {}, "ticks_per_second must be a number"),
+    ("/control/rewind", {}, "unknown control 'rewind'"),
+    ("/control/step", b"{not json", "not JSON"),
+    ("/control/step", b"[1, 2]", "a JSON object"),
+])
+def test_a_bad_request_gets_400_and_one_line(sim, path, body, words):
+    code, s = post(sim, path, body)
+    assert code == 400
+    assert words in s["error"] and "\n" not in s["error"]
+    assert get(sim, "/state.json")["tick"] == 0        # and nothing happened
+
+
+def test_journal_source_has_no_controls(journal_server):
+    server, _ = journal_server
+    assert get(server, "/info.json")["controls"] is False
+    code, s = post(server, "/control/step")
+    assert code == 400 and "journal source follows a host" in s["error"]
+
+
+def test_journal_source_shows_touches_and_poses(journal_server):
+    server, path = journal_server
+    assert get(server, "/state.json")["touches"] == []
+    with Journal(path) as j:
+        j.add_report(3, msg.TOUCH, (1, 2, 3, 3, 3, 100), 17)
+        j.set_live({"tick": 20, "poses": {"3": [19, 3, 2 * 256, 3 * 256 + 128, 90, 0]},
+                    "bad_frames": {"crc": 2}, "messages": 9})
+    st = get(server, "/state.json")
+    assert [(t["n"], t["node"], t["sx"], t["sy"]) for t in st["touches"]] == [(1, 3, 3, 3)]
+    assert st["power"] == 1.0 and st["perceived"] == [[3, 3]] and st["tick"] == 20
+    assert st["robots"] == [{"node": 3, "x": 2.0, "y": 3.5, "state": 3, "heard_tick": 19}]
+    assert st["bad_frames"] == {"crc": 2}
+    assert any("TOUCH from robot 3" in e for e in st["events"])
+
+
+def test_host_journals_poses_and_bad_frames(tmp_path):
+    tr = FakeTransport()
+    with Journal(tmp_path / "j.sqlite") as j:
+        h = HostProcess(tr, weight=500, journal=j)
+        h.handle([(4, msg.HELLO, (1, 100, 1)), (4, msg.HEARTBEAT, (0, 512, -256, 45, 0)),
+                  (9, msg.HEARTBEAT, (0, 0, 0, 0, 0))])      # 9 never said HELLO: a bad frame
+        for _ in range(LIVE_EVERY - 1):
+            h.step()
+        assert j.live() is None                 # written every LIVE_EVERY ticks only
+        h.step()
+        live = j.live()
+    assert live["tick"] == LIVE_EVERY
+    assert live["poses"] == {"4": [0, 0, 512, -256, 45, 0]}
+    assert sum(live["bad_frames"].values()) == 1
+
+
+# -- (2) and (3): the page in headless chromium -----------------------------------
+
+
+@pytest.fixture
+def browser():
+    from bridge.view.browser import headless
+    # no skip: a missing chromium fails here, saying `make venv` installs it
+    driver = headless()
+    yield driver
+    driver.quit()
+
+
+def wait_for(driver, condition):
+    from selenium.webdriver.support.ui import WebDriverWait
+    return WebDriverWait(driver, HANG_GUARD).until(lambda d: condition(d))
+
+
+def text(driver, element_id: str) -> str:
+    return driver.find_element("id", element_id).text
+
+
+def canvas_painted(driver) -> bool:
+    """Some pixel of the arena is not blank (the page drew on it)."""
+    return driver.execute_script(
+        "const c = document.getElementById('arena');"
+        "const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;"
+        "for (let i = 3; i < d.length; i += 4) if (d[i]) return true; return false;")
+
+
+def test_page_shows_the_arena_then_the_first_touch(sim, browser):
+    browser.get(sim.url)
+    wait_for(browser, lambda d: d.execute_script("return document.body.dataset.tick") == "0")
+    assert text(browser, "touch-count") == "0"
+    assert "scenario default, seed 1" in text(browser, "title")
+    assert canvas_painted(browser)
+    assert browser.find_element("id", "controls").is_displayed()
+    summary = {"touches": 0, "finished": False}
+    while summary["touches"] == 0 and not summary["finished"]:
+        code, summary = post(sim, "/control/step")
+        assert code == 200
+    assert summary["touches"] >= 1, "the run ended with no touch"
+    first = get(sim, "/state.json")["touches"][0]
+    n = str(summary["touches"])
+    wait_for(browser, lambda d: text(d, "touch-count") == n)
+    items = browser.find_elements("css selector", "#touches li.touch")
+    assert len(items) == summary["touches"]
+    assert items[0].text.startswith(f"robot {first['node']} at tick {first['tick']}")
+    assert text(browser, "tick") == str(summary["tick"])
+    assert "touch 1 by robot" in text(browser, "events")
+
+
+def test_page_shows_a_touch_as_it_is_journalled(journal_server, browser):
+    server, path = journal_server
+    browser.get(server.url)
+    wait_for(browser, lambda d: "host journal" in text(d, "title")
+             and "HELLO from robot 3" in text(d, "events"))
+    assert text(browser, "touch-count") == "0"
+    assert not browser.find_element("id", "controls").is_displayed()
+    with Journal(path) as j:
+        j.add_report(3, msg.TOUCH, (1, 2, 3, 3, 3, 100), 17)
+    wait_for(browser, lambda d: text(d, "touch-count") == "1")
+    assert text(browser, "touches").startswith("robot 3 at tick 17, segment (3, 3)")
+    assert text(browser, "power") == "1.00" and text(browser, "weight") == "5.00"
+
+
+# -- the command's bad input: one line, exit 2 ---------------------------------------
+
+
+def run_cli(capsys, *argv: str) -> tuple[int, str]:
+    try:
+        code = main(["view", *argv])
+    except SystemExit as exit_:          # argparse's own errors
+        code = exit_.code
+    err = capsys.readouterr().err
+    return code, err
+
+
+def test_missing_journal(capsys, tmp_path):
+    code, err = run_cli(capsys, "--journal", str(tmp_path / "none.db"))
+    assert code == 2 and err.count("\n") == 1
+    assert "none.db: no such file" in err
+
+
+def test_a_file_that_is_not_a_journal(capsys, tmp_path):
+    text_file = tmp_path / "notes.txt"
+    text_file.write_text("not a database\n" * 100)
+    code, err = run_cli(capsys, "--journal", str(text_file))
+    assert code == 2 and err.count("\n") == 1 and "notes.txt" in err
+    other_db = tmp_path / "other.db"
+    with sqlite3.connect(other_db) as db:
+        db.execute("CREATE TABLE t (x)")
+    code, err = run_cli(capsys, "--journal", str(other_db))
+    assert code == 2 and err.count("\n") == 1
+    assert "other.db is not a host journal" in err
+
+
+def test_a_port_in_use(capsys):
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        code, err = run_cli(capsys, "--port", str(port), "--paused")
+    assert code == 2 and err.count("\n") == 1
+    assert f"--port {port}: address already in use" in err
+
+
+@pytest.mark.parametrize("argv, words", [
+    (("--screenshot", "shot.gif"), "expected a .png file"),
+    (("--at-tick", "5"), "only with --screenshot"),
+    (("--speed", "5000"), "--speed 5000"),
+    (("--port", "70000"), "--port"),
+    (("--journal", "host.db", "--paused"), "--paused: only for a simulated run"),
+])
+def test_bad_options(capsys, argv, words):
+    code, err = run_cli(capsys, *argv)
+    assert code == 2 and err.count("\n") == 1 and words in err
+
+
+def test_a_missing_browser_fails_saying_how_to_install_it(monkeypatch, tmp_path):
+    from bridge.view import browser
+    monkeypatch.setattr(browser, "CHROMIUM", tmp_path / "chromium")
+    with pytest.raises(browser.BrowserMissing, match="`make venv` installs Debian's chromium"):
+        browser.headless()
+
+
+def test_screenshot_option_saves_the_page_at_the_tick(capsys, tmp_path):
+    out = tmp_path / "live.png"
+    assert main(["view", "--screenshot", str(out), "--at-tick", "5", "--port", "0"]) == 0
+    assert capsys.readouterr().out.strip() == f"live view at tick 5 saved to {out}"
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
