@@ -489,15 +489,18 @@ class CsvAppender:
     """sweep.csv as a journal: the header once, then each row as its run
     returns, flushed and fsynced, so a killed sweep keeps every row written.
 
-    Opening an existing file (resume) checks its header and drops a last
-    line cut off mid-write (no newline): that run is made again.
+    resume=True keeps an existing file: its header must be `names`, and a
+    last line cut off mid-write (no newline) is dropped (that run is made
+    again). Otherwise the file is (re)written from the first append on, so
+    a sweep that fails before its first run leaves no file behind.
     """
 
-    def __init__(self, path: Path, names: Sequence[str]) -> None:
+    def __init__(self, path: Path, names: Sequence[str], resume: bool = False) -> None:
         self.path = path
         self.names = list(names)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        if path.exists() and path.stat().st_size:
+        self.f: Any = None
+        self.append_to = resume and path.exists() and path.stat().st_size > 0
+        if self.append_to:
             _drop_partial_line(path)
             with path.open(newline="") as f:
                 header = next(csv.reader(f), [])
@@ -507,24 +510,22 @@ class CsvAppender:
                 raise ScenarioError(f"resume: {path} has other columns than this sweep writes"
                                     + (f" ({extra[0]!r})" if extra else "")
                                     + "; it comes from another sweep: use another --out")
-            self.f = path.open("a", newline="")
-        else:
-            self.f = path.open("w", newline="")
-            csv.writer(self.f, lineterminator="\n").writerow(self.names)
-            self._sync()
-        self.writer = csv.DictWriter(self.f, fieldnames=self.names, lineterminator="\n")
 
     def append(self, rows: Sequence[dict]) -> None:
+        if self.f is None:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self.f = self.path.open("a" if self.append_to else "w", newline="")
+            if not self.append_to:
+                csv.writer(self.f, lineterminator="\n").writerow(self.names)
+            self.writer = csv.DictWriter(self.f, fieldnames=self.names, lineterminator="\n")
         for r in rows:
             self.writer.writerow({k: _cell(v) for k, v in r.items()})
-        self._sync()
-
-    def _sync(self) -> None:
         self.f.flush()
         os.fsync(self.f.fileno())
 
     def close(self) -> None:
-        self.f.close()
+        if self.f is not None:
+            self.f.close()
 
 
 def _drop_partial_line(path: Path) -> None:

@@ -240,10 +240,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     todo = total - len(done)
     workers = getattr(executor, "_max_workers", 2) or 2
     chunk = chunk_arg or max(16, min(512, -(-todo // (workers * 6))))
-    appender = sweep.CsvAppender(csv_path, names) if args.resume else None
-    if appender is None:
-        sweep.write_csv([], csv_path, names)
-        appender = sweep.CsvAppender(csv_path, names)
+    appender = sweep.CsvAppender(csv_path, names, resume=args.resume)
     if done:
         print(f"resuming: {len(done)} of {total} runs already in {csv_path}", file=sys.stderr)
     bar, step = _progress(total, len(done), args.progress_every)
