@@ -255,6 +255,11 @@ PANELS = (("convergence", "convergence tick (converged runs: mean, 95% CI)"),
           ("shape_iou", "shape IoU (mean, 95% CI)"))
 
 
+CATEGORY_LABELS = {"convergence": "convergence tick (converged runs; box: quartiles)",
+                   "delivered": "delivery rate (fraction of runs)",
+                   "shape_iou": "shape IoU (box: quartiles)"}
+
+
 def _panel_values(rs: list[dict], panel: str) -> list[float]:
     if panel == "convergence":
         return [c for c, ok in map(_conv, rs) if ok]
@@ -307,6 +312,7 @@ def factor_figure(rows: Sequence[dict], factor: str, others: Sequence[str]):
                                           "at maxTicks")
                     sc.set_gid("censored")
     for ax, (panel, ylabel) in zip(axes[0], PANELS):
+        ax.set_xticks(xs_all)
         ax.set_xlabel(factor)
         ax.set_ylabel(ylabel, fontsize=8)
         if panel != "convergence":
@@ -357,8 +363,12 @@ def category_figure(rows: Sequence[dict], factor: str, others: Sequence[str]):
                         b.set_gid("bar")
                     continue
                 if vals:
+                    # outliers as small dots: hollow circles mean censored runs here
                     bp = ax.boxplot([vals], positions=[x], widths=width * 0.8,
-                                    patch_artist=True, manage_ticks=False)
+                                    patch_artist=True, manage_ticks=False,
+                                    flierprops={"marker": ".", "markersize": 4,
+                                                "markerfacecolor": color,
+                                                "markeredgecolor": color})
                     for b in bp["boxes"]:
                         b.set_facecolor(color)
                         b.set_alpha(0.6)
@@ -374,7 +384,7 @@ def category_figure(rows: Sequence[dict], factor: str, others: Sequence[str]):
     for ax, (panel, ylabel) in zip(axes[0], PANELS):
         ax.set_xticks(range(len(levels)), ticks, fontsize=7)
         ax.set_xlabel(factor)
-        ax.set_ylabel(ylabel.replace("mean, 95% CI", "box: quartiles"), fontsize=8)
+        ax.set_ylabel(CATEGORY_LABELS[panel], fontsize=8)
         if panel != "convergence":
             ax.set_ylim(-0.05, 1.05)
         ax.grid(alpha=0.3, axis="y")
