@@ -47,6 +47,11 @@ class OneLineParser(argparse.ArgumentParser):
         self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see `{self.prog} --help`)\n")
 
 
+def _version() -> str:
+    from sim_backend.api import version
+    return version()
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = OneLineParser(
         prog="touchswarm",
@@ -62,6 +67,8 @@ def build_parser() -> argparse.ArgumentParser:
                "2 bad input (nothing was\ndone), 130 interrupted; docs/cli.md.",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("-v", "--verbose", action="count", default=0, help="log more (-vv: debug)")
+    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}",
+                   help="print the installed version and exit")
     # sub-parsers are built by type(p), so every command's errors are one line too
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMANDS:

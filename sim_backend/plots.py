@@ -102,6 +102,15 @@ def plot_convergence(rows: Sequence[dict], experiment: str, factor: str, title: 
         ax.errorbar(xs, [p[1] for p in pts], yerr=[1.96 * p[2] for p in pts], marker="o",
                     capsize=3, label="mean (95% CI)")
         ax.plot(xs, [p[3] for p in pts], "s--", alpha=0.6, label="median")
+        censored = [r for r in rows if r["experiment"] == (source or experiment)
+                    and r["movementModel"] == model and not _conv(r)[1]]
+        if censored:
+            # every censored run drawn at its censoring tick, not only counted
+            sc = ax.scatter([_num(r[factor]) for r in censored],
+                            [_conv(r)[0] for r in censored], facecolors="none",
+                            edgecolors="C3", s=30, label="censored at maxTicks")
+            sc.set_gid("censored")
+            ymax = max(ymax, max(_conv(r)[0] for r in censored) * 1.05)
         cens = sum(p[5] for p in pts)
         n = min(p[4] for p in pts)
         ax.set_title(f"({letter}) {model}, n={n}/point" + (f", {cens} censored" if cens else ""),
@@ -207,15 +216,204 @@ def thesis_plots(rows: Sequence[dict], out: Path) -> list[Path]:
     return paths
 
 
+def _factor_levels(rows: Sequence[dict], factor: str) -> list:
+    """The factor's distinct values in the rows, in first-seen (grid) order."""
+    return list(dict.fromkeys(_num(r[factor]) for r in rows))
+
+
+def is_numeric(rows: Sequence[dict], factor: str) -> bool:
+    return all(isinstance(v, (int, float)) and not isinstance(v, bool)
+               for v in _factor_levels(rows, factor))
+
+
+def _groups(rows: Sequence[dict], others: Sequence[str]) -> dict[tuple, list[dict]]:
+    """Rows by the values of the other factors (one curve or box set each)."""
+    out: dict[tuple, list[dict]] = {}
+    for r in rows:
+        out.setdefault(tuple(_num(r[f]) for f in others), []).append(r)
+    return out
+
+
+def _group_label(others: Sequence[str], key: tuple) -> str:
+    return ", ".join(f"{f}={v}" for f, v in zip(others, key)) or "all runs"
+
+
+def _mean_ci(vals: list[float]) -> tuple[float, float]:
+    """Mean and the half-width of its normal 95% interval (0 for n < 2)."""
+    if not vals:
+        return math.nan, 0.0
+    m, sem, _ = _stats(vals)
+    return m, 1.96 * sem
+
+
+def _delivered(r) -> float:
+    return 1.0 if str(r["delivered"]) in ("True", "true", "1") else 0.0
+
+
+PANELS = (("convergence", "convergence tick (converged runs: mean, 95% CI)"),
+          ("delivered", "delivery rate (95% CI)"),
+          ("shape_iou", "shape IoU (mean, 95% CI)"))
+
+
+CATEGORY_LABELS = {"convergence": "convergence tick (converged runs; box: quartiles)",
+                   "delivered": "delivery rate (fraction of runs)",
+                   "shape_iou": "shape IoU (box: quartiles)"}
+
+
+def _panel_values(rs: list[dict], panel: str) -> list[float]:
+    if panel == "convergence":
+        return [c for c, ok in map(_conv, rs) if ok]
+    if panel == "delivered":
+        return [_delivered(r) for r in rs]
+    return [float(_num(r["shape_iou"])) for r in rs if _num(r["shape_iou"]) is not None]
+
+
+def _censored(rs: list[dict]) -> list[float]:
+    """The censoring tick (maxTicks) of every run that never converged."""
+    return [c for c, ok in map(_conv, rs) if not ok]
+
+
+def factor_figure(rows: Sequence[dict], factor: str, others: Sequence[str]):
+    """Convergence, delivery rate and IoU against a numeric factor: one curve
+    per combination of the other factors' levels (never pooled), n per
+    point in each curve's label; runs that never converged are drawn as
+    hollow markers at their censoring tick (maxTicks). Returns the Figure;
+    curves carry gid "curve", censored markers gid "censored"."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    groups = _groups(rows, others)
+    fig, axes = plt.subplots(1, len(PANELS), figsize=(4.6 * len(PANELS), 3.8), squeeze=False)
+    xs_all = sorted(set(_num(r[factor]) for r in rows))
+    span = (xs_all[-1] - xs_all[0]) or 1.0
+    for gi, (key, rs) in enumerate(groups.items()):
+        by_x: dict = defaultdict(list)
+        for r in rs:
+            by_x[_num(r[factor])].append(r)
+        xs = sorted(by_x)
+        n = min(len(by_x[x]) for x in xs)
+        label = f"{_group_label(others, key)} (n={n}/point)"
+        # a small sideways shift per curve keeps overlapping points apart
+        dx = span * 0.012 * (gi - (len(groups) - 1) / 2)
+        for ax, (panel, _) in zip(axes[0], PANELS):
+            stats = [_mean_ci(_panel_values(by_x[x], panel)) for x in xs]
+            cont = ax.errorbar([x + dx for x in xs], [m for m, _ in stats],
+                               yerr=[ci for _, ci in stats], marker="o", capsize=3,
+                               label=label)
+            cont.lines[0].set_gid("curve")
+            color = cont.lines[0].get_color()
+            if panel == "convergence":
+                cx = [x + dx for x in xs for _ in _censored(by_x[x])]
+                cy = [c for x in xs for c in _censored(by_x[x])]
+                if cx:
+                    sc = ax.scatter(cx, cy, facecolors="none", edgecolors=color, s=36,
+                                    label=f"{_group_label(others, key)}: {len(cx)} censored "
+                                          "at maxTicks")
+                    sc.set_gid("censored")
+    for ax, (panel, ylabel) in zip(axes[0], PANELS):
+        ax.set_xticks(xs_all)
+        ax.set_xlabel(factor)
+        ax.set_ylabel(ylabel, fontsize=8)
+        if panel != "convergence":
+            ax.set_ylim(-0.05, 1.05)
+        else:
+            ax.set_ylim(bottom=0)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=6)
+    fig.suptitle(f"{factor}: convergence, delivery and shape "
+                 f"({len(rows)} runs, {len(groups)} curve{'s' if len(groups) > 1 else ''})",
+                 fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def category_figure(rows: Sequence[dict], factor: str, others: Sequence[str]):
+    """A categorical factor (object, movementModel, behaviour...): boxes of
+    convergence ticks and IoU and bars of delivery rate per level, one
+    coloured set per combination of the other factors' levels, n under each
+    level; censored runs as hollow markers at maxTicks. Returns the Figure;
+    boxes carry gid "box", bars gid "bar", censored markers gid "censored"."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    levels = _factor_levels(rows, factor)
+    groups = _groups(rows, others)
+    width = 0.8 / len(groups)
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    fig, axes = plt.subplots(1, len(PANELS), figsize=(max(4.6, 1.4 * len(levels) * len(groups))
+                                                      * len(PANELS) / 2, 3.8), squeeze=False)
+    ns: dict = defaultdict(list)
+    for gi, (key, rs) in enumerate(groups.items()):
+        color = colors[gi % len(colors)]
+        label = _group_label(others, key)
+        for li, level in enumerate(levels):
+            at = [r for r in rs if _num(r[factor]) == level]
+            if not at:
+                continue
+            ns[level].append(len(at))
+            x = li - 0.4 + width * (gi + 0.5)
+            for ax, (panel, _) in zip(axes[0], PANELS):
+                vals = _panel_values(at, panel)
+                if panel == "delivered":
+                    bars = ax.bar([x], [sum(vals) / len(vals)], width * 0.9, color=color,
+                                  label=label if li == 0 else None)
+                    for b in bars:
+                        b.set_gid("bar")
+                    continue
+                if vals:
+                    # outliers as small dots: hollow circles mean censored runs here
+                    bp = ax.boxplot([vals], positions=[x], widths=width * 0.8,
+                                    patch_artist=True, manage_ticks=False,
+                                    flierprops={"marker": ".", "markersize": 4,
+                                                "markerfacecolor": color,
+                                                "markeredgecolor": color})
+                    for b in bp["boxes"]:
+                        b.set_facecolor(color)
+                        b.set_alpha(0.6)
+                        b.set_gid("box")
+                        b.set_label(label if li == 0 else None)
+                if panel == "convergence":
+                    cens = _censored(at)
+                    if cens:
+                        sc = ax.scatter([x] * len(cens), cens, facecolors="none",
+                                        edgecolors=color, s=36)
+                        sc.set_gid("censored")
+    ticks = [f"{lv}\n(n={'/'.join(str(n) for n in ns[lv])})" for lv in levels]
+    for ax, (panel, ylabel) in zip(axes[0], PANELS):
+        ax.set_xticks(range(len(levels)), ticks, fontsize=7)
+        ax.set_xlabel(factor)
+        ax.set_ylabel(CATEGORY_LABELS[panel], fontsize=8)
+        if panel != "convergence":
+            ax.set_ylim(-0.05, 1.05)
+        ax.grid(alpha=0.3, axis="y")
+        if len(groups) > 1 and panel == "delivered":
+            ax.legend(fontsize=6)
+    cens = len(_censored(list(rows)))
+    fig.suptitle(f"{factor}: convergence, delivery and shape per level ({len(rows)} runs"
+                 + (f", {cens} censored at maxTicks: hollow markers" if cens else "") + ")",
+                 fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def _save(fig, path: Path) -> Path:
+    import matplotlib.pyplot as plt
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=80)
+    plt.close(fig)
+    return path
+
+
 def grid_plots(rows: Sequence[dict], factors: Sequence[str], out: Path) -> list[Path]:
-    """Convergence against each swept numeric factor, per movement model."""
+    """One figure per swept factor with at least two levels, `by_<factor>.png`:
+    a numeric factor as curves (factor_figure), a categorical one as boxes
+    and bars (category_figure); the other swept factors split the curves."""
     paths = []
-    for f in factors:
-        vals = {_num(r[f]) for r in rows}
-        if len(vals) < 2 or not all(isinstance(v, (int, float)) for v in vals):
-            continue
-        p = plot_convergence(rows, rows[0]["experiment"], f, f"{f} vs convergence",
-                             out / f"convergence_vs_{f}.png")
-        if p:
-            paths.append(p)
+    swept = [f for f in factors if len(_factor_levels(rows, f)) > 1]
+    for f in swept:
+        others = [o for o in swept if o != f]
+        fig = (factor_figure if is_numeric(rows, f) else category_figure)(rows, f, others)
+        paths.append(_save(fig, out / f"by_{f}.png"))
     return paths

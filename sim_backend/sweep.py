@@ -112,11 +112,16 @@ def pick_engine(engine: str, sc: Scenario) -> str:
 
 
 def run_chunk(jobs: Sequence[tuple[dict, dict, int]], engine: str = "auto",
-              until: str = "delivered") -> list[dict]:
+              until: str = "delivered", progress_queue: Any = None, chunk_id: int = 0,
+              report: Callable[[int], None] | None = None) -> list[dict]:
     """Run (base scenario dict, point params, seed) jobs; return one summary each.
 
-    A plain top-level function, so every executor can ship it.
+    A plain top-level function, so every executor can ship it. Progress per
+    finished run: report(k) in this process, or (chunk_id, k) put on
+    progress_queue from a worker, k the runs of this chunk finished so far.
     """
+    if report is None and progress_queue is not None:
+        report = _queue_reporter(progress_queue, chunk_id)
     scs = [_scenario(b, p) for b, p, _ in jobs]
     seeds = [s for _, _, s in jobs]
     if engine == "auto":
@@ -124,16 +129,20 @@ def run_chunk(jobs: Sequence[tuple[dict, dict, int]], engine: str = "auto",
         groups: dict[str, list[int]] = {}
         for j, sc in enumerate(scs):
             groups.setdefault(pick_engine(engine, sc), []).append(j)
+        done = 0
         for eng, idx in groups.items():
-            for j, summ in zip(idx, run_chunk([jobs[j] for j in idx], eng, until)):
+            sub = None if report is None else _offset(report, done)
+            for j, summ in zip(idx, run_chunk([jobs[j] for j in idx], eng, until,
+                                              report=sub)):
                 out[j] = summ
+            done += len(idx)
         return out  # type: ignore[return-value]
     if engine == "vector":
         from sim_backend.vector_engine import run_batch
-        return run_batch(scs, seeds, until=until)
+        return run_batch(scs, seeds, until=until, progress=report)
     if engine == "batch":
         from sim_backend.batch.engine import run_batch as run_compiled
-        return run_compiled(scs, seeds, until=until)
+        return run_compiled(scs, seeds, until=until, progress=report)
     if engine != "reference":
         raise ValueError(f"engine: expected one of {ENGINES}, got {engine!r}")
     from sim_backend.engine import Engine, RunResult
@@ -142,11 +151,29 @@ def run_chunk(jobs: Sequence[tuple[dict, dict, int]], engine: str = "auto",
         e = Engine(sc, seed)
         if until == "delivered":
             out.append(e.run().summary())
-            continue
-        while not (e.coordinator.converged_tick >= 0 or e.tick >= sc.maxTicks):
-            e.step()
-        out.append(RunResult(sc, seed, e.tick, e.world, e.coordinator, e.robots).summary())
+        else:
+            while not (e.coordinator.converged_tick >= 0 or e.tick >= sc.maxTicks):
+                e.step()
+            out.append(RunResult(sc, seed, e.tick, e.world, e.coordinator, e.robots).summary())
+        if report is not None:
+            report(len(out))
     return out
+
+
+def _offset(report: Callable[[int], None], base: int) -> Callable[[int], None]:
+    return lambda k: report(base + k)
+
+
+def _queue_reporter(q: Any, chunk_id: int) -> Callable[[int], None]:
+    """report(k) that puts (chunk_id, k) on q only when k changes: the batch
+    engines call it every tick, a manager queue is a round trip per put."""
+    last = [0]
+
+    def report(k: int) -> None:
+        if k != last[0]:
+            last[0] = k
+            q.put((chunk_id, k))
+    return report
 
 
 def check_seeds(seeds: Sequence[int]) -> None:
@@ -222,15 +249,39 @@ def validate_points(points: Sequence[Point], base: Scenario | None = None,
         _scenario(base_d, pt.as_dict())
 
 
+def run_key(row: dict) -> tuple[str, str, str]:
+    """(experiment, point, seed) of a row, as text: the identity of one run,
+    the same for a row in memory and one read back from sweep.csv."""
+    return (str(row["experiment"]), str(row["point"]), str(row["seed"]))
+
+
+def _point_text(pt: Point) -> str:
+    return ";".join(f"{k}={v}" for k, v in pt.params)
+
+
+def _cell(v: Any) -> str:
+    """A value as sweep.csv writes it."""
+    return "" if v is None else str(v)
+
+
 def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None = None,
           engine: str = "auto", executor: Executor | None = None, until: str = "delivered",
           chunk_size: int = 256, overrides: dict[str, Any] | None = None,
-          progress: Callable[[int], None] | None = None) -> list[dict]:
+          progress: Callable[[int], None] | None = None,
+          on_rows: Callable[[list[dict]], None] | None = None,
+          done: Sequence[dict] = ()) -> list[dict]:
     """Run every point with every seed; return tidy rows in point, seed order.
 
     executor: any concurrent.futures.Executor (None: run in this process).
     overrides: scenario keys applied to every point (e.g. maxTicks).
-    progress: called with the number of runs just finished.
+    progress: called with the number of runs just finished, as each run
+      finishes (from process and thread pools too; other executors, e.g.
+      dask, report when a chunk returns).
+    on_rows: called with each chunk's rows as soon as the chunk returns, in
+      the order chunks finish (the CLI appends them to sweep.csv).
+    done: rows of runs already made (a resumed sweep's sweep.csv); those runs
+      are checked against this sweep (check_done) and not run again; the
+      result holds only the new runs.
     """
     if engine not in ENGINES:
         raise ValueError(f"engine: expected one of {ENGINES}, got {engine!r}")
@@ -242,30 +293,147 @@ def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None =
         raise ScenarioError("sweep: no grid points; expected at least one")
     base_d = (base or Scenario()).to_dict()
     base_d.update(overrides or {})
+    skip = check_done(done, points, seeds, base_d, until)
     jobs: list[tuple[dict, dict, int]] = []
     meta: list[tuple[Point, Scenario, int]] = []
     for pt in points:
         sc = _scenario(base_d, pt.as_dict())        # validate every point up front
         for s in seeds:
+            if (pt.experiment, _point_text(pt), str(s)) in skip:
+                continue
             jobs.append((base_d, pt.as_dict(), s))
             meta.append((pt, sc, s))
-    chunks = [jobs[i:i + chunk_size] for i in range(0, len(jobs), chunk_size)]
-    results: list[list[dict] | None] = [None] * len(chunks)
+    chunks = [list(range(i, min(i + chunk_size, len(jobs))))
+              for i in range(0, len(jobs), chunk_size)]
+    rows: list[dict | None] = [None] * len(jobs)
+
+    def finish(i: int, sums: list[dict]) -> None:
+        new = [make_row(*meta[j], summ, until) for j, summ in zip(chunks[i], sums)]
+        for j, r in zip(chunks[i], new):
+            rows[j] = r
+        if on_rows is not None:
+            on_rows(new)
+
     if executor is None:
         for i, ch in enumerate(chunks):
-            results[i] = run_chunk(ch, engine, until)
+            report = None
             if progress is not None:
-                progress(len(ch))
+                told = [0]
+
+                def report(k: int, told: list[int] = told) -> None:
+                    if k > told[0]:
+                        progress(k - told[0])
+                        told[0] = k
+            sums = run_chunk([jobs[j] for j in ch], engine, until, report=report)
+            if progress is not None and told[0] < len(ch):
+                progress(len(ch) - told[0])
+            finish(i, sums)
     else:
-        futs: dict[Future, int] = {executor.submit(run_chunk, ch, engine, until): i
-                                   for i, ch in enumerate(chunks)}
-        for f in as_completed(futs):
-            i = futs[f]
-            results[i] = f.result()
-            if progress is not None:
-                progress(len(chunks[i]))
-    sums = [s for r in results for s in r]  # type: ignore[union-attr]
-    return [make_row(pt, sc, s, summ, until) for (pt, sc, s), summ in zip(meta, sums)]
+        _run_on(executor, chunks, jobs, engine, until, progress, finish)
+    return rows  # type: ignore[return-value]
+
+
+def _progress_queue(executor: Executor) -> tuple[Any, Callable[[], None]]:
+    """A queue the executor's workers can put progress on, and its closer;
+    (None, noop) for executors whose workers cannot reach one (dask)."""
+    from concurrent.futures import ThreadPoolExecutor
+    if isinstance(executor, ThreadPoolExecutor):
+        import queue
+        return queue.Queue(), (lambda: None)
+    if isinstance(executor, ProcessPoolExecutor):
+        import multiprocessing
+        manager = multiprocessing.Manager()
+        return manager.Queue(), manager.shutdown
+    return None, (lambda: None)
+
+
+def _run_on(executor: Executor, chunks: list[list[int]], jobs: list, engine: str, until: str,
+            progress: Callable[[int], None] | None,
+            finish: Callable[[int, list[dict]], None]) -> None:
+    """Submit every chunk; report runs as they finish, rows as chunks return."""
+    import queue as queue_mod
+    from concurrent.futures import FIRST_COMPLETED, wait
+    q, close = _progress_queue(executor) if progress is not None else (None, lambda: None)
+    told = [0] * len(chunks)
+
+    def tell(i: int, k: int) -> None:
+        if k > told[i]:
+            progress(k - told[i])  # type: ignore[misc]
+            told[i] = k
+    try:
+        futs: dict[Future, int] = {
+            executor.submit(run_chunk, [jobs[j] for j in ch], engine, until, q, i): i
+            for i, ch in enumerate(chunks)}
+        pending = set(futs)
+        while pending:
+            # the timeout only bounds how stale the per-run progress gets
+            finished, pending = wait(pending, timeout=0.5 if q is not None else None,
+                                     return_when=FIRST_COMPLETED)
+            while q is not None:
+                try:
+                    i, k = q.get_nowait()
+                except queue_mod.Empty:
+                    break
+                tell(i, k)
+            for f in finished:
+                i = futs[f]
+                sums = f.result()
+                if progress is not None:
+                    tell(i, len(chunks[i]))
+                finish(i, sums)
+    finally:
+        close()
+
+
+def check_done(done: Sequence[dict], points: Sequence[Point], seeds: Sequence[int],
+               base_d: dict[str, Any], until: str) -> set[tuple[str, str, str]]:
+    """The run keys of `done` rows, each checked to be a run of this sweep
+    with the same scenario values; ScenarioError naming the first that is not."""
+    runs: dict[tuple[str, str, str], Scenario] = {}
+    for pt in points:
+        sc = _scenario(base_d, pt.as_dict())
+        for s in seeds:
+            runs[(pt.experiment, _point_text(pt), str(s))] = sc
+    keys: set[tuple[str, str, str]] = set()
+    for n, row in enumerate(done, start=2):
+        key = run_key(row)
+        where = f"row {n} ({key[1]}, seed {key[2]})"
+        if key not in runs:
+            raise ScenarioError(f"resume: {where} is not a run of this sweep; it was "
+                                "written by another grid or seed list: use another --out")
+        if key in keys:
+            raise ScenarioError(f"resume: {where} is there twice; the file was edited")
+        sc = runs[key]
+        for k in SCENARIO_KEYS:
+            if _cell(row.get(k)) != _cell(getattr(sc, k)):
+                raise ScenarioError(f"resume: {where} has {k}={row.get(k)} but this sweep "
+                                    f"runs {k}={getattr(sc, k)!r}; use another --out or the "
+                                    "same settings")
+        if _cell(row.get("until")) != until:
+            raise ScenarioError(f"resume: {where} ran until {row.get('until')!r}, this sweep "
+                                f"until {until!r}; use another --out or the same --until")
+        keys.add(key)
+    return keys
+
+
+def columns(behaviours: Iterable[str]) -> list[str]:
+    """sweep.csv's columns, in order, for rows of these behaviours: the
+    fixed ones, then each behaviour's declared measures not already there."""
+    from firmware_logic import registry
+    names = ["experiment", "point", *SCENARIO_KEYS, "required", "seed", "until", *MEASURES]
+    for b in dict.fromkeys(behaviours):
+        for name, _ in registry.load(b).spec.MEASURES:
+            if name not in names:
+                names.append(name)
+    return names
+
+
+def point_behaviours(points: Sequence[Point], base: Scenario | None = None,
+                     overrides: dict[str, Any] | None = None) -> list[str]:
+    """The behaviour of every point, in order, each once."""
+    base_d = (base or Scenario()).to_dict()
+    base_d.update(overrides or {})
+    return list(dict.fromkeys(_scenario(base_d, pt.as_dict()).behaviour for pt in points))
 
 
 def make_row(pt: Point, sc: Scenario, seed: int, s: dict, until: str) -> dict:
@@ -295,17 +463,20 @@ def make_row(pt: Point, sc: Scenario, seed: int, s: dict, until: str) -> dict:
     return row
 
 
-def write_csv(rows: Sequence[dict], path: Path) -> Path:
+def write_csv(rows: Sequence[dict], path: Path, names: Sequence[str] | None = None) -> Path:
+    """Every row under one header (names, default: every key of the rows,
+    in first-seen order), written to a temporary file and moved into place."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("w", newline="") as f:
-        if not rows:
-            return path
-        # rows of different behaviours carry different measures: every column once
-        names = list(dict.fromkeys(k for r in rows for k in r))
-        wr = csv.DictWriter(f, fieldnames=names, lineterminator="\n")
-        wr.writeheader()
-        for r in rows:
-            wr.writerow({k: ("" if v is None else v) for k, v in r.items()})
+    tmp = path.with_name(path.name + ".tmp")
+    with tmp.open("w", newline="") as f:
+        if rows or names:
+            # rows of different behaviours carry different measures: every column once
+            names = list(names or dict.fromkeys(k for r in rows for k in r))
+            wr = csv.DictWriter(f, fieldnames=names, lineterminator="\n")
+            wr.writeheader()
+            for r in rows:
+                wr.writerow({k: _cell(v) for k, v in r.items()})
+    os.replace(tmp, path)
     return path
 
 
@@ -314,3 +485,117 @@ def read_csv(path: Path) -> list[dict]:
         return list(csv.DictReader(f))
 
 
+class CsvAppender:
+    """sweep.csv as a journal: the header once, then each row as its run
+    returns, flushed and fsynced, so a killed sweep keeps every row written.
+
+    resume=True keeps an existing file: its header must be `names`, and a
+    last line cut off mid-write (no newline) is dropped (that run is made
+    again). Otherwise the file is (re)written from the first append on, so
+    a sweep that fails before its first run leaves no file behind.
+    """
+
+    def __init__(self, path: Path, names: Sequence[str], resume: bool = False) -> None:
+        self.path = path
+        self.names = list(names)
+        self.f: Any = None
+        self.append_to = resume and path.exists() and path.stat().st_size > 0
+        if self.append_to:
+            _drop_partial_line(path)
+            with path.open(newline="") as f:
+                header = next(csv.reader(f), [])
+            if header != self.names:
+                extra = [n for n in header if n not in self.names] or \
+                    [n for n in self.names if n not in header]
+                raise ScenarioError(f"resume: {path} has other columns than this sweep writes"
+                                    + (f" ({extra[0]!r})" if extra else "")
+                                    + "; it comes from another sweep: use another --out")
+
+    def append(self, rows: Sequence[dict]) -> None:
+        if self.f is None:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self.f = self.path.open("a" if self.append_to else "w", newline="")
+            if not self.append_to:
+                csv.writer(self.f, lineterminator="\n").writerow(self.names)
+            self.writer = csv.DictWriter(self.f, fieldnames=self.names, lineterminator="\n")
+        for r in rows:
+            self.writer.writerow({k: _cell(v) for k, v in r.items()})
+        self.f.flush()
+        os.fsync(self.f.fileno())
+
+    def close(self) -> None:
+        if self.f is not None:
+            self.f.close()
+
+
+def _drop_partial_line(path: Path) -> None:
+    """Cut a file back to its last newline (a row cut off by a kill)."""
+    data = path.read_bytes()
+    if data and not data.endswith(b"\n"):
+        keep = data.rfind(b"\n") + 1
+        log.warning("%s: dropping a last row cut off mid-write (%d bytes)", path,
+                    len(data) - keep)
+        with path.open("r+b") as f:
+            f.truncate(keep)
+
+
+def read_done(path: Path) -> list[dict]:
+    """The rows of an interrupted sweep's sweep.csv (none if it is missing),
+    a last line cut off mid-write left out."""
+    if not path.exists():
+        return []
+    data = path.read_text()
+    if data and not data.endswith("\n"):
+        data = data[:data.rfind("\n") + 1]
+    import io
+    return list(csv.DictReader(io.StringIO(data)))
+
+
+class ProgressLog:
+    """Progress as plain lines, for a sweep whose output is not a terminal
+    (a log file, CI, nohup): `done/total runs (pct), rate runs/s, ETA`.
+
+    update(n) is called as each run finishes; a line goes to emit every
+    `every_runs` runs (default: every 5% of the sweep) or once `every_s`
+    seconds have passed since the last line, whichever comes first, and
+    at the end. clock is injectable so tests need no real time.
+    """
+
+    def __init__(self, total: int, emit: Callable[[str], None], already: int = 0,
+                 every_runs: int | None = None, every_s: float = 10.0,
+                 clock: Callable[[], float] | None = None) -> None:
+        import time
+        self.total = total
+        self.emit = emit
+        self.already = already          # runs a resumed sweep found done
+        self.done = already
+        self.every_runs = every_runs or max(1, (total - already) // 20)
+        self.every_s = every_s
+        self.clock = clock or time.monotonic
+        self.t0 = self.last_t = self.clock()
+        self.last_done = already
+
+    def update(self, n: int = 1) -> None:
+        self.done += n
+        now = self.clock()
+        if (self.done >= self.total or self.done - self.last_done >= self.every_runs
+                or now - self.last_t >= self.every_s):
+            self.emit(self.line(now))
+            self.last_t, self.last_done = now, self.done
+
+    def line(self, now: float) -> str:
+        new = self.done - self.already
+        dt = now - self.t0
+        rate = new / dt if dt > 0 else 0.0
+        left = self.total - self.done
+        eta = _duration(left / rate) if rate > 0 else "?"
+        pct = 100 * self.done / self.total if self.total else 100.0
+        return (f"sweep: {self.done}/{self.total} runs ({pct:.0f}%), {rate:.2f} runs/s, "
+                f"ETA {eta}")
+
+
+def _duration(s: float) -> str:
+    s = int(round(s))
+    h, rest = divmod(s, 3600)
+    m, sec = divmod(rest, 60)
+    return f"{h}h{m:02d}m{sec:02d}s" if h else (f"{m}m{sec:02d}s" if m else f"{sec}s")

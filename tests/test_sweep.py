@@ -60,7 +60,8 @@ def test_cli_sweep_writes_csv_and_plots(tmp_path, capsys):
                "--out", str(tmp_path)])
     assert rc == 0
     assert (tmp_path / "sweep.csv").read_text().count("\n") == 13
-    assert (tmp_path / "convergence_vs_sigRadius.png").stat().st_size > 1000
+    assert (tmp_path / "by_sigRadius.png").stat().st_size > 1000
+    assert (tmp_path / "by_movementModel.png").stat().st_size > 1000
     assert "12 runs" in capsys.readouterr().out
 
 

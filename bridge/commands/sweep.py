@@ -25,12 +25,18 @@ def register(sub) -> None:
                "  touchswarm sweep --thesis --out thesis-out\n"
                "  touchswarm sweep --grid sigRadius=3,5,7 --seeds 101-200 --executor "
                "dask://10.0.0.5:8786\n"
+               "  touchswarm sweep --grid sigRadius=3,5 --save-experiment exp.toml  # saved, run\n"
+               "  touchswarm sweep exp.toml --resume           # finish an interrupted sweep\n"
                "\nEverything is checked before the first run: keys and values, seeds (distinct, "
                "0..1000002),\nthe output directory and the executor. Exit 0 when every run "
                "finished, 2 on bad input.",
         formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--scenario", default="default", metavar="NAME|FILE",
-                   help="base scenario every point starts from (default: %(default)s)")
+    p.add_argument("experiment", nargs="?", type=path_arg, metavar="EXPERIMENT.toml",
+                   help="an experiment file (scenario, grid, set, seeds, engine, until, out, "
+                        "executor, chunk; docs/outputs.md); options given as well override "
+                        "its values")
+    p.add_argument("--scenario", default=None, metavar="NAME|FILE",
+                   help="base scenario every point starts from (default: default)")
     p.add_argument("--grid", action="append", default=[], metavar="KEY=V1,V2,...",
                    help="a scenario key and its distinct values (repeatable, once per key; "
                         "the grid is their product)")
@@ -46,19 +52,31 @@ def register(sub) -> None:
     p.add_argument("--until", choices=["delivered", "converged"], default=None,
                    help="stop each run when the object is home or when power first reaches "
                         "its weight (default: delivered; --thesis: converged)")
-    p.add_argument("--engine", choices=ENGINES, default="auto",
+    p.add_argument("--engine", choices=ENGINES, default=None,
                    help="auto (default): the hand-vectorised engine for the thesis behaviour, "
                         "the batch engine compiled from the behaviour's source for any other; "
                         "batch: always the compiled engine (compiles for ~15 s per process); "
                         "vector: thesis only; reference: the per-robot engine")
-    p.add_argument("--executor", default="processes", metavar="SPEC",
+    p.add_argument("--executor", default=None, metavar="SPEC",
                    help="processes[:N] (default: one per core), inline, or dask://HOST:PORT "
                         "(a dask.distributed scheduler)")
     p.add_argument("--chunk", type=int, default=None, metavar="RUNS",
                    help="runs per task, at least 1 (default: spread evenly, at most 512)")
-    p.add_argument("--out", type=path_arg, default=Path("sweep-out"), metavar="DIR",
+    p.add_argument("--out", type=path_arg, default=None, metavar="DIR",
                    help="directory (created if missing) for sweep.csv and the PNGs "
-                        "(default: %(default)s)")
+                        "(default: sweep-out)")
+    p.add_argument("--resume", action="store_true",
+                   help="finish the sweep whose sweep.csv is in --out: runs already there "
+                        "(same experiment, point and seed) are kept, not run again")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace a sweep.csv already in --out (without it, a sweep refuses "
+                        "to throw away finished runs)")
+    p.add_argument("--save-experiment", type=path_arg, metavar="FILE.toml",
+                   help="save this sweep's settings as an experiment file, then run it; "
+                        "`touchswarm sweep FILE.toml` runs it again")
+    p.add_argument("--progress-every", type=float, default=10.0, metavar="S",
+                   help="when stderr is not a terminal: a progress line at least every S "
+                        "seconds (and every 5%% of the runs) (default: %(default)s)")
     p.add_argument("--no-plots", action="store_true", help="write the CSV only")
     p.add_argument("--json", action="store_true", help="print a JSON summary line")
     p.set_defaults(func=cmd_sweep)
@@ -117,71 +135,170 @@ def _grid(items: list[str]) -> dict:
     return grid
 
 
-def cmd_sweep(args: argparse.Namespace) -> int:
+def _settings(args: argparse.Namespace) -> dict:
+    """The sweep's settings: the experiment file's, overridden by options given."""
+    from bridge.commands import experiment
     from bridge.commands.run import parse_overrides
+    settings: dict = {}
+    if args.experiment is not None:
+        if args.experiment.suffix != ".toml":
+            raise UsageError(f"experiment {args.experiment}: expected a .toml experiment file")
+        if args.thesis:
+            raise UsageError("--thesis runs its own grid; drop the experiment file")
+        settings = experiment.load(args.experiment)
+    if args.scenario is not None:
+        settings["scenario"] = args.scenario
+    if args.grid:
+        settings["grid"] = _grid(args.grid)
+    elif "grid" in settings:
+        grid = settings["grid"]
+        settings["grid"] = {k: list(v) for k, v in grid.items()}
+    if args.set:
+        settings["set"] = parse_overrides(args.set)
+    if args.seeds is not None:
+        settings["seeds"] = args.seeds
+    elif "seeds" in settings:
+        settings["seeds"] = experiment.seeds_text(settings["seeds"])
+    for key in ("engine", "until", "out", "executor", "chunk"):
+        if getattr(args, key) is not None:
+            settings[key] = getattr(args, key)
+    if "engine" in settings and settings["engine"] not in ENGINES:
+        raise UsageError(f"engine {settings['engine']!r}: expected one of {', '.join(ENGINES)}")
+    if "until" in settings and settings["until"] not in ("delivered", "converged"):
+        raise UsageError(f"until {settings['until']!r}: expected delivered or converged")
+    settings.setdefault("scenario", "default")
+    settings.setdefault("set", {})
+    settings.setdefault("engine", "auto")
+    settings.setdefault("executor", "processes")
+    settings["out"] = Path(settings.get("out") or "sweep-out")
+    return settings
+
+
+def cmd_sweep(args: argparse.Namespace) -> int:
     from sim_backend import scenario, sweep
 
-    base = scenario.load(args.scenario)
-    overrides = parse_overrides(args.set)
+    cfg = _settings(args)
+    base = scenario.load(cfg["scenario"])
+    overrides = dict(cfg["set"])
+    grid: dict = {}
     if args.thesis:
         if args.grid:
             raise UsageError("--thesis runs its own grid; drop --grid")
+        if args.save_experiment:
+            raise UsageError("--save-experiment saves a --grid sweep; --thesis is its own "
+                             "experiment already")
         points = sweep.thesis_points()
-        seeds = _seeds(args.seeds) if args.seeds else list(range(1, sweep.THESIS_SEEDS + 1))
-        until = args.until or sweep.THESIS_UNTIL
+        seeds = _seeds(cfg["seeds"]) if "seeds" in cfg else \
+            list(range(1, sweep.THESIS_SEEDS + 1))
+        until = cfg.get("until") or sweep.THESIS_UNTIL
         overrides.setdefault("maxTicks", sweep.THESIS_MAX_TICKS)
     else:
-        if not args.grid:
-            raise UsageError("give at least one --grid KEY=V1,V2,... (or --thesis)")
-        grid = _grid(args.grid)
+        if not cfg.get("grid"):
+            raise UsageError("give at least one --grid KEY=V1,V2,... (or --thesis, or an "
+                             "experiment file)")
+        grid = cfg["grid"]
         both = sorted(set(grid) & set(overrides))
         if both:
             raise UsageError(f"--set {both[0]} and --grid {both[0]} both given; the grid "
                              "would override --set: give the key in one of them")
         points = sweep.grid_points(grid)
-        seeds = _seeds(args.seeds) if args.seeds else list(range(1, 21))
-        until = args.until or "delivered"
-    if args.chunk is not None and args.chunk < 1:
-        raise UsageError(f"--chunk {args.chunk}: expected at least 1 run per task")
+        seeds = _seeds(cfg["seeds"]) if "seeds" in cfg else list(range(1, 21))
+        until = cfg.get("until") or "delivered"
+    chunk_arg = cfg.get("chunk")
+    if chunk_arg is not None and chunk_arg < 1:
+        raise UsageError(f"--chunk {chunk_arg}: expected at least 1 run per task")
+    out: Path = cfg["out"]
     # every check that can refuse the sweep runs before the first run
     sweep.validate_points(points, base, overrides)
-    from bridge.commands.paths import check_out_dir
-    check_out_dir(args.out, "--out")
+    from bridge.commands.paths import check_out_dir, check_out_file
+    check_out_dir(out, "--out")
+    csv_path = out / "sweep.csv"
+    names = sweep.columns(sweep.point_behaviours(points, base, overrides))
+    done: list[dict] = []
+    if args.resume:
+        done = sweep.read_done(csv_path)
+        base_d = {**base.to_dict(), **overrides}
+        sweep.check_done(done, points, seeds, base_d, until)
+    elif csv_path.exists() and not args.overwrite and sweep.read_done(csv_path):
+        raise UsageError(f"--out {out}: sweep.csv already holds {len(sweep.read_done(csv_path))}"
+                         " runs; --resume finishes that sweep, --overwrite replaces it")
+    if args.save_experiment is not None:
+        check_out_file(args.save_experiment, "--save-experiment", "exp.toml")
+        if args.save_experiment.suffix != ".toml":
+            raise UsageError(f"--save-experiment {args.save_experiment}: expected a .toml file")
+        from bridge.commands import experiment
+        experiment.save(args.save_experiment, {
+            "scenario": cfg["scenario"], "grid": grid, "set": cfg["set"],
+            "seeds": _seeds_value(cfg.get("seeds", "20")), "engine": cfg["engine"],
+            "until": until, "out": str(out), "executor": cfg["executor"], "chunk": chunk_arg})
+        print(f"experiment saved to {args.save_experiment}")
     try:
-        executor, close = sweep.executor_from_spec(args.executor)
+        executor, close = sweep.executor_from_spec(cfg["executor"])
     except ValueError as err:
         raise UsageError(str(err)) from None
     total = len(points) * len(seeds)
+    todo = total - len(done)
     workers = getattr(executor, "_max_workers", 2) or 2
-    chunk = args.chunk or max(16, min(512, -(-total // (workers * 6))))
-    from tqdm import tqdm
-    bar = tqdm(total=total, unit="run", desc="sweep", disable=not sys.stderr.isatty())
+    chunk = chunk_arg or max(16, min(512, -(-todo // (workers * 6))))
+    appender = sweep.CsvAppender(csv_path, names, resume=args.resume)
+    if done:
+        print(f"resuming: {len(done)} of {total} runs already in {csv_path}", file=sys.stderr)
+    bar, step = _progress(total, len(done), args.progress_every)
     t0 = time.perf_counter()
     try:
-        rows = sweep.sweep(points, seeds, base=base, engine=args.engine, executor=executor,
-                           until=until, chunk_size=chunk, overrides=overrides,
-                           progress=bar.update)
+        new = sweep.sweep(points, seeds, base=base, engine=cfg["engine"], executor=executor,
+                          until=until, chunk_size=chunk, overrides=overrides, progress=step,
+                          on_rows=appender.append, done=done)
     finally:
-        bar.close()
+        appender.close()
+        if bar is not None:
+            bar.close()
         close()
     wall = time.perf_counter() - t0
-    csv_path = sweep.write_csv(rows, args.out / "sweep.csv")
+    # the journal holds rows in the order runs finished: rewrite it in point,
+    # seed order, so the same sweep gives the same file whatever the executor
+    order = {run: i for i, run in enumerate(
+        (pt.experiment, ";".join(f"{k}={v}" for k, v in pt.params), str(s))
+        for pt in points for s in seeds)}
+    rows = sorted(done + new, key=lambda r: order[sweep.run_key(r)])
+    sweep.write_csv(rows, csv_path, names)
     pngs = []
     if not args.no_plots:
         from sim_backend import plots
+        saved = sweep.read_csv(csv_path)
         if args.thesis:
-            pngs = plots.thesis_plots(rows, args.out)
+            pngs = plots.thesis_plots(saved, out)
         else:
-            pngs = plots.grid_plots(rows, list(grid), args.out)
-    info = {"runs": len(rows), "points": len(points), "seeds": len(seeds), "engine": args.engine,
-            "executor": args.executor, "until": until, "wall_s": round(wall, 3),
+            pngs = plots.grid_plots(saved, list(grid), out)
+    info = {"runs": len(rows), "new_runs": len(new), "resumed_runs": len(done),
+            "points": len(points), "seeds": len(seeds), "engine": cfg["engine"],
+            "executor": cfg["executor"], "until": until, "wall_s": round(wall, 3),
             "csv": str(csv_path), "plots": [str(p) for p in pngs]}
     if args.json:
         print(json.dumps(info, sort_keys=True))
     else:
-        print(f"{len(rows)} runs ({len(points)} points x {len(seeds)} seeds, {args.engine} "
-              f"engine, until {until}) in {wall:.1f} s")
+        again = f", {len(done)} kept from before" if done else ""
+        print(f"{len(rows)} runs ({len(points)} points x {len(seeds)} seeds, {cfg['engine']} "
+              f"engine, until {until}{again}) in {wall:.1f} s")
         print(f"  {csv_path}")
         for p in pngs:
             print(f"  {p}")
     return 0
+
+
+def _seeds_value(text: str) -> int | str | list[int]:
+    """--seeds text as an experiment file writes it: a count stays a number."""
+    text = str(text).strip()
+    return int(text) if text.isdigit() else text
+
+
+def _progress(total: int, already: int, every_s: float):
+    """(bar or None, step(n)): a tqdm bar on a terminal, else log lines on stderr."""
+    if sys.stderr.isatty():
+        from tqdm import tqdm
+        bar = tqdm(total=total, initial=already, unit="run", desc="sweep")
+        return bar, bar.update
+    from sim_backend.sweep import ProgressLog
+    log = ProgressLog(total, lambda line: print(line, file=sys.stderr, flush=True),
+                      already=already, every_s=every_s)
+    return None, log.update

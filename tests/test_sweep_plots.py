@@ -1,0 +1,110 @@
+"""Sweep figures never pool: one curve per level of the other factor,
+categorical factors as boxes and bars, delivery and IoU plotted, censored
+runs drawn. Asserted on the figures' structure, not on pixels."""
+
+import pytest
+
+from bridge.cli import main
+from sim_backend import plots
+
+
+def fake_rows(grid: dict, seeds=range(1, 6), censor=lambda p, s: False) -> list[dict]:
+    """Rows as sweep.csv holds them (strings), one per point and seed."""
+    import itertools
+    rows = []
+    keys = list(grid)
+    for combo in itertools.product(*grid.values()):
+        p = dict(zip(keys, combo))
+        for s in seeds:
+            cens = censor(p, s)
+            rows.append({"experiment": "grid", "movementModel": "firefly", "object": "bar",
+                         "maxTicks": "3000", **{k: str(v) for k, v in p.items()},
+                         "seed": str(s), "converged_tick": "" if cens else str(100 + 10 * s),
+                         "delivered": str(not cens), "shape_iou": str(0.5 + 0.05 * s)})
+    return rows
+
+
+def curves(ax) -> list:
+    return [ln for ln in ax.get_lines() if ln.get_gid() == "curve"]
+
+
+def labels(ax) -> list[str]:
+    """The curves' labels as the legend shows them."""
+    from matplotlib.container import ErrorbarContainer
+    return [c.get_label() for c in ax.containers if isinstance(c, ErrorbarContainer)]
+
+
+def gid(ax, name: str) -> list:
+    return [a for a in ax.get_children() if a.get_gid() == name]
+
+
+def test_two_numeric_factors_give_one_curve_per_level_of_the_other():
+    rows = fake_rows({"fieldDefiance": [1, 2], "sigRadius": [3, 5]})
+    fig = plots.factor_figure(rows, "fieldDefiance", ["sigRadius"])
+    conv, deliv, iou = fig.axes[:3]
+    for ax in (conv, deliv, iou):
+        assert len(curves(ax)) == 2
+        assert labels(ax) == ["sigRadius=3 (n=5/point)", "sigRadius=5 (n=5/point)"]
+        legend = [t.get_text() for t in ax.get_legend().get_texts()]
+        assert legend[:2] == labels(ax)
+    assert "delivery rate" in deliv.get_ylabel() and "IoU" in iou.get_ylabel()
+    assert all(list(c.get_ydata()) == [1.0, 1.0] for c in curves(deliv))
+
+
+def test_three_factors_split_by_every_combination_of_the_others():
+    rows = fake_rows({"fieldDefiance": [1, 2], "sigRadius": [3, 5], "rPower": [1.0, 2.0]},
+                     seeds=range(1, 4))
+    fig = plots.factor_figure(rows, "fieldDefiance", ["sigRadius", "rPower"])
+    assert len(curves(fig.axes[0])) == 4
+    assert "sigRadius=5, rPower=2 (n=3/point)" in labels(fig.axes[0])
+
+
+def test_censored_runs_are_drawn_at_their_censoring_tick():
+    rows = fake_rows({"fieldDefiance": [1, 2]}, censor=lambda p, s: p["fieldDefiance"] == 2
+                     and s <= 2)
+    fig = plots.factor_figure(rows, "fieldDefiance", [])
+    (marks,) = gid(fig.axes[0], "censored")
+    offsets = marks.get_offsets()
+    assert len(offsets) == 2 and all(y == 3000 for _, y in offsets)
+    assert "2 censored" in marks.get_label()
+    # the delivery rate shows them too: 3 of 5 delivered at fieldDefiance 2
+    (deliv,) = curves(fig.axes[1])
+    assert list(deliv.get_ydata()) == pytest.approx([1.0, 0.6])
+
+
+def test_a_categorical_factor_gets_boxes_and_bars_per_level():
+    rows = fake_rows({"object": ["bar", "L", "X"]}, censor=lambda p, s: p["object"] == "X"
+                     and s == 1)
+    fig = plots.category_figure(rows, "object", [])
+    conv, deliv, iou = fig.axes[:3]
+    assert len(gid(conv, "box")) == 3 and len(gid(iou, "box")) == 3
+    assert len([p for p in deliv.patches if p.get_gid() == "bar"]) == 3
+    assert [t.get_text() for t in conv.get_xticklabels()] == ["bar\n(n=5)", "L\n(n=5)",
+                                                             "X\n(n=5)"]
+    assert len(gid(conv, "censored")) == 1
+
+
+def test_a_categorical_factor_with_a_second_factor_is_split_too():
+    rows = fake_rows({"object": ["bar", "L"], "sigRadius": [3, 5]})
+    fig = plots.category_figure(rows, "object", ["sigRadius"])
+    assert len(gid(fig.axes[0], "box")) == 4
+    labels = [t.get_text() for t in fig.axes[1].get_legend().get_texts()]
+    assert labels == ["sigRadius=3", "sigRadius=5"]
+
+
+def test_grid_plots_gives_a_figure_per_swept_factor(tmp_path):
+    rows = fake_rows({"object": ["bar", "L", "X"], "fieldDefiance": [1, 2]})
+    paths = plots.grid_plots(rows, ["object", "fieldDefiance"], tmp_path)
+    assert [p.name for p in paths] == ["by_object.png", "by_fieldDefiance.png"]
+    assert all(p.stat().st_size > 1000 for p in paths)
+
+
+def test_cli_two_factor_sweep_and_categorical_sweep_plot(tmp_path):
+    assert main(["sweep", "--grid", "fieldDefiance=1,2", "--grid", "sigRadius=3,5",
+                 "--seeds", "2", "--set", "maxTicks=400", "--executor", "inline",
+                 "--out", str(tmp_path / "a")]) == 0
+    assert (tmp_path / "a" / "by_fieldDefiance.png").exists()
+    assert (tmp_path / "a" / "by_sigRadius.png").exists()
+    assert main(["sweep", "--grid", "object=bar,L,X", "--seeds", "2", "--set", "maxTicks=400",
+                 "--executor", "inline", "--out", str(tmp_path / "b")]) == 0
+    assert (tmp_path / "b" / "by_object.png").exists()

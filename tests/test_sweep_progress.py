@@ -1,0 +1,79 @@
+"""Sweep progress moves per finished run, in this process and from worker
+processes, and shows as plain lines when stderr is not a terminal."""
+
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
+
+import pytest
+
+from bridge.cli import main
+from sim_backend import sweep
+
+POINTS = sweep.grid_points({"fieldDefiance": [1, 4], "movementModel": ["firefly", "ant"]})
+SEEDS = [1, 2, 3]
+
+
+class FakeClock:
+    def __init__(self) -> None:
+        self.t = 0.0
+
+    def __call__(self) -> float:
+        return self.t
+
+
+def test_progress_log_lines_by_runs_and_by_time():
+    lines: list[str] = []
+    clock = FakeClock()
+    log = sweep.ProgressLog(100, lines.append, every_runs=10, every_s=5.0, clock=clock)
+    for _ in range(9):
+        clock.t += 0.1
+        log.update()
+    assert lines == []
+    clock.t += 0.1
+    log.update()                      # the 10th run
+    assert lines == ["sweep: 10/100 runs (10%), 10.00 runs/s, ETA 9s"]
+    clock.t += 6.0                    # a slow run: the time limit shows it
+    log.update()
+    assert lines[-1] == "sweep: 11/100 runs (11%), 1.57 runs/s, ETA 57s"
+    for _ in range(89):
+        log.update()
+    assert lines[-1].startswith("sweep: 100/100 runs (100%)")
+
+
+def test_progress_log_of_a_resumed_sweep_counts_only_new_runs_in_the_rate():
+    lines: list[str] = []
+    clock = FakeClock()
+    log = sweep.ProgressLog(10, lines.append, already=6, every_runs=1, clock=clock)
+    clock.t = 2.0
+    log.update()
+    assert lines == ["sweep: 7/10 runs (70%), 0.50 runs/s, ETA 6s"]
+
+
+@pytest.mark.parametrize("engine", ["vector", "reference"])
+def test_progress_moves_per_run_inside_one_chunk(engine):
+    """One chunk of 12 runs: progress comes as runs finish, not once at the end."""
+    steps: list[int] = []
+    rows = sweep.sweep(POINTS, SEEDS, overrides={"maxTicks": 3000}, engine=engine,
+                       chunk_size=12, progress=steps.append)
+    assert len({r["ticks"] for r in rows}) > 1      # the runs end at different ticks
+    assert sum(steps) == 12
+    assert len(steps) > 1 and all(s >= 1 for s in steps)
+
+
+@pytest.mark.parametrize("pool", [ThreadPoolExecutor, ProcessPoolExecutor])
+def test_progress_moves_per_run_from_workers(pool):
+    steps: list[int] = []
+    with pool(1) as ex:
+        rows = sweep.sweep(POINTS, SEEDS, overrides={"maxTicks": 3000}, executor=ex,
+                           chunk_size=12, progress=steps.append)
+    assert len(rows) == 12 and sum(steps) == 12
+    assert len(steps) > 1
+
+
+def test_cli_prints_progress_lines_when_stderr_is_not_a_terminal(tmp_path, capsys):
+    assert main(["sweep", "--grid", "fieldDefiance=1,4", "--grid", "movementModel=firefly,ant",
+                 "--seeds", "3", "--set", "maxTicks=3000", "--executor", "inline",
+                 "--chunk", "12", "--no-plots", "--out", str(tmp_path)]) == 0
+    lines = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("sweep: ")]
+    # one chunk of 12 runs, yet a line per finished run (every 5% of 12 runs is 1 run)
+    assert len(lines) > 1
+    assert lines[-1].startswith("sweep: 12/12 runs (100%)") and "runs/s, ETA" in lines[-1]
