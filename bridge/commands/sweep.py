@@ -43,6 +43,10 @@ def register(sub) -> None:
     p.add_argument("--thesis", action="store_true",
                    help="reproduce every graph and figure of the thesis's chapter 5 "
                         "(150 seeds per point, both movement models, until convergence)")
+    p.add_argument("--activation", choices=["sync", "netlogo"], default=None,
+                   help="sync: every robot decides on the tick-start world (the scenario's "
+                        "default); netlogo: NetLogo's sequential `ask robots` "
+                        "(docs/tick-semantics.md); the same as --set activation=...")
     p.add_argument("--until", choices=["delivered", "converged"], default=None,
                    help="stop each run when the object is home or when power first reaches "
                         "its weight (default: delivered; --thesis: converged)")
@@ -123,6 +127,11 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
     base = scenario.load(args.scenario)
     overrides = parse_overrides(args.set)
+    if args.activation is not None:
+        if "activation" in overrides or any(g.split("=")[0].strip() == "activation"
+                                            for g in args.grid):
+            raise UsageError("--activation and --set/--grid activation both given; give one")
+        overrides["activation"] = args.activation
     if args.thesis:
         if args.grid:
             raise UsageError("--thesis runs its own grid; drop --grid")
@@ -170,7 +179,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if not args.no_plots:
         from sim_backend import plots
         if args.thesis:
-            pngs = plots.thesis_plots(rows, args.out)
+            from sim_backend import thesis_figures
+            pngs = plots.thesis_plots(rows, args.out) + thesis_figures.plots(rows, args.out)
         else:
             pngs = plots.grid_plots(rows, list(grid), args.out)
     info = {"runs": len(rows), "points": len(points), "seeds": len(seeds), "engine": args.engine,
