@@ -92,15 +92,42 @@ def _pairs(text) -> list[tuple[int, int]]:
     return [tuple(int(v) for v in p.split(":")) for p in str(text or "").split()]  # type: ignore
 
 
+def _true_cells(r: dict) -> list[tuple[int, int]]:
+    """The object's cells at the start of the run a sweep row describes."""
+    from sim_backend.scenario import validate
+    from sim_backend.sweep import SCENARIO_KEYS
+    from sim_backend.world import World
+    sc = validate({k: _num(r[k]) for k in SCENARIO_KEYS if r.get(k) not in (None, "")})
+    return World(sc, int(_num(r["seed"]))).object_cells
+
+
+def _draw_holders(ax, obj: str, n: int, r: dict | None) -> None:
+    """One panel: the object, its holders' rounded positions, their polygon."""
+    ax.set_xticks([])
+    ax.set_yticks([])
+    if r is None:
+        ax.axis("off")
+        return
+    true = _true_cells(r)
+    holders = _pairs(r.get("touches"))
+    ax.scatter([c[0] for c in true], [c[1] for c in true], marker="s", s=60, c="#f2d06b")
+    if holders:
+        poly = polygon(holders)
+        ax.plot([p[0] for p in poly], [p[1] for p in poly], "-", c="#c0392b", lw=1)
+        ax.scatter([h[0] for h in holders], [h[1] for h in holders], s=18, c="#c0392b")
+    pts = list(true) + holders
+    ax.set_xlim(min(p[0] for p in pts) - 2, max(p[0] for p in pts) + 2)
+    ax.set_ylim(min(p[1] for p in pts) - 2, max(p[1] for p in pts) + 2)
+    ax.set_aspect("equal")
+    ax.set_title(f"{obj}: {n} holders (seed {r['seed']}), IoU "
+                 f"{float(_num(r['shape_iou'])):.2f}", fontsize=6)
+
+
 def plot_shapes_thesis_way(rows: Sequence[dict], objs: Sequence[str], title: str,
                            path: Path) -> Path | None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from sim_backend.scenario import validate
-    from sim_backend.sweep import SCENARIO_KEYS
-    from sim_backend.world import World
 
     shapes = [r for r in rows if r["experiment"] == "shapes"]
     objs = [o for o in objs if any(r["object"] == o for r in shapes)]
@@ -108,32 +135,12 @@ def plot_shapes_thesis_way(rows: Sequence[dict], objs: Sequence[str], title: str
         return None
     ns = sorted({int(math.ceil(float(_num(r["objectWeight"])) / float(_num(r["rPower"])) - 1e-9))
                  for r in shapes})
+    panels = [[(obj, n, _example(rows, obj, n)) for n in ns] for obj in objs]
     fig, axes = plt.subplots(len(objs), len(ns), figsize=(2.2 * len(ns), 2.4 * len(objs)),
                              squeeze=False)
-    for row_axes, obj in zip(axes, objs):
-        for ax, n in zip(row_axes, ns):
-            ax.set_xticks([])
-            ax.set_yticks([])
-            r = _example(rows, obj, n)
-            if r is None:
-                ax.axis("off")
-                continue
-            sc = validate({k: _num(r[k]) for k in SCENARIO_KEYS if r.get(k) not in (None, "")})
-            true = World(sc, int(_num(r["seed"]))).object_cells
-            holders = _pairs(r.get("touches"))
-            ax.scatter([c[0] for c in true], [c[1] for c in true], marker="s", s=60,
-                       c="#f2d06b")
-            if holders:
-                poly = polygon(holders)
-                ax.plot([p[0] for p in poly], [p[1] for p in poly], "-", c="#c0392b", lw=1)
-                ax.scatter([h[0] for h in holders], [h[1] for h in holders], s=18, c="#c0392b")
-            xs = [c[0] for c in true] + [h[0] for h in holders]
-            ys = [c[1] for c in true] + [h[1] for h in holders]
-            ax.set_xlim(min(xs) - 2, max(xs) + 2)
-            ax.set_ylim(min(ys) - 2, max(ys) + 2)
-            ax.set_aspect("equal")
-            ax.set_title(f"{obj}: {n} holders (seed {r['seed']}), IoU "
-                         f"{float(_num(r['shape_iou'])):.2f}", fontsize=6)
+    for row_axes, line in zip(axes, panels):
+        for ax, (obj, n, r) in zip(row_axes, line):
+            _draw_holders(ax, obj, n, r)
     fig.suptitle(title, fontsize=9)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
