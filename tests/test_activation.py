@@ -192,4 +192,8 @@ def test_sweep_activation_given_twice_is_a_usage_error(capsys):
                  "--set", "activation=sync"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--activation" in err[0]
-    assert main(["sweep", "--grid", "agents=5,6", "--activation", "fast"]) == 2
+    with pytest.raises(SystemExit) as exit_:
+        main(["sweep", "--grid", "agents=5,6", "--activation", "fast"])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--activation: invalid choice: 'fast'" in err[0]
