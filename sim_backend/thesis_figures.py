@@ -64,7 +64,7 @@ def plot_graph1_units(rows: Sequence[dict], path: Path) -> Path | None:
                      + ",".join(str(s) for s in stalled), fontsize=8)
         ax.set_xlabel("fieldDefiance")
         ax.set_ylabel("convergence (mean of converged runs, 95% CI)", fontsize=8)
-        ax.set_ylim(bottom=0)
+        ax.set_yscale("log")       # fieldDefiance 0's stall would flatten the rest
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
     fig.suptitle(f"Graph 1 in both units (activation {', '.join(act)})", fontsize=10)
