@@ -23,6 +23,7 @@ from firmware_logic import perception
 from firmware_logic import registry
 from sim_backend import kernel
 from sim_backend.body import SimBody
+from sim_backend.errors import EngineError
 from sim_backend.scenario import Scenario
 from sim_backend.world import World
 
@@ -242,6 +243,12 @@ class Engine:
         self.msgs_down = len(down)
 
     def _apply(self) -> None:
+        if self.world.act == kernel.SEQUENTIAL:
+            # the seam real robots' tick ends use (bridge/mission.py, the
+            # tether emulator): they act in parallel, so only sync applies
+            raise EngineError("activation netlogo steps the robots one after another "
+                              "inside the engine; a swarm with real or tethered robots runs "
+                              "activation sync only")
         self.world.apply(self.tick)
 
     # -- a whole run -------------------------------------------------------------------

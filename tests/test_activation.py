@@ -197,3 +197,12 @@ def test_sweep_activation_given_twice_is_a_usage_error(capsys):
     assert exit_.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--activation: invalid choice: 'fast'" in err[0]
+
+
+def test_the_sync_apply_seam_of_real_robots_refuses_netlogo_activation():
+    """bridge/mission.py and the tether emulator end a tick through
+    Engine._apply (real robots act in parallel): under netlogo it refuses."""
+    e = Engine(validate({**TINY, "activation": "netlogo"}), 1)
+    with pytest.raises(EngineError, match="activation sync only"):
+        e._apply()
+    Engine(validate(TINY), 1)._apply()          # sync: the ordinary end of a tick
