@@ -1,9 +1,12 @@
 """Wall time of the full thesis reproduction (`touchswarm sweep --thesis`).
 
 Every graph and figure of chapter 5, both movement models, 150 seeds per
-point, vectorised engine, one worker process per core. Prints JSON.
+point, one worker process per core; activation sync (default) runs in the
+vectorised engine, activation netlogo (NetLogo's sequential `ask`) in the
+batch engine (`--engine auto`). Prints JSON.
 
     .venv/bin/python bench/thesis_reproduction.py [--seeds N] [--out DIR]
+        [--activation sync|netlogo]
 """
 
 import argparse
@@ -16,7 +19,7 @@ from pathlib import Path
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
-from sim_backend import plots, sweep  # noqa: E402
+from sim_backend import plots, sweep, thesis_figures  # noqa: E402
 
 
 def main():
@@ -24,6 +27,7 @@ def main():
     ap.add_argument("--seeds", type=int, default=sweep.THESIS_SEEDS)
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     ap.add_argument("--out", type=Path, default=Path("thesis-out"))
+    ap.add_argument("--activation", choices=("sync", "netlogo"), default="sync")
     a = ap.parse_args()
     points = sweep.thesis_points()
     seeds = list(range(1, a.seeds + 1))
@@ -32,15 +36,17 @@ def main():
     t0 = time.perf_counter()
     with ProcessPoolExecutor(a.workers) as ex:
         rows = sweep.sweep(points, seeds, executor=ex, until=sweep.THESIS_UNTIL,
-                           overrides={"maxTicks": sweep.THESIS_MAX_TICKS}, chunk_size=chunk)
+                           overrides={"maxTicks": sweep.THESIS_MAX_TICKS,
+                                      "activation": a.activation}, chunk_size=chunk)
     t_runs = time.perf_counter() - t0
     sweep.write_csv(rows, a.out / "sweep.csv")
-    pngs = plots.thesis_plots(rows, a.out)
+    pngs = plots.thesis_plots(rows, a.out) + thesis_figures.plots(rows, a.out)
     t_all = time.perf_counter() - t0
     robot_ticks = sum(int(r["ticks"]) * int(r["agents"]) for r in rows)
     print(json.dumps({
         "runs": len(rows), "points": len(points), "seeds_per_point": len(seeds),
         "workers": a.workers, "cpu_count": os.cpu_count(), "until": sweep.THESIS_UNTIL,
+        "activation": a.activation,
         "maxTicks": sweep.THESIS_MAX_TICKS,
         "censored_runs": sum(1 for r in rows if r["converged_tick"] is None),
         "robot_ticks": robot_ticks,

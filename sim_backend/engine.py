@@ -21,7 +21,9 @@ from typing import Any, Callable, Protocol
 
 from firmware_logic import perception
 from firmware_logic import registry
+from sim_backend import kernel
 from sim_backend.body import SimBody
+from sim_backend.errors import EngineError
 from sim_backend.scenario import Scenario
 from sim_backend.world import World
 
@@ -90,6 +92,9 @@ class RunResult:
     robots: list[Any]         # the behaviour's FSMs
     trajectories: list[tuple[list[int], list[int]]] = field(default_factory=list)
     states: list[list[int]] = field(default_factory=list)   # every robot's state per tick
+    # FSM steps the swarm had taken when it converged (activation netlogo; -1:
+    # not converged, or sync, where it is converged_tick x agents)
+    conv_steps: int = -1
 
     @property
     def delivered(self) -> bool:
@@ -103,6 +108,21 @@ class RunResult:
 
     def shape_iou(self) -> float:
         return shape_iou(self.coordinator, self.true_cells())
+
+    def converged_moves(self) -> float | None:
+        """Convergence in robot moves: the FSM steps (each one move or touch,
+        a thesis RandomHead or FollowField) a robot had taken on average.
+        Under sync every robot steps once per tick, so it is converged_tick;
+        under netlogo a robot in a field steps 1 + fieldDefiance times per go
+        iteration (docs/tick-semantics.md)."""
+        c = self.coordinator.converged_tick
+        if c < 0:
+            return None
+        if self.scenario.activation == "sync":
+            return float(c)
+        if self.conv_steps < 0:
+            return None                  # an engine that did not count them
+        return round(self.conv_steps / self.scenario.agents, 2)
 
     def summary(self) -> dict:
         c = self.coordinator
@@ -122,6 +142,8 @@ class RunResult:
             "shape_iou": self.shape_iou(),
             "leader": c.leader or None,
             "delivered": self.delivered,
+            "activation": self.scenario.activation,
+            "converged_moves": self.converged_moves(),
             **(c.measures() if hasattr(c, "measures") else {}),
         }
 
@@ -151,6 +173,8 @@ class Engine:
         self.msgs_up = 0                 # messages the host received this tick
         self.msgs_down = 0               # messages (commands) it sent this tick
         self.bad_seen = 0                # the link's bad frames counted so far
+        self.steps = 0                   # FSM steps of every robot so far (netlogo activation)
+        self.conv_steps = -1             # self.steps when the swarm converged
 
     def observe(self, fn: Callable[[Any], None]) -> None:
         """Call fn(snapshot) after every tick from now on."""
@@ -163,12 +187,18 @@ class Engine:
     # -- one tick --------------------------------------------------------------
 
     def step(self) -> None:
+        """One tick; under activation netlogo one go iteration."""
         self.tick += 1
-        for robot, body in zip(self.robots, self.bodies):
-            body.reset_intents()
-            robot.step(body)
-        self._apply()
+        if self.world.act == kernel.SEQUENTIAL:
+            self._go_iteration()
+        else:
+            for robot, body in zip(self.robots, self.bodies):
+                body.reset_intents()
+                robot.step(body)
+            self._apply()
         self.exchange()
+        if self.conv_steps < 0 and self.coordinator.converged_tick >= 0:
+            self.conv_steps = self.steps
         if self.observers:
             snap = self.snapshot()
             for fn in self.observers:
@@ -176,6 +206,30 @@ class Engine:
         if self.record:
             self.trajectories.append((list(self.world.xs), list(self.world.ys)))
             self.states.append([r.state for r in self.robots])
+
+    def _go_iteration(self) -> None:
+        """NetLogo's `ask robots` (kernel, sequential activation): each robot
+        in a freshly drawn order takes its turn's steps, each applied at once;
+        then the iteration's beacons and the carried group."""
+        w = self.world
+        fs, fd = w.field_state, self.sc.fieldDefiance
+        for i in range(len(self.robots)):
+            w.beacon_set[i] = -1
+        for i in w.draw_order():
+            robot, body = self.robots[i], self.bodies[i]
+            steps = kernel.turn_steps(robot.state, fs, fd)
+            k = 0
+            while k < steps:
+                was = robot.state
+                w.mv_on[i] = 0
+                w.claim[i] = -1
+                robot.step(body)
+                claimed = w.claim[i] >= 0
+                w.apply_robot(i)
+                self.steps += 1
+                steps = kernel.turn_length(steps, k, claimed, was, robot.state, fs, fd)
+                k += 1
+        w.end_iteration(self.tick)
 
     def exchange(self) -> None:
         c = self.coordinator
@@ -189,6 +243,12 @@ class Engine:
         self.msgs_down = len(down)
 
     def _apply(self) -> None:
+        if self.world.act == kernel.SEQUENTIAL:
+            # the seam real robots' tick ends use (bridge/mission.py, the
+            # tether emulator): they act in parallel, so only sync applies
+            raise EngineError("activation netlogo steps the robots one after another "
+                              "inside the engine; a swarm with real or tethered robots runs "
+                              "activation sync only")
         self.world.apply(self.tick)
 
     # -- a whole run -------------------------------------------------------------------
@@ -202,7 +262,7 @@ class Engine:
             if progress is not None:
                 progress(self.tick)
         return RunResult(self.sc, self.seed, self.tick, self.world, self.coordinator,
-                         self.robots, self.trajectories, self.states)
+                         self.robots, self.trajectories, self.states, self.conv_steps)
 
 
 def run(sc: Scenario, seed: int, **kw) -> RunResult:

@@ -212,6 +212,13 @@ def beacons(field, base, w, n, tdx, tdy, tv, t0, t1, xs, ys, lo, hi, beacon_set,
         b = beacon_set[i]
         if b >= 1 and beacon_on[i] == 0:
             last = i
+    beacons_last(field, base, w, n, tdx, tdy, tv, t0, t1, xs, ys, lo, hi, beacon_set,
+                 beacon_on, bsx, bsy, sigmode, radius, last)
+
+
+def beacons_last(field, base, w, n, tdx, tdy, tv, t0, t1, xs, ys, lo, hi, beacon_set,
+                 beacon_on, bsx, bsy, sigmode, radius, last):
+    """`beacons` with the last finder given (robot index, -1: none)."""
     for i in range(lo, hi):
         b = beacon_set[i]
         if b == 0 and beacon_on[i] != 0:
@@ -357,3 +364,118 @@ def _blocked(occ, base, w, n, xs, ys, lo, hi, held, px, py):
     if occ[base + k] > 0 and not _holder_at(w, n, xs, ys, lo, hi, held, k):
         return 1
     return 0
+
+
+# -- sequential activation (scenario activation = "netlogo") -----------------
+# NetLogo's `ask robots`: one robot at a time in a random order drawn every go
+# iteration, each applying its actions at once so the next robot sees them
+# (docs/tick-semantics.md, "Activation"). The synchronous tick above stays
+# the default; these functions are the sequential one's rules, used by both
+# engines (sim_backend/engine.py, sim_backend/batch/body.py).
+
+SYNC = 0            # activation: every robot decides on the tick-start world
+SEQUENTIAL = 1      # activation: NetLogo's ask, one robot after another
+
+
+def order_seed(seed):
+    """Start of run `seed`'s activation-order stream (a 31-bit LCG as the
+    tie stream, apart from every robot's own stream)."""
+    return (seed * 48271 + 2718281) % TIE_MOD
+
+
+def draw_order(order, lo, hi, state, r):
+    """A fresh random order of robots lo..hi-1 into order[lo:hi] (a
+    Fisher-Yates shuffle drawn from the run's stream state[r])."""
+    for i in range(lo, hi):
+        order[i] = i
+    s = state[r]
+    j = hi - 1
+    while j > lo:
+        s = (s * TIE_MUL + TIE_ADD) % TIE_MOD
+        k = lo + (s >> 8) % (j - lo + 1)
+        t = order[j]
+        order[j] = order[k]
+        order[k] = t
+        j -= 1
+    state[r] = s
+
+
+def turn_steps(state, field_state, defiance):
+    """FSM steps of a robot's turn in one go iteration, by its state when the
+    turn starts: 1 + fieldDefiance in a field (go: FollowField, then `repeat
+    fieldDefiance [RandomHead]`, then FindObject), else 1."""
+    if state == field_state:
+        return 1 + defiance
+    return 1
+
+
+def turn_length(steps, k, claimed, was, state, field_state, defiance):
+    """The turn's length after its step k (0-based), which took the robot
+    from state `was` to `state`. A claim is a touch: one more step grasps
+    (LookForObject holds at once) and the turn ends (go's `if foundObject
+    [ stop ]`); a robot that has just entered a field goes on with a whole
+    field cycle in the same turn (go's second `if`, reached in the same
+    iteration after FindField)."""
+    if claimed:
+        return k + 2
+    if was != field_state and state == field_state:
+        return k + 1 + turn_steps(state, field_state, defiance)
+    return steps
+
+
+def apply_robot(obj, owner, occ, base, w, n, xs, ys, lo, i, held, mv_on, mv_h, mv_step,
+                claim):
+    """Apply robot i's claim and move at once, against the world as the
+    robots before it left it: a move into another patch fails if that patch
+    is off the arena, part of the object or holds a robot now."""
+    k = claim[i]
+    claim[i] = -1
+    if k >= 0 and obj[base + k] == YELLOW:
+        obj[base + k] = BLUE
+        owner[base + k] = i - lo + 1
+        held[i] = k
+    if mv_on[i] == 0:
+        return
+    mv_on[i] = 0
+    nx = xs[i] + fx.dx(mv_h[i], mv_step[i])
+    ny = ys[i] + fx.dy(mv_h[i], mv_step[i])
+    px = fx.patch(nx)
+    py = fx.patch(ny)
+    ox = fx.patch(xs[i])
+    oy = fx.patch(ys[i])
+    if px != ox or py != oy:
+        if not inside(w, px, py):
+            return
+        k = base + cell(w, n, px, py)
+        if obj[k] != FREE or occ[k] > 0:
+            return
+        occ[base + cell(w, n, ox, oy)] -= 1
+        occ[k] += 1
+    xs[i] = nx
+    ys[i] = ny
+
+
+def last_finder(order, lo, hi, beacon_set, beacon_on):
+    """The last robot in this iteration's order whose beacon turns on (go's
+    `found`, set by the last LookForObject of the iteration), -1 if none."""
+    last = -1
+    for j in range(lo, hi):
+        i = order[j]
+        if beacon_set[i] >= 1 and beacon_on[i] == 0:
+            last = i
+    return last
+
+
+def end_iteration(obj, owner, field, occ, stamp, base, w, n, tdx, tdy, tv, t0, t1,
+                  xs, ys, lo, hi, held, beacon_set, beacon_on, bsx, bsy, carry_on,
+                  carry_dx, carry_dy, cx, cy, cv, cw, c0, c1, tick, sigmode, radius,
+                  order):
+    """After every robot's turn: the beacons of the iteration (go's Signal
+    after the ask; the last finder in the drawn order), the carried group,
+    occupancy recounted."""
+    beacons_last(field, base, w, n, tdx, tdy, tv, t0, t1, xs, ys, lo, hi, beacon_set,
+                 beacon_on, bsx, bsy, sigmode, radius,
+                 last_finder(order, lo, hi, beacon_set, beacon_on))
+    carry_group(obj, owner, occ, stamp, base, w, n, xs, ys, lo, hi, held,
+                carry_on, carry_dx, carry_dy, cx, cy, cv, cw, c0, c1, tick)
+    recount(occ, base, w, n, xs, ys, lo, hi)

@@ -44,6 +44,12 @@ CHOICES: dict[str, tuple[str, ...]] = {
     # CreateSwarm's `fd random max-pxcor` keeping the walk's heading
     "starts": ("redraw", "netlogo"),
 }
+# issue 10 section 2: how robots take turns. sync: every robot decides on the
+# tick-start world, conflicts resolved at the tick's end (real robots act in
+# parallel); netlogo: go's `ask robots`, one robot after another in a random
+# order drawn every go iteration, each seeing the moves before it, a robot in
+# a field stepping 1 + fieldDefiance times (docs/tick-semantics.md, Activation)
+CHOICES["activation"] = ("sync", "netlogo")
 
 
 def departures(sc: "Scenario") -> list[str]:
@@ -88,6 +94,7 @@ class Scenario:
     leaderField: str = CHOICES["leaderField"][0]
     arrival: str = CHOICES["arrival"][0]
     starts: str = CHOICES["starts"][0]
+    activation: str = CHOICES["activation"][0]
 
     @property
     def model(self) -> int:

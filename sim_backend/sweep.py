@@ -154,7 +154,8 @@ def run_chunk(jobs: Sequence[tuple[dict, dict, int]], engine: str = "auto",
         else:
             while not (e.coordinator.converged_tick >= 0 or e.tick >= sc.maxTicks):
                 e.step()
-            out.append(RunResult(sc, seed, e.tick, e.world, e.coordinator, e.robots).summary())
+            out.append(RunResult(sc, seed, e.tick, e.world, e.coordinator, e.robots,
+                                 conv_steps=e.conv_steps).summary())
         if report is not None:
             report(len(out))
     return out
@@ -454,6 +455,10 @@ def make_row(pt: Point, sc: Scenario, seed: int, s: dict, until: str) -> dict:
     row["leader"] = s["leader"]
     row["delivered"] = s["delivered"]
     row["segments"] = " ".join(f"{x}:{y}" for x, y in s["segments"])
+    # issue 10: the holders' rounded positions (the thesis's shape.txt) and
+    # convergence in robot moves (activation netlogo: more than one per tick)
+    row["touches"] = " ".join(f"{x}:{y}" for x, y in s["touches"])
+    row["converged_moves"] = s.get("converged_moves")
     # the measures the behaviour declares (spec.MEASURES) that the columns
     # above do not already hold, e.g. aggregation's stopped/clusters/largest
     from firmware_logic import registry

@@ -32,6 +32,15 @@ def signal_table(radius: int) -> list[tuple[int, int, int]]:
     return out
 
 
+def field_state(behaviour: str) -> int:
+    """The code of the behaviour's "field" state (a robot there takes 1 +
+    fieldDefiance steps per go iteration under sequential activation), -1
+    when it has none."""
+    from firmware_logic import registry
+    states = registry.load(behaviour).spec.STATES
+    return states.index("field") if "field" in states else -1
+
+
 class World:
     def __init__(self, sc: Scenario, seed: int):
         self.sc = sc
@@ -79,6 +88,12 @@ class World:
         self.sigmode = CHOICES["signalMode"].index(sc.signalMode)
         self.ties = CHOICES["uphillTies"].index(sc.uphillTies)
         self.tie = [kernel.tie_seed(seed, node) for node in range(1, a + 1)]
+        # activation (kernel.SYNC, SEQUENTIAL): with SEQUENTIAL the engine draws
+        # an order every go iteration and applies each robot's actions at once
+        self.act = CHOICES["activation"].index(sc.activation)
+        self.order = list(range(a))
+        self.order_state = [kernel.order_seed(seed)]
+        self.field_state = field_state(sc.behaviour)
         self.recount()
 
     def _redrawn_starts(self, sc: Scenario, setup: Rng) -> None:
@@ -125,6 +140,30 @@ class World:
                           self.mv_step, self.claim, self.beacon_set, self.beacon_on,
                           self.bsx, self.bsy, self.carry_on, self.carry_dx, self.carry_dy,
                           cx, cy, cv, cw, 0, len(cx), tick, self.sigmode, self.sc.sigRadius)
+        self.object_cells = list(zip(cx, cy))
+
+    # -- sequential activation (kernel.SEQUENTIAL) ------------------------------
+
+    def draw_order(self) -> list[int]:
+        """This go iteration's order of robot indices (kernel.draw_order)."""
+        kernel.draw_order(self.order, 0, len(self.xs), self.order_state, 0)
+        return list(self.order)
+
+    def apply_robot(self, i: int) -> None:
+        """Robot i's claim and move of its last step, at once."""
+        kernel.apply_robot(self.obj, self.owner, self.occ, 0, self.w, self.n, self.xs,
+                           self.ys, 0, i, self.held, self.mv_on, self.mv_h, self.mv_step,
+                           self.claim)
+
+    def end_iteration(self, tick: int) -> None:
+        """Beacons, the carried group and occupancy after every robot's turn."""
+        cx, cy, cv, cw = self.cell_arrays()
+        kernel.end_iteration(self.obj, self.owner, self.field, self.occ, self.stamp, 0,
+                             self.w, self.n, self.tdx, self.tdy, self.tv, 0, len(self.tv),
+                             self.xs, self.ys, 0, len(self.xs), self.held, self.beacon_set,
+                             self.beacon_on, self.bsx, self.bsy, self.carry_on,
+                             self.carry_dx, self.carry_dy, cx, cy, cv, cw, 0, len(cx), tick,
+                             self.sigmode, self.sc.sigRadius, self.order)
         self.object_cells = list(zip(cx, cy))
 
     def idx(self, px: int, py: int) -> int:

@@ -18,7 +18,7 @@ def reference(sc, seed, until="delivered"):
     while not (e.coordinator.converged_tick >= 0 or e.tick >= sc.maxTicks):
         e.step()
     return RunResult(sc, seed, e.tick, e.world, e.coordinator, e.robots, e.trajectories,
-                     e.states)
+                     e.states, e.conv_steps)
 
 
 def assert_same(scs, seeds, until="delivered", engine=None, states=True):

@@ -25,11 +25,12 @@ THESIS_DIR = Path(registry.load("thesis").folder)
 
 @pytest.mark.parametrize("behaviour", sorted(registry.names()))
 @pytest.mark.parametrize("model", ["firefly", "ant"])
-def test_every_behaviour_model_and_object_identical(behaviour, model):
+@pytest.mark.parametrize("activation", ["sync", "netlogo"])
+def test_every_behaviour_model_and_object_identical(behaviour, model, activation):
     scs, seeds = [], []
     for obj in sorted(objects.SHAPES):
         sc = validate({"behaviour": behaviour, "movementModel": model, "object": obj,
-                       "maxTicks": 3000})
+                       "maxTicks": 3000, "activation": activation})
         for seed in (1, 2):
             scs.append(sc)
             seeds.append(seed)

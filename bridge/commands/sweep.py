@@ -49,6 +49,10 @@ def register(sub) -> None:
     p.add_argument("--thesis", action="store_true",
                    help="reproduce every graph and figure of the thesis's chapter 5 "
                         "(150 seeds per point, both movement models, until convergence)")
+    p.add_argument("--activation", choices=["sync", "netlogo"], default=None,
+                   help="sync: every robot decides on the tick-start world (the scenario's "
+                        "default); netlogo: NetLogo's sequential `ask robots` "
+                        "(docs/tick-semantics.md); the same as --set activation=...")
     p.add_argument("--until", choices=["delivered", "converged"], default=None,
                    help="stop each run when the object is home or when power first reaches "
                         "its weight (default: delivered; --thesis: converged)")
@@ -180,6 +184,11 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     cfg = _settings(args)
     base = scenario.load(cfg["scenario"])
     overrides = dict(cfg["set"])
+    if args.activation is not None:
+        if "activation" in overrides or "activation" in cfg.get("grid", {}):
+            raise UsageError("--activation and --set/--grid activation both given; give one")
+        overrides["activation"] = args.activation
+        cfg["set"] = dict(cfg["set"], activation=args.activation)   # saved with the experiment
     grid: dict = {}
     if args.thesis:
         if args.grid:
@@ -267,7 +276,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         from sim_backend import plots
         saved = sweep.read_csv(csv_path)
         if args.thesis:
-            pngs = plots.thesis_plots(saved, out)
+            from sim_backend import thesis_figures
+            pngs = plots.thesis_plots(saved, out) + thesis_figures.plots(saved, out)
         else:
             pngs = plots.grid_plots(saved, list(grid), out)
     info = {"runs": len(rows), "new_runs": len(new), "resumed_runs": len(done),

@@ -30,7 +30,8 @@ RUN = 14        # the robot's run
 IN_HEAD = 15    # inbox ring: next message to read
 IN_TAIL = 16    # inbox ring: next free slot
 TIE = 17        # uphill's tie-break stream (kernel.tie_seed)
-ROBOT_ROWS = 18
+ORDER = 18      # activation netlogo: this go iteration's order (robot indices)
+ROBOT_ROWS = 19
 
 # rows of the per-run table (int64[RUN_ROWS, runs])
 BASE = 0        # first cell of the run's grids
@@ -46,7 +47,12 @@ LIVE = 9        # 1 while the run goes on
 SIGMODE = 10    # signalMode (kernel.ON_PATCH, LAST_FINDER)
 RADIUS = 11     # sigRadius
 TIES = 12       # uphillTies (kernel.ORDERED, AT_RANDOM)
-RUN_ROWS = 13
+ACT = 13        # activation (kernel.SYNC, SEQUENTIAL)
+ORDER_RNG = 14  # activation netlogo: the order stream (kernel.order_seed)
+FIELD_STATE = 15  # the behaviour's field state (World.field_state)
+DEFIANCE = 16   # fieldDefiance
+STEPS = 17      # activation netlogo: FSM steps of the run's robots so far
+RUN_ROWS = 18
 
 # rows of the grids (int64[GRID_ROWS, runs * stride])
 OBJ = 0
@@ -86,6 +92,7 @@ class BatchBody:
         self.in_head = robots[IN_HEAD]
         self.in_tail = robots[IN_TAIL]
         self.tie = robots[TIE]
+        self.order = robots[ORDER]
         self.base = runs[BASE]
         self.w = runs[W]
         self.n = runs[N]
@@ -99,6 +106,11 @@ class BatchBody:
         self.sigmode = runs[SIGMODE]
         self.radius = runs[RADIUS]
         self.ties = runs[TIES]
+        self.act = runs[ACT]
+        self.order_rng = runs[ORDER_RNG]
+        self.field_state = runs[FIELD_STATE]
+        self.defiance = runs[DEFIANCE]
+        self.steps = runs[STEPS]
         self.cx = cells[0]
         self.cy = cells[1]
         self.cv = cells[2]
@@ -208,12 +220,24 @@ class BatchBody:
                           self.c0[r], self.c1[r], tick, self.sigmode[r], self.radius[r])
 
 
+    def end_iteration(self, r, tick):
+        kernel.end_iteration(self.obj, self.owner, self.field, self.occ, self.stamp,
+                             self.base[r], self.w[r], self.n[r], self.tdx, self.tdy, self.tv,
+                             self.t0[r], self.t1[r], self.xs, self.ys, self.lo[r], self.hi[r],
+                             self.held, self.beacon_set, self.beacon_on, self.bsx, self.bsy,
+                             self.carry_on, self.carry_dx, self.carry_dy, self.cx, self.cy,
+                             self.cv, self.cw, self.c0[r], self.c1[r], tick, self.sigmode[r],
+                             self.radius[r], self.order)
+
+
 def tick_all(robots, body, tick):
-    """One tick of every live run: each robot steps against the tick-start
-    world in node order, then each run's intents are applied."""
+    """One tick of every live run. Synchronous runs: each robot steps against
+    the tick-start world in node order, then each run's intents are applied.
+    Sequential runs (activation netlogo): one go iteration, go_iteration."""
     body.out_n[0] = 0
     for i in range(len(robots)):
-        if body.live[body.run[i]] == 1:
+        r = body.run[i]
+        if body.live[r] == 1 and body.act[r] == kernel.SYNC:
             body.i = i
             body.mv_on[i] = 0
             body.claim_k[i] = -1
@@ -221,7 +245,41 @@ def tick_all(robots, body, tick):
             robots[i].step(body)
     for r in range(len(body.live)):
         if body.live[r] == 1:
-            body.apply(r, tick)
+            if body.act[r] == kernel.SYNC:
+                body.apply(r, tick)
+            else:
+                go_iteration(robots, body, r, tick)
+
+
+def go_iteration(robots, body, r, tick):
+    """NetLogo's `ask robots` for run r, as Engine._go_iteration: each robot in
+    a freshly drawn order takes its turn's steps, each applied at once; then
+    the iteration's beacons and the carried group."""
+    lo = body.lo[r]
+    hi = body.hi[r]
+    fs = body.field_state[r]
+    fd = body.defiance[r]
+    for i in range(lo, hi):
+        body.beacon_set[i] = -1
+    kernel.draw_order(body.order, lo, hi, body.order_rng, r)
+    for j in range(lo, hi):
+        i = body.order[j]
+        body.i = i
+        steps = kernel.turn_steps(robots[i].state, fs, fd)
+        k = 0
+        while k < steps:
+            was = robots[i].state
+            body.mv_on[i] = 0
+            body.claim_k[i] = -1
+            robots[i].step(body)
+            claimed = body.claim_k[i] >= 0
+            kernel.apply_robot(body.obj, body.owner, body.occ, body.base[r], body.w[r],
+                               body.n[r], body.xs, body.ys, lo, i, body.held, body.mv_on,
+                               body.mv_h, body.mv_step, body.claim_k)
+            body.steps[r] += 1
+            steps = kernel.turn_length(steps, k, claimed, was, robots[i].state, fs, fd)
+            k += 1
+    body.end_iteration(r, tick)
 
 
 def states_of(robots, out):

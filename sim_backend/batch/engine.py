@@ -73,6 +73,10 @@ class BatchArrays:
             rt[B.SIGMODE, r] = w.sigmode
             rt[B.RADIUS, r] = w.sc.sigRadius
             rt[B.TIES, r] = w.ties
+            rt[B.ACT, r] = w.act
+            rt[B.ORDER_RNG, r] = w.order_state[0]
+            rt[B.FIELD_STATE, r] = w.field_state
+            rt[B.DEFIANCE, r] = w.sc.fieldDefiance
         rt[B.LIVE] = 1
         table = np.zeros((3, max(1, int(tstarts[-1]))), dtype=np.int64)
         cell = np.zeros((4, max(1, int(cstarts[-1]))), dtype=np.int64)
@@ -173,6 +177,7 @@ class BatchEngine:
         self.lo = starts[:-1].tolist()
         self.run_of = rb[B.RUN].tolist()
         self.max_ticks = np.array([sc.maxTicks for sc, _ in runs], dtype=np.int64)
+        self.conv_steps = [-1] * nr      # rt[STEPS] when the run converged
         self.results: list[RunResult | None] = [None] * nr
         self.frames: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
         self._step_once_compiled = False
@@ -224,6 +229,8 @@ class BatchEngine:
             if out:
                 self._deliver(r, out)
             self.busy[r] = not _quiet(c)
+            if self.conv_steps[r] < 0 and c.converged_tick >= 0:
+                self.conv_steps[r] = int(self.rt[B.STEPS, r])
         return called
 
     def _deliver(self, r: int, out: Iterable[tuple[int, int, tuple]]) -> None:
@@ -279,7 +286,8 @@ class BatchEngine:
         for xs, ys, st in self.frames[:t]:
             traj.append((xs[lo:hi].tolist(), ys[lo:hi].tolist()))
             states.append(st[lo:hi].tolist())
-        res = RunResult(sc, seed, t, w, self.coords[r], self.robot_objs[lo:hi], traj)
+        res = RunResult(sc, seed, t, w, self.coords[r], self.robot_objs[lo:hi], traj,
+                        conv_steps=self.conv_steps[r])
         res.states = states
         self.results[r] = res
 
