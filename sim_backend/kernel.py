@@ -26,6 +26,7 @@ from firmware_logic.hal import BEACON_LEADER, CLAIMED, NOTHING, OBJECT, ROBOT, W
 FREE = 0
 YELLOW = 1   # a free object segment
 BLUE = 2     # a segment a robot holds
+OBSTACLE = 3  # a patch of an obstacle: robots probe it as a wall
 
 # beacon_on flags: the robot's field is in the grid (and goes when it turns
 # off); the robot pins its own patch's field to LEADER_FIELD every tick
@@ -38,6 +39,8 @@ ORDERED = 0         # uphillTies: first in N, NE, E, ... order
 AT_RANDOM = 1       # uphillTies: NetLogo's random winner
 ON_PATCH = 0        # signalMode: every holder, centred on its patch
 LAST_FINDER = 1     # signalMode: the tick's last finder, on its position
+STATIC = 0          # field: a beacon's field stays where it was lit (thesis)
+DYNAMIC = 1         # field: it moves with its holder (thesis 6.1.3)
 
 # the per-robot tie-break stream of uphill (a 31-bit LCG, so numba's int64
 # and Python's ints agree without overflow)
@@ -77,6 +80,8 @@ def probe(obj, occ, base, w, n, x, y, h):
         return WALL
     k = base + cell(w, n, px, py)
     o = obj[k]
+    if o == OBSTACLE:
+        return WALL
     if o == YELLOW:
         return OBJECT
     if o == BLUE:
@@ -256,11 +261,13 @@ def recount(occ, base, w, n, xs, ys, lo, hi):
 def apply_tick(obj, owner, field, occ, stamp, base, w, n, tdx, tdy, tv, t0, t1,
                xs, ys, lo, hi, held, mv_on, mv_h, mv_step, claim, beacon_set,
                beacon_on, bsx, bsy, carry_on, carry_dx, carry_dy,
-               cx, cy, cv, cw, c0, c1, tick, sigmode, radius):
+               cx, cy, cv, cw, c0, c1, tick, sigmode, radius, fieldmode):
     """Apply every robot's intents of tick `tick` (>= 1) in the fixed order:
     claims (lowest node wins a segment), beacons, the carried group, moves in
     node order; then recount occupancy. `stamp` marks the patches entered
-    this tick with the tick number."""
+    this tick with the tick number. The carried object is the one whose
+    cells are cx, cy (c0..c1); other objects and obstacles stay put.
+    fieldmode DYNAMIC: the carriers' beacons move with them."""
     for i in range(lo, hi):
         k = claim[i]
         if k >= 0 and obj[base + k] == YELLOW:
@@ -269,8 +276,11 @@ def apply_tick(obj, owner, field, occ, stamp, base, w, n, tdx, tdy, tv, t0, t1,
             held[i] = k
     beacons(field, base, w, n, tdx, tdy, tv, t0, t1, xs, ys, lo, hi, beacon_set,
             beacon_on, bsx, bsy, sigmode, radius)
-    carry_group(obj, owner, occ, stamp, base, w, n, xs, ys, lo, hi, held,
-                carry_on, carry_dx, carry_dy, cx, cy, cv, cw, c0, c1, tick)
+    if carry_group(obj, owner, occ, stamp, base, w, n, xs, ys, lo, hi, held,
+                   carry_on, carry_dx, carry_dy, cx, cy, cv, cw, c0, c1, tick) \
+            and fieldmode == DYNAMIC:
+        carry_beacons(field, base, w, n, tdx, tdy, tv, t0, t1, lo, hi, held, beacon_on,
+                      bsx, bsy, cx, cy, c0, c1, carry_dx, carry_dy, sigmode, radius)
     for i in range(lo, hi):
         if mv_on[i] == 0:
             continue
@@ -290,43 +300,77 @@ def apply_tick(obj, owner, field, occ, stamp, base, w, n, tdx, tdy, tv, t0, t1,
     recount(occ, base, w, n, xs, ys, lo, hi)
 
 
-def _holder_at(w, n, xs, ys, lo, hi, held, k):
-    """1 if some holder of the run stands on cell k (relative)."""
-    for i in range(lo, hi):
-        if held[i] >= 0 and cell(w, n, fx.patch(xs[i]), fx.patch(ys[i])) == k:
+def _carried(w, n, cx, cy, c0, c1, k):
+    """1 if cell k (relative) is one of the carried object's cells."""
+    for j in range(c0, c1):
+        if cell(w, n, cx[j], cy[j]) == k:
             return 1
     return 0
+
+
+def _holder_at(w, n, xs, ys, lo, hi, held, cx, cy, c0, c1, k):
+    """1 if some holder of the carried object stands on cell k (relative)."""
+    for i in range(lo, hi):
+        if held[i] >= 0 and cell(w, n, fx.patch(xs[i]), fx.patch(ys[i])) == k \
+                and _carried(w, n, cx, cy, c0, c1, held[i]):
+            return 1
+    return 0
+
+
+def carry_beacons(field, base, w, n, tdx, tdy, tv, t0, t1, lo, hi, held, beacon_on,
+                  bsx, bsy, cx, cy, c0, c1, carry_dx, carry_dy, sigmode, radius):
+    """The carriers' fields follow them one step (field DYNAMIC, thesis
+    6.1.3: a beacon belongs to its robot, so no field stays behind)."""
+    for i in range(lo, hi):
+        if held[i] < 0 or (beacon_on[i] & EMITS) == 0 or not _carried(w, n, cx, cy, c0, c1,
+                                                                         held[i]):
+            continue
+        ddx = carry_dx[i]
+        ddy = carry_dy[i]
+        if sigmode == ON_PATCH:
+            signal(field, base, w, n, tdx, tdy, tv, t0, t1, bsx[i], bsy[i], -1)
+            bsx[i] += ddx
+            bsy[i] += ddy
+            signal(field, base, w, n, tdx, tdy, tv, t0, t1, bsx[i], bsy[i], 1)
+        else:
+            signal_at(field, base, w, n, radius, bsx[i], bsy[i], -1)
+            bsx[i] += ddx * fx.ONE
+            bsy[i] += ddy * fx.ONE
+            signal_at(field, base, w, n, radius, bsx[i], bsy[i], 1)
 
 
 def carry_group(obj, owner, occ, stamp, base, w, n, xs, ys, lo, hi, held,
                 carry_on, carry_dx, carry_dy, cx, cy, cv, cw, c0, c1, tick):
     """Move the object with its holders when all of them ask for the same
-    step; a holder's request stays until the group moves or is blocked."""
+    step; a holder's request stays until the group moves or is blocked.
+    Holders of another object (a decoy) take no part. Returns 1 if it moved."""
     holders = 0
     ddx = 0
     ddy = 0
     for i in range(lo, hi):
-        if held[i] < 0:
+        if held[i] < 0 or not _carried(w, n, cx, cy, c0, c1, held[i]):
             continue
         if carry_on[i] == 0:
-            return                       # a holder that has not asked yet
+            return 0                     # a holder that has not asked yet
         if holders > 0 and (carry_dx[i] != ddx or carry_dy[i] != ddy):
-            return                       # holders disagree
+            return 0                     # holders disagree
         ddx = carry_dx[i]
         ddy = carry_dy[i]
         holders += 1
     if holders == 0:
-        return
+        return 0
     for i in range(lo, hi):
         if held[i] >= 0:
             carry_on[i] = 0              # consumed: moved or blocked
     for j in range(c0, c1):
-        if _blocked(occ, base, w, n, xs, ys, lo, hi, held, cx[j] + ddx, cy[j] + ddy):
-            return
+        if _blocked(obj, occ, base, w, n, xs, ys, lo, hi, held, cx, cy, c0, c1,
+                    cx[j] + ddx, cy[j] + ddy):
+            return 0
     for i in range(lo, hi):
-        if held[i] >= 0 and _blocked(occ, base, w, n, xs, ys, lo, hi, held,
-                                     fx.patch(xs[i]) + ddx, fx.patch(ys[i]) + ddy):
-            return
+        if held[i] >= 0 and _carried(w, n, cx, cy, c0, c1, held[i]) and \
+                _blocked(obj, occ, base, w, n, xs, ys, lo, hi, held, cx, cy, c0, c1,
+                         fx.patch(xs[i]) + ddx, fx.patch(ys[i]) + ddy):
+            return 0
     for j in range(c0, c1):
         k = base + cell(w, n, cx[j], cy[j])
         cv[j] = obj[k]
@@ -341,19 +385,24 @@ def carry_group(obj, owner, occ, stamp, base, w, n, xs, ys, lo, hi, held,
         owner[k] = cw[j]
         stamp[k] = tick
     for i in range(lo, hi):
-        if held[i] >= 0:
+        # the cells moved already: a carried holder's cell is now one step on
+        if held[i] >= 0 and _carried(w, n, cx, cy, c0, c1, held[i] + ddy * n + ddx):
             xs[i] += ddx * fx.ONE
             ys[i] += ddy * fx.ONE
             held[i] += ddy * n + ddx
             stamp[base + cell(w, n, fx.patch(xs[i]), fx.patch(ys[i]))] = tick
+    return 1
 
 
-def _blocked(occ, base, w, n, xs, ys, lo, hi, held, px, py):
+def _blocked(obj, occ, base, w, n, xs, ys, lo, hi, held, cx, cy, c0, c1, px, py):
     """Whether the carried group may not enter patch (px, py): off the arena,
-    or a robot that does not hold the object stands there."""
+    an obstacle or another object's segment, or a robot that does not hold
+    the carried object stands there."""
     if not inside(w, px, py):
         return 1
     k = cell(w, n, px, py)
-    if occ[base + k] > 0 and not _holder_at(w, n, xs, ys, lo, hi, held, k):
+    if obj[base + k] != FREE and not _carried(w, n, cx, cy, c0, c1, k):
+        return 1
+    if occ[base + k] > 0 and not _holder_at(w, n, xs, ys, lo, hi, held, cx, cy, c0, c1, k):
         return 1
     return 0

@@ -13,8 +13,8 @@ import math
 
 from firmware_logic import fixedpoint as fx
 from firmware_logic.rng import Rng
-from sim_backend import kernel, objects
-from sim_backend.kernel import BLUE, FREE, YELLOW  # noqa: F401  (the cell values)
+from sim_backend import arena, kernel, objects
+from sim_backend.kernel import BLUE, FREE, OBSTACLE, YELLOW  # noqa: F401  (the cell values)
 from sim_backend.scenario import CHOICES, Scenario
 
 
@@ -49,12 +49,20 @@ class World:
         self.tdy = [t[1] for t in self.table]
         self.tv = [t[2] for t in self.table]
         setup = Rng(seed, 0)             # the observer's stream, as in setup
-        # CreateWorld: objx, objy = random 10
-        self.obj_x = sc.objectX if sc.objectX is not None else setup.below(10)
-        self.obj_y = sc.objectY if sc.objectY is not None else setup.below(10)
-        self.object_cells = objects.cells(sc.object, self.obj_x, self.obj_y)
-        for x, y in self.object_cells:
+        # CreateWorld: objx, objy = random 10 (the target's, when not given)
+        pieces = sc.pieces()
+        target = pieces[0]
+        self.obj_x = target.at[0] if target.at is not None else setup.below(10)
+        self.obj_y = target.at[1] if target.at is not None else setup.below(10)
+        self.object_cells = target.placed(self.obj_x, self.obj_y)   # the carried object
+        # the other objects (decoys) and the obstacles never move
+        self.decoy_cells = [c for p in pieces[1:] for c in p.placed(*p.at)]
+        self.obstacle_cells = [c for p in sc.obstacles for c in p.placed(*p.at)]
+        for x, y in self.object_cells + self.decoy_cells:
             self.obj[self.idx(x, y)] = YELLOW
+        for x, y in self.obstacle_cells:
+            self.obj[self.idx(x, y)] = OBSTACLE
+        self.fieldmode = (kernel.STATIC, kernel.DYNAMIC)[arena.FIELD_MODES.index(sc.field)]
         self.xs: list[int] = []
         self.ys: list[int] = []
         if sc.starts == "netlogo":
@@ -124,8 +132,16 @@ class World:
                           self.ys, 0, len(self.xs), self.held, self.mv_on, self.mv_h,
                           self.mv_step, self.claim, self.beacon_set, self.beacon_on,
                           self.bsx, self.bsy, self.carry_on, self.carry_dx, self.carry_dy,
-                          cx, cy, cv, cw, 0, len(cx), tick, self.sigmode, self.sc.sigRadius)
+                          cx, cy, cv, cw, 0, len(cx), tick, self.sigmode, self.sc.sigRadius,
+                          self.fieldmode)
         self.object_cells = list(zip(cx, cy))
+
+    def closed_cells(self) -> list[tuple[int, int]] | None:
+        """The cells the carried object may not enter (obstacles and other
+        objects), the host's map; None in an open arena of one object."""
+        if not self.obstacle_cells and not self.decoy_cells:
+            return None
+        return self.obstacle_cells + self.decoy_cells
 
     def idx(self, px: int, py: int) -> int:
         return (py + self.w) * self.n + (px + self.w)

@@ -73,6 +73,7 @@ class BatchArrays:
             rt[B.SIGMODE, r] = w.sigmode
             rt[B.RADIUS, r] = w.sc.sigRadius
             rt[B.TIES, r] = w.ties
+            rt[B.FIELDMODE, r] = w.fieldmode
         rt[B.LIVE] = 1
         table = np.zeros((3, max(1, int(tstarts[-1]))), dtype=np.int64)
         cell = np.zeros((4, max(1, int(cstarts[-1]))), dtype=np.int64)
@@ -254,7 +255,8 @@ class BatchEngine:
         done = set(np.flatnonzero((live == 1) & (self.max_ticks <= t)).tolist())
         for r in called:
             c = self.coords[r]
-            if (c.delivered_tick if self.until == "delivered" else c.converged_tick) >= 0:
+            if (c.done() if self.until == "delivered" else c.converged_tick >= 0
+                    or c.done()):
                 done.add(r)
         for r in sorted(done):
             if live[r] == 1:

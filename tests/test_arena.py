@@ -1,0 +1,163 @@
+"""The arena the user draws: objects and obstacles in a scenario, their
+one-line validation errors, transport round obstacles, the way home."""
+
+import pytest
+
+from firmware_logic.behaviours.thesis.coordinator import way_home
+from sim_backend import objects
+from sim_backend.engine import Engine
+from sim_backend.errors import ScenarioError
+from sim_backend.kernel import OBSTACLE, YELLOW
+from sim_backend.scenario import load, validate
+from sim_backend.world import World
+
+CRATE = {"objects": [{"name": "crate", "art": "###\n#..\n###", "at": [4, 2],
+                      "weight": 3.0}]}
+
+
+def test_art_rows_top_to_bottom():
+    assert sorted(objects.art_cells("#.\n.#\n")) == [(0, 1), (1, 0)]
+    assert set(objects.art_cells(objects.art("L"))) == {
+        (x - 1, y) for x, y in objects.offsets("L")}
+    with pytest.raises(ValueError, match="'x'"):
+        objects.art_cells("#x")
+
+
+def test_drawn_object_is_the_target_and_round_trips():
+    sc = validate(CRATE)
+    assert sc.object == "crate" and sc.objectX == 4 and sc.objectWeight == 3.0
+    assert sc.replace(agents=30).objects == sc.objects
+    w = World(sc, 1)
+    assert sorted(w.object_cells) == sorted(
+        (4 + x, 2 + y) for x, y in [(0, 0), (1, 0), (2, 0), (0, 1), (0, 2), (1, 2), (2, 2)])
+
+
+def test_density_gives_weight():
+    sc = validate({"objects": [{"shape": "square", "at": [0, 0], "density": 0.25}]})
+    assert sc.objectWeight == 4.0         # 16 cells x 0.25
+
+
+def test_world_draws_decoys_and_obstacles():
+    sc = load("decoy").replace(obstacles=[{"cells": [[0, 0], [0, 1]], "at": [-5, -5]}])
+    w = World(sc, 3)
+    assert w.obj[w.idx(-12, 6)] == YELLOW and (-12, 6) in w.decoy_cells
+    assert (-12, 6) not in w.object_cells
+    assert w.obj[w.idx(-5, -4)] == OBSTACLE
+
+
+BAD = [
+    ({"objects": [{"art": "#", "cells": [[0, 0]], "at": [0, 0]}]},
+     "objects[0]: give exactly one of art, cells or shape"),
+    ({"objects": [{"art": "#?", "at": [0, 0]}]}, "objects[0].art: character '?'"),
+    ({"objects": [{"cells": [[0, 0], [0, 0]], "at": [0, 0]}]},
+     "objects[0].cells: cell [0, 0] is given twice"),
+    ({"objects": [{"shape": "bar", "at": [0, 0], "colour": 1}]},
+     "objects[0]: unknown key 'colour'"),
+    ({"objects": [{"shape": "bar", "at": [0, 0.5]}]}, "objects[0].at: expected [x, y]"),
+    ({"objects": [{"shape": "bar", "at": [0, 0], "weight": -1}]}, "objects[0].weight:"),
+    ({"objects": [{"shape": "bar", "at": [0, 0], "weight": 2, "density": 0.5}]},
+     "objects[0]: give weight or density, not both"),
+    ({"objects": [{"shape": "bar", "at": [0, 0], "target": "yes"}]}, "objects[0].target:"),
+    ({"objects": [{"shape": "bar", "at": [0, 0]}, {"shape": "bar", "at": [0, 5]}]},
+     "objects: exactly one object must have target = true"),
+    ({"objects": [{"shape": "bar", "target": True}, {"shape": "bar", "target": False}]},
+     "objects[1].at: required"),
+    ({"objects": [{"name": "a", "shape": "bar", "at": [0, 0], "target": True},
+                  {"name": "a", "shape": "bar", "at": [0, 5]}]}, "objects[1].name: 'a'"),
+    ({"objects": [{"shape": "bar", "at": [12, 0]}]}, "objects[0].at: 'object0' at [12, 0]"),
+    ({"objects": [{"shape": "bar", "at": [0, 0], "target": True},
+                  {"shape": "bar", "at": [0, 1]}]}, "overlaps objects[0]"),
+    ({"objects": [{"shape": "bar", "at": [0, 0]}],
+      "obstacles": [{"art": "####", "at": [3, 1]}]}, "overlaps obstacles[0]"),
+    ({"objects": [{"shape": "bar", "at": [0, 0]}],
+      "obstacles": [{"art": "#"}]}, "obstacles[0].at: required"),
+    ({"objects": [{"shape": "bar", "at": [0, 0]}],
+      "obstacles": [{"art": "#", "at": [-15, -15]}]}, "obstacles[0].at: 'obstacle0' covers home"),
+    ({"objects": [{"shape": "bar", "at": [-14, -12]}]}, "within 4 patches of home"),
+    ({"objects": [{"shape": "bar", "at": [0, 0], "weight": 30}]},
+     "needs 30 robots of rPower 1, but agents is 20"),
+    # a single cell: at most one robot at a time can hold it, thesis 6.1.5
+    ({"objects": [{"cells": [[0, 0]], "at": [0, 0], "weight": 2}]},
+     "only 1 can surround"),
+    # the bar walled in on three sides: three robots cannot lift weight 5
+    ({"objects": [{"shape": "square", "at": [0, 0], "density": 0.5}],
+      "obstacles": [{"art": "######\n#....#\n#....#\n#....#\n#....#\n######", "at": [0, 0]}],
+      "agents": 30}, "objects[0].density: weight 8 needs 8 robots"),
+    ({"objects": [{"shape": "bar", "at": [0, 0]}],
+      "obstacles": [{"art": "#" * 37, "at": [-18, -2]}]}, "objects[0].at: 'object0' has no way home"),
+    ({"objects": [{"shape": "bar", "at": [0, 0]}], "object": "L"}, "object: set by [[objects]]"),
+    ({"field": "moving"}, "field: expected one of static, dynamic"),
+    ({"obstacles": "wall"}, "obstacles: expected an array of tables"),
+]
+
+
+@pytest.mark.parametrize("raw,needle", BAD)
+def test_each_bad_table_is_one_line_naming_table_and_key(raw, needle):
+    with pytest.raises(ScenarioError) as e:
+        validate(raw)
+    msg = str(e.value)
+    assert needle in msg, msg
+    assert "\n" not in msg
+
+
+def test_obstacles_with_the_flat_object():
+    sc = validate({"object": "bar", "objectX": 2, "objectY": 4,
+                   "obstacles": [{"art": "#####", "at": [-12, 0]}]})
+    assert sc.pieces()[0].name == "bar"
+
+
+def test_way_home_goes_round_a_wall():
+    # a 1-cell object at (0, 5), home at (0, -5), a wall y = 0 from x -5..5
+    wall = {(x, 0) for x in range(-5, 6)}
+    d = way_home(10, [(0, 5)], wall, [(0, 5)], 0, -5, 1, (0, 0))
+    assert d[(0, 0)] == 10 + 2     # round the wall's end costs more than the straight 10
+    for dx, dy in d:
+        assert (dx, 5 + dy) not in wall
+    closed = wall | {(x, 0) for x in range(-10, 11)}
+    assert (0, 0) not in way_home(10, [(0, 5)], closed, [(0, 5)], 0, -5, 1, (0, 0))
+
+
+def _never_overlaps(eng):
+    w = eng.world
+    closed = set(w.obstacle_cells) | set(w.decoy_cells)
+
+    def check(snap):
+        cells = w.object_cells
+        assert not closed & set(cells), ("object on an obstacle", eng.tick)
+        assert all(w.inside(x, y) for x, y in cells), ("object off the arena", eng.tick)
+    return check
+
+
+@pytest.mark.parametrize("name,seed", [("wall", 1), ("wall", 2), ("decoy", 4)])
+def test_transport_round_obstacles_never_overlaps(name, seed):
+    eng = Engine(load(name), seed)
+    eng.observe(_never_overlaps(eng))
+    res = eng.run()
+    assert res.delivered, res.summary()["outcome"]
+    assert res.summary()["outcome"] == "delivered"
+    assert res.coordinator._home_reached()
+
+
+def test_no_path_home_stops_with_a_status():
+    # validation cannot see the carriers: a wall that lets the bar's cells
+    # through a one-patch-wide gap but not the robots beside it
+    sc = validate({"objects": [{"cells": [[0, 0]], "at": [0, 5], "weight": 1}],
+                   "obstacles": [{"art": "#" * 18, "at": [-18, 0]},
+                                 {"art": "#" * 18, "at": [1, 0]}],
+                   "agents": 10})
+    res = Engine(sc, 1).run()
+    s = res.summary()
+    assert not res.delivered
+    if s["outcome"] == "no path home":
+        assert res.ticks == res.coordinator.stopped_tick < sc.maxTicks
+    else:
+        # the carrier stood where it can follow the cell through the gap
+        assert s["outcome"] == "delivered"
+
+
+def test_decoy_touches_are_not_counted():
+    res = Engine(load("decoy"), 2).run()
+    c = res.coordinator
+    decoy = set(res.world.decoy_cells)
+    assert not decoy & set(c.segments_now())
+    assert res.delivered
