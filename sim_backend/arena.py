@@ -16,6 +16,7 @@ from sim_backend.objects import Piece
 
 OBJECT_KEYS = ("name", "art", "cells", "shape", "at", "weight", "density", "target")
 OBSTACLE_KEYS = ("name", "art", "cells", "shape", "at")
+OBJECT_ONLY = {"weight": 0.0, "density": None, "target": False}
 FLAT_OBJECT_KEYS = ("object", "objectX", "objectY", "objectWeight")
 WEIGHT = (0.01, 10000.0)
 DENSITY = (0.001, 1000.0)
@@ -23,6 +24,7 @@ COORD = (-400, 400)
 MAX_CELLS = 4096
 DEFAULT_WEIGHT = 5.0      # Scenario.objectWeight's default
 FIELD_MODES = ("static", "dynamic")
+CROWD_MODES = ("block", "yield")
 
 
 def _num(where: str, value: Any, lo: float, hi: float) -> float:
@@ -82,6 +84,9 @@ def _table(where: str, t: Any, keys: tuple[str, ...]) -> dict:
              if k in keys}
     if not isinstance(t, dict):
         raise ScenarioError(f"{where}: expected a table ([[{where.split('[')[0]}]]), got {t!r}")
+    if "weight" not in keys:
+        # a Piece's dict (Scenario.to_dict) carries an obstacle's unused fields
+        t = {k: v for k, v in t.items() if not (k in OBJECT_ONLY and v == OBJECT_ONLY[k])}
     unknown = sorted(set(t) - set(keys))
     if unknown:
         raise ScenarioError(f"{where}: unknown key {unknown[0]!r}; known keys: {', '.join(keys)}")
@@ -140,6 +145,11 @@ def parse(raw: dict[str, Any], values: dict[str, Any]) -> dict[str, Any]:
         if f not in FIELD_MODES:
             raise ScenarioError(f"field: expected one of {', '.join(FIELD_MODES)}, got {f!r}")
         values["field"] = f
+    if "crowd" in raw:
+        f = raw.pop("crowd")
+        if f not in CROWD_MODES:
+            raise ScenarioError(f"crowd: expected one of {', '.join(CROWD_MODES)}, got {f!r}")
+        values["crowd"] = f
     if "obstacles" in raw:
         values["obstacles"] = tuple(_obstacle(j, t) for j, t in
                                     enumerate(_array("obstacles", raw.pop("obstacles"))))

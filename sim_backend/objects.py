@@ -138,6 +138,9 @@ class Piece:
     density: float | None = None
     target: bool = False
 
+    def __repr__(self) -> str:      # one CSV cell per piece in a sweep's rows
+        return f"{self.name}@{list(self.at) if self.at else 'random10'}:{len(self.cells)}cells"
+
     def placed(self, ax: int, ay: int) -> list[tuple[int, int]]:
         return [(ax + x, ay + y) for x, y in self.cells]
 

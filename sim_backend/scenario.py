@@ -61,6 +61,8 @@ def arena_features(sc: "Scenario") -> list[str]:
         out.append("several objects")
     if sc.field != "static":
         out.append(f"field={sc.field}")
+    if sc.crowd != "block":
+        out.append(f"crowd={sc.crowd}")
     return out
 
 
@@ -106,6 +108,7 @@ class Scenario:
     objects: tuple = ()          # objects.Piece, the target among them
     obstacles: tuple = ()        # objects.Piece
     field: str = "static"        # beacons stay where lit (thesis), or move with holders
+    crowd: str = "block"         # robots block the carried object (thesis), or yield
 
     def pieces(self) -> list:
         """The scenario's objects as objects.Piece, the target first."""

@@ -62,7 +62,9 @@ class World:
             self.obj[self.idx(x, y)] = YELLOW
         for x, y in self.obstacle_cells:
             self.obj[self.idx(x, y)] = OBSTACLE
-        self.fieldmode = (kernel.STATIC, kernel.DYNAMIC)[arena.FIELD_MODES.index(sc.field)]
+        # the arena's rules (kernel.DYNAMIC, YIELD flags; 0 the thesis's)
+        self.rules = (kernel.DYNAMIC if sc.field == arena.FIELD_MODES[1] else 0) | \
+            (kernel.YIELD if sc.crowd == arena.CROWD_MODES[1] else 0)
         self.xs: list[int] = []
         self.ys: list[int] = []
         if sc.starts == "netlogo":
@@ -133,7 +135,7 @@ class World:
                           self.mv_step, self.claim, self.beacon_set, self.beacon_on,
                           self.bsx, self.bsy, self.carry_on, self.carry_dx, self.carry_dy,
                           cx, cy, cv, cw, 0, len(cx), tick, self.sigmode, self.sc.sigRadius,
-                          self.fieldmode)
+                          self.rules)
         self.object_cells = list(zip(cx, cy))
 
     def closed_cells(self) -> list[tuple[int, int]] | None:

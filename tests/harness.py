@@ -80,4 +80,7 @@ def arena_scenarios():
                 scs += [sc, sc]
                 seeds += [1, 2]
     agg = load("wall").replace(behaviour="aggregate", maxTicks=1500)
-    return scs + [agg, agg], seeds + [1, 2]
+    # a crowd that yields to the carried object, in both fields
+    crowd = [validate({"agents": 120, "crowd": "yield", "field": f, "maxTicks": 1500})
+             for f in ("static", "dynamic")]
+    return scs + [agg, agg] + crowd * 2, seeds + [1, 2, 1, 1, 2, 2]

@@ -161,3 +161,57 @@ def test_decoy_touches_are_not_counted():
     decoy = set(res.world.decoy_cells)
     assert not decoy & set(c.segments_now())
     assert res.delivered
+
+
+def test_scenario_dict_round_trips_through_validate():
+    for name in ("crate", "decoy", "wall"):
+        sc = load(name)
+        assert validate(sc.to_dict()) == sc
+
+
+def _carry_scene(crowd, blocker_at, third_at=(10, 10), field="static"):
+    """Robot 1 holds the bar's cell (1, 0) from (0, 0); robot 2 stands at
+    blocker_at; robot 1 asks to carry the bar one patch south."""
+    from firmware_logic import fixedpoint as fx
+    from sim_backend.kernel import BLUE
+    sc = validate({"objectX": 0, "objectY": 0, "agents": 3, "crowd": crowd,
+                   "objectWeight": 1.0, "field": field})
+    w = World(sc, 1)
+    w.xs[:] = [0, blocker_at[0] * fx.ONE, third_at[0] * fx.ONE]
+    w.ys[:] = [0, blocker_at[1] * fx.ONE, third_at[1] * fx.ONE]
+    k = w.idx(1, 0)
+    w.obj[k] = BLUE
+    w.owner[k] = 1
+    w.held[0] = k
+    w.recount()
+    w.carry_on[0], w.carry_dx[0], w.carry_dy[0] = 1, 0, -1
+    w.beacon_set[0] = 1                               # the carrier's beacon lights
+    w.apply(1)
+    return w
+
+
+def test_a_crowd_that_yields_steps_aside_for_the_carried_object():
+    from firmware_logic import fixedpoint as fx
+    blocked = _carry_scene("block", (4, -1))
+    assert (1, 0) in blocked.object_cells            # the robot at (4, -1) blocks
+    moved = _carry_scene("yield", (4, -1))
+    assert (1, -1) in moved.object_cells and (1, 1) not in moved.object_cells
+    # it stepped aside, in the carry's direction first, off the object's way
+    assert (fx.patch(moved.xs[1]), fx.patch(moved.ys[1])) == (4, -2)
+    assert (fx.patch(moved.xs[0]), fx.patch(moved.ys[0])) == (0, -1)   # the carrier came along
+    # with its patch south taken, it steps to the first free neighbour in
+    # N, NE, E, SE... order off the object's way: north and east are the
+    # object's or on its way, so south-east
+    w = _carry_scene("yield", (4, -1), (4, -2))
+    assert (fx.patch(w.xs[1]), fx.patch(w.ys[1])) == (5, -2)
+    assert (fx.patch(w.xs[2]), fx.patch(w.ys[2])) == (4, -2)
+
+
+def test_the_dynamic_field_moves_with_its_carrier():
+    peak = {}
+    for field in ("static", "dynamic"):
+        w = _carry_scene("yield", (10, 10), field=field)
+        best = max(range(len(w.field)), key=lambda k: w.field[k])
+        peak[field] = (best % w.n - w.w, best // w.n - w.w)
+        assert w.field[best] == 10 and sorted(w.field)[-2] < 10   # one beacon, no trace left
+    assert peak == {"static": (0, 0), "dynamic": (0, -1)}

@@ -30,6 +30,7 @@ def cmd_scenarios(args: argparse.Namespace) -> int:
             "objects": "[[objects]] tables (docs/scenarios.md)",
             "obstacles": "[[obstacles]] tables (docs/scenarios.md)",
             "field": "static | dynamic",
+            "crowd": "block | yield",
         }.get(key, "text")
         print(f"  {key:16s} {value!s:10s} {allowed}")
     from sim_backend import objects

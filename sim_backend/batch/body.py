@@ -46,7 +46,7 @@ LIVE = 9        # 1 while the run goes on
 SIGMODE = 10    # signalMode (kernel.ON_PATCH, LAST_FINDER)
 RADIUS = 11     # sigRadius
 TIES = 12       # uphillTies (kernel.ORDERED, AT_RANDOM)
-FIELDMODE = 13  # field (kernel.STATIC, DYNAMIC)
+RULES = 13      # the arena's rules (kernel.DYNAMIC, YIELD flags)
 RUN_ROWS = 14
 
 # rows of the grids (int64[GRID_ROWS, runs * stride])
@@ -100,7 +100,7 @@ class BatchBody:
         self.sigmode = runs[SIGMODE]
         self.radius = runs[RADIUS]
         self.ties = runs[TIES]
-        self.fieldmode = runs[FIELDMODE]
+        self.rules = runs[RULES]
         self.cx = cells[0]
         self.cy = cells[1]
         self.cv = cells[2]
@@ -208,7 +208,7 @@ class BatchBody:
                           self.beacon_set, self.beacon_on, self.bsx, self.bsy, self.carry_on,
                           self.carry_dx, self.carry_dy, self.cx, self.cy, self.cv, self.cw,
                           self.c0[r], self.c1[r], tick, self.sigmode[r], self.radius[r],
-                          self.fieldmode[r])
+                          self.rules[r])
 
 
 def tick_all(robots, body, tick):

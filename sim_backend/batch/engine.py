@@ -73,7 +73,7 @@ class BatchArrays:
             rt[B.SIGMODE, r] = w.sigmode
             rt[B.RADIUS, r] = w.sc.sigRadius
             rt[B.TIES, r] = w.ties
-            rt[B.FIELDMODE, r] = w.fieldmode
+            rt[B.RULES, r] = w.rules
         rt[B.LIVE] = 1
         table = np.zeros((3, max(1, int(tstarts[-1]))), dtype=np.int64)
         cell = np.zeros((4, max(1, int(cstarts[-1]))), dtype=np.int64)
