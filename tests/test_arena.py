@@ -138,21 +138,46 @@ def test_transport_round_obstacles_never_overlaps(name, seed):
     assert res.coordinator._home_reached()
 
 
-def test_no_path_home_stops_with_a_status():
-    # validation cannot see the carriers: a wall that lets the bar's cells
-    # through a one-patch-wide gap but not the robots beside it
-    sc = validate({"objects": [{"cells": [[0, 0]], "at": [0, 5], "weight": 1}],
-                   "obstacles": [{"art": "#" * 18, "at": [-18, 0]},
-                                 {"art": "#" * 18, "at": [1, 0]}],
-                   "agents": 10})
-    res = Engine(sc, 1).run()
-    s = res.summary()
-    assert not res.delivered
-    if s["outcome"] == "no path home":
-        assert res.ticks == res.coordinator.stopped_tick < sc.maxTicks
-    else:
-        # the carrier stood where it can follow the cell through the gap
-        assert s["outcome"] == "delivered"
+def _coordinator_with_a_gap(stall_ticks=2000):
+    """A one-cell object at (0, 5) held by a robot at (1, 5) (east of it),
+    home at (0, -10), a wall along y = 0 with a one-patch gap at x = 0: the
+    cell alone fits the gap, the cell with its carrier beside it does not."""
+    from firmware_logic import messages as msg
+    from firmware_logic.behaviours.thesis.coordinator import Coordinator
+    wall = [(x, 0) for x in range(-18, 19) if x != 0]
+    c = Coordinator(100, 0, -10, world_size=18, cells=[(0, 5)], blocked=wall,
+                    stall_ticks=stall_ticks)
+    c.on_message(1, msg.HELLO, (1, 100, 1), 1)
+    c.on_message(1, msg.TOUCH, (1, 1, 5, 0, 5, 100), 2)
+    return c
+
+
+def test_no_path_home_stops_at_convergence_with_a_status():
+    from firmware_logic import messages as msg
+    c = _coordinator_with_a_gap()
+    out = c.tick(2)
+    assert c.converged_tick == 2 and c.stopped_tick == 2 and c.done()
+    assert (msg.HOST, msg.HALT, (0,)) in out
+    assert c.measures() == {"outcome": "no path home"}
+    assert "no path home" in c.status()
+    # the object's cells alone do have a way through the gap
+    assert (0, 0) in way_home(18, [(0, 5)], set(c.closed), [(0, 5)], 0, -10, 16, (0, 0))
+
+
+def test_a_transport_that_never_moves_stops_as_stalled():
+    from firmware_logic import messages as msg
+    from firmware_logic.behaviours.thesis.coordinator import Coordinator
+    c = Coordinator(100, -15, -15, world_size=18, cells=[(5, 5)], stall_ticks=50)
+    c.on_message(1, msg.HELLO, (1, 100, 1), 1)
+    c.on_message(1, msg.TOUCH, (1, 5, 4, 5, 5, 100), 2)
+    t = 2
+    while not c.done() and t < 1000:
+        c.tick(t)
+        # the leader reports each step done but the object never moves
+        c.on_message(1, msg.HEARTBEAT, (4, 5 * 256, 4 * 256, 0, c.step, 0), t)
+        t += 1
+    # converged at tick 2; transport ticks count from the first, tick 3
+    assert c.measures() == {"outcome": "stalled"} and c.stopped_tick == 3 + 50
 
 
 def test_decoy_touches_are_not_counted():
@@ -215,3 +240,29 @@ def test_the_dynamic_field_moves_with_its_carrier():
         peak[field] = (best % w.n - w.w, best // w.n - w.w)
         assert w.field[best] == 10 and sorted(w.field)[-2] < 10   # one beacon, no trace left
     assert peak == {"static": (0, 0), "dynamic": (0, -1)}
+
+
+def test_cli_refuses_a_bad_drawn_scenario_in_one_line(tmp_path):
+    import subprocess
+    import sys
+    f = tmp_path / "overlap.toml"
+    f.write_text('[[objects]]\nshape = "bar"\nat = [0, 0]\n\n'
+                 '[[obstacles]]\nart = "###"\nat = [2, 1]\n')
+    p = subprocess.run([sys.executable, "-m", "bridge.cli", "run", "--scenario", str(f)],
+                       capture_output=True, text=True, timeout=120)
+    assert p.returncode == 2
+    assert p.stderr.strip() == ("touchswarm: error: objects[0].at: 'object0' overlaps "
+                                "obstacles[0] at [2, 1]")
+
+
+def test_scenarios_command_prints_each_shape_as_art():
+    import subprocess
+    import sys
+    p = subprocess.run([sys.executable, "-m", "bridge.cli", "scenarios"],
+                       capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0
+    for name in objects.SHAPES:
+        assert f"  {name}:\n" in p.stdout
+    assert "    ########\n    ########\n" in p.stdout      # the bar
+    for key in ("objects", "obstacles", "field", "crowd"):
+        assert f"  {key} " in p.stdout
