@@ -2,10 +2,10 @@
 static and the dynamic field, and swarm size with a crowd that blocks or
 yields. Each writes its rows to OUT/<name>.csv and a figure (delivery rate,
 time to delivery, IoU per point) to OUT/<name>.png; one JSON line per
-experiment on stdout.
+experiment on stdout and in OUT/<name>.json.
 
     .venv/bin/python bench/arena_sweeps.py [--seeds 10] [--out docs/figures/arena]
-        [--only obstacles,field,size,large]
+        [--only obstacles,field,size,large] [--replot OUT/size.json ...]
 """
 
 from __future__ import annotations
@@ -27,8 +27,10 @@ def experiments() -> dict[str, tuple]:
     return {
         "obstacles": (wall, [Point("obstacles", (("obstacles", wall.obstacles),)),
                              Point("obstacles", (("obstacles", ()),))], 6000),
-        "field": (default, [Point("field", (("agents", a), ("field", f)))
-                            for a in (20, 100) for f in ("static", "dynamic")], 6000),
+        "field": (default, [Point("field", (("agents", a), ("field", f), ("crowd", c)))
+                            for a, c in ((20, "block"), (20, "yield"), (100, "yield"),
+                                         (300, "yield"))
+                            for f in ("static", "dynamic")], 6000),
         "size": (default, [Point("size", (("agents", a), ("crowd", c)))
                            for a in (20, 50, 100, 150, 200, 300)
                            for c in ("block", "yield")], 6000),
@@ -65,21 +67,23 @@ def figure(name: str, summary: list[dict], path: Path) -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    labels = [s["point"].replace(", ", "\n") for s in summary]
-    fig, axes = plt.subplots(1, 3, figsize=(max(9, 1.3 * len(labels) * 1.5), 4))
-    x = range(len(labels))
-    axes[0].bar(x, [s["delivered"] / s["n"] for s in summary], color="tab:green")
-    axes[0].set_ylim(0, 1)
+    labels = [s["point"] for s in summary]
+    fig, axes = plt.subplots(1, 3, figsize=(13, 1.2 + 0.32 * len(labels)), sharey=True)
+    y = list(range(len(labels)))[::-1]
+    rate = [s["delivered"] / s["n"] for s in summary]
+    axes[0].barh(y, rate, color="tab:green")
+    axes[0].set_xlim(0, 1)
     axes[0].set_title("delivery rate")
-    axes[1].bar(x, [s["median_home_tick"] or 0 for s in summary], color="tab:blue")
+    for yy, s in zip(y, summary):
+        axes[0].text(0.02, yy, f"{s['delivered']}/{s['n']}", va="center", fontsize=8)
+    axes[1].barh(y, [s["median_home_tick"] or 0 for s in summary], color="tab:blue")
     axes[1].set_title("median ticks to delivery (delivered runs)")
-    axes[2].bar(x, [s["mean_iou"] for s in summary], color="tab:orange")
-    axes[2].set_ylim(0, 1)
+    axes[2].barh(y, [s["mean_iou"] for s in summary], color="tab:orange")
+    axes[2].set_xlim(0, 1)
     axes[2].set_title("mean IoU of the perceived shape")
-    for ax in axes:
-        ax.set_xticks(list(x))
-        ax.set_xticklabels(labels, fontsize=7)
-    fig.suptitle(f"{name}: n = {summary[0]['n']} seeds per point")
+    axes[0].set_yticks(y)
+    axes[0].set_yticklabels(labels, fontsize=8)
+    fig.suptitle(f"{name}: n = {summary[0]['n']} seeds per point (batch engine)")
     fig.tight_layout()
     fig.savefig(path, dpi=90)
     plt.close(fig)
@@ -90,9 +94,16 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--out", default="docs/figures/arena")
     ap.add_argument("--only", default="obstacles,field,size")
+    ap.add_argument("--replot", nargs="+", help="redraw the figures from these JSON files")
     args = ap.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    if args.replot:
+        for f in args.replot:
+            for line in Path(f).read_text().splitlines():
+                d = json.loads(line)
+                figure(d["experiment"], d["points"], out / f"{d['experiment']}.png")
+        return
     exps = experiments()
     for name in args.only.split(","):
         base, points, max_ticks = exps[name]
@@ -102,9 +113,10 @@ def main() -> None:
         write_csv(rows, out / f"{name}.csv")
         summary = summarise(rows, points)
         figure(name, summary, out / f"{name}.png")
-        print(json.dumps({"experiment": name, "seeds": args.seeds, "maxTicks": max_ticks,
-                          "wall_s": round(time.perf_counter() - t0, 1), "points": summary}),
-              flush=True)
+        line = json.dumps({"experiment": name, "seeds": args.seeds, "maxTicks": max_ticks,
+                           "wall_s": round(time.perf_counter() - t0, 1), "points": summary})
+        (out / f"{name}.json").write_text(line + "\n")
+        print(line, flush=True)
 
 
 if __name__ == "__main__":
