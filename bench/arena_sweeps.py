@@ -4,7 +4,7 @@ yields. Each writes its rows to OUT/<name>.csv and a figure (delivery rate,
 time to delivery, IoU per point) to OUT/<name>.png; one JSON line per
 experiment on stdout and in OUT/<name>.json.
 
-    .venv/bin/python bench/arena_sweeps.py [--seeds 10] [--out docs/figures/arena]
+    .venv/bin/python bench/arena_sweeps.py [--seeds 10] [--out arena-out]
         [--only obstacles,field,size,large] [--replot OUT/size.json ...]
 """
 
@@ -92,7 +92,7 @@ def figure(name: str, summary: list[dict], path: Path) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--seeds", type=int, default=10)
-    ap.add_argument("--out", default="docs/figures/arena")
+    ap.add_argument("--out", default="arena-out")
     ap.add_argument("--only", default="obstacles,field,size")
     ap.add_argument("--replot", nargs="+", help="redraw the figures from these JSON files")
     args = ap.parse_args()

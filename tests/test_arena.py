@@ -266,3 +266,38 @@ def test_scenarios_command_prints_each_shape_as_art():
     assert "    ########\n    ########\n" in p.stdout      # the bar
     for key in ("objects", "obstacles", "field", "crowd"):
         assert f"  {key} " in p.stdout
+
+
+@pytest.mark.parametrize("name", ["crate", "decoy", "wall"])
+def test_worked_examples_run_over_can_as_in_process(name, capsys):
+    import json
+
+    from bridge.cli import main
+    outs = {}
+    for link in ("inproc", "can"):
+        assert main(["run", "--scenario", name, "--seed", "1", "--link", link, "--json"]) == 0
+        outs[link] = json.loads(capsys.readouterr().out)
+    assert outs["can"] == outs["inproc"]
+    assert outs["can"]["outcome"] == "delivered"
+
+
+def test_vector_engine_refuses_what_it_does_not_draw_and_auto_picks_batch():
+    from sim_backend.errors import EngineError
+    from sim_backend.sweep import pick_engine
+    from sim_backend.vector_engine import VectorEngine
+    for sc, what in ((load("wall"), "obstacles"), (load("decoy"), "several objects"),
+                     (validate({"field": "dynamic"}), "field=dynamic"),
+                     (validate({"crowd": "yield"}), "crowd=yield")):
+        with pytest.raises(EngineError, match=what):
+            VectorEngine([(sc, 1)])
+        assert pick_engine("auto", sc) == "batch"
+    assert pick_engine("auto", load("crate")) == "vector"    # one drawn object it runs
+
+
+def test_vector_engine_equals_the_reference_on_a_drawn_object():
+    from sim_backend.vector_engine import VectorEngine
+    from tests.harness import assert_same
+    sc = load("crate")
+    got = assert_same([sc, sc, sc.replace(movementModel="ant")], [1, 2, 3], engine=VectorEngine,
+                      states=False)
+    assert all(r.delivered for r in got)
