@@ -254,7 +254,8 @@ def check(sc: Any) -> None:
     _check_weight(sc, target, tname, taken)
     if target.at is not None:
         _check_path(sc, target, tname, taken)
-    free = (2 * w + 1) ** 2 - len(taken) - len(target.cells) - 4 * (2 * w + 1)
+    # as the flat check: a quarter of the patches inside the edge left free
+    free = (2 * w - 1) ** 2 - len(taken) - len(target.cells)
     if sc.agents > free // 4:
         raise ScenarioError(f"agents: {sc.agents} robots crowd a {2 * w + 1}-patch arena "
                             f"with these objects and obstacles; allowed 1..{max(1, free // 4)}")

@@ -138,13 +138,6 @@ class World:
                           self.rules)
         self.object_cells = list(zip(cx, cy))
 
-    def closed_cells(self) -> list[tuple[int, int]] | None:
-        """The cells the carried object may not enter (obstacles and other
-        objects), the host's map; None in an open arena of one object."""
-        if not self.obstacle_cells and not self.decoy_cells:
-            return None
-        return self.obstacle_cells + self.decoy_cells
-
     def idx(self, px: int, py: int) -> int:
         return (py + self.w) * self.n + (px + self.w)
 

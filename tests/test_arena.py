@@ -86,6 +86,11 @@ BAD = [
     ({"objects": [{"shape": "bar", "at": [0, 0]}],
       "obstacles": [{"art": "#" * 37, "at": [-18, -2]}]}, "objects[0].at: 'object0' has no way home"),
     ({"objects": [{"shape": "bar", "at": [0, 0]}], "object": "L"}, "object: set by [[objects]]"),
+    ({"objects": [{"shape": "bar", "at": [0, 0]}], "agents": 5000},
+     "agents: 5000 robots crowd a 37-patch arena"),
+    ({"objects": [{"shape": "bar", "at": [0, 0], "density": 900}]},
+     "objects[0].density: 900 x 16 cells = weight 14400"),
+    ({"crowd": "push"}, "crowd: expected one of block, yield"),
     ({"field": "moving"}, "field: expected one of static, dynamic"),
     ({"obstacles": "wall"}, "obstacles: expected an array of tables"),
 ]
