@@ -251,9 +251,9 @@ def check(sc: Any) -> None:
                 raise ScenarioError(f"{tname}.at: {target.name!r} comes within 4 patches of "
                                     f"home ({sc.homeX}, {sc.homeY}) at {list(c)}; it must stay "
                                     "at least 4 patches away")
-    _check_weight(sc, target, tname, taken)
     if target.at is not None:
         _check_path(sc, target, tname, taken)
+    _check_weight(sc, target, tname, taken)
     # as the flat check: a quarter of the patches inside the edge left free
     free = (2 * w - 1) ** 2 - len(taken) - len(target.cells)
     if sc.agents > free // 4:
@@ -275,7 +275,11 @@ def _check_weight(sc: Any, target: Piece, tname: str, taken: dict) -> None:
     for ax, ay in anchors(target):
         cs = set(target.placed(ax, ay))
 
+        outside = _outside(sc, set(taken) | cs) if target.at is not None else None
+
         def free(x: int, y: int) -> bool:
+            if outside is not None:
+                return (x, y) in outside        # a hole inside the object is no place to stand
             return -w <= x <= w and -w <= y <= w and (x, y) not in taken and (x, y) not in cs
 
         n = objects.surround(list(cs), free)
@@ -286,6 +290,26 @@ def _check_weight(sc: Any, target: Piece, tname: str, taken: dict) -> None:
             f"holding, but only {fewest} can surround {target.name!r} (reachable segments with "
             f"a free patch beside them, thesis 6.1.5); allowed weight <= "
             f"{fewest * sc.rPower:g}")
+
+
+def _outside(sc: Any, closed: set) -> set:
+    """The patches a robot can stand on: free of every piece and joined to
+    home or the arena's edge by 8-neighbour steps, as robots move (a hole
+    the object or obstacles close all round is not)."""
+    w = sc.worldSize
+    edge = [(x, y) for x in range(-w, w + 1) for y in (-w, w)] + \
+        [(x, y) for y in range(-w, w + 1) for x in (-w, w)] + [(sc.homeX, sc.homeY)]
+    todo = [p for p in edge if p not in closed]
+    seen = set(todo)
+    while todo:
+        x, y = todo.pop()
+        for a in (-1, 0, 1):
+            for b in (-1, 0, 1):
+                p = (x + a, y + b)
+                if p not in seen and -w <= p[0] <= w and -w <= p[1] <= w and p not in closed:
+                    seen.add(p)
+                    todo.append(p)
+    return seen
 
 
 def _check_path(sc: Any, target: Piece, tname: str, taken: dict) -> None:

@@ -79,12 +79,16 @@ BAD = [
     # a single cell: at most one robot at a time can hold it, thesis 6.1.5
     ({"objects": [{"cells": [[0, 0]], "at": [0, 0], "weight": 2}]},
      "only 1 can surround"),
-    # the bar walled in on three sides: three robots cannot lift weight 5
+    # a square walled in on three sides: only the four on its open side can hold it
     ({"objects": [{"shape": "square", "at": [0, 0], "density": 0.5}],
-      "obstacles": [{"art": "######\n#....#\n#....#\n#....#\n#....#\n######", "at": [0, 0]}],
-      "agents": 30}, "objects[0].density: weight 8 needs 8 robots"),
+      "obstacles": [{"art": "#....#\n#....#\n#....#\n#....#\n#....#\n######", "at": [0, 0]}],
+      "agents": 30}, "objects[0].density: weight 8 needs 8 robots of rPower 1 holding, but "
+                     "only 4 can surround"),
     ({"objects": [{"shape": "bar", "at": [0, 0]}],
       "obstacles": [{"art": "#" * 37, "at": [-18, -2]}]}, "objects[0].at: 'object0' has no way home"),
+    # a thick ring: the 12 segments round its hole cannot be reached from outside
+    ({"objects": [{"art": "#######\n#######\n##...##\n##...##\n##...##\n#######\n#######",
+                   "at": [0, 0], "weight": 30}], "agents": 40}, "only 24 can surround"),
     ({"objects": [{"shape": "bar", "at": [0, 0]}], "object": "L"}, "object: set by [[objects]]"),
     ({"objects": [{"shape": "bar", "at": [0, 0]}], "agents": 5000},
      "agents: 5000 robots crowd a 37-patch arena"),
