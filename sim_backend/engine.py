@@ -254,7 +254,7 @@ class Engine:
     # -- a whole run -------------------------------------------------------------------
 
     def finished(self) -> bool:
-        return self.coordinator.delivered_tick >= 0 or self.tick >= self.sc.maxTicks
+        return self.coordinator.done() or self.tick >= self.sc.maxTicks
 
     def run(self, progress: Callable[[int], None] | None = None) -> RunResult:
         while not self.finished():

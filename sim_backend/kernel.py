@@ -26,6 +26,7 @@ from firmware_logic.hal import BEACON_LEADER, CLAIMED, NOTHING, OBJECT, ROBOT, W
 FREE = 0
 YELLOW = 1   # a free object segment
 BLUE = 2     # a segment a robot holds
+OBSTACLE = 3  # a patch of an obstacle: robots probe it as a wall
 
 # beacon_on flags: the robot's field is in the grid (and goes when it turns
 # off); the robot pins its own patch's field to LEADER_FIELD every tick
@@ -38,6 +39,11 @@ ORDERED = 0         # uphillTies: first in N, NE, E, ... order
 AT_RANDOM = 1       # uphillTies: NetLogo's random winner
 ON_PATCH = 0        # signalMode: every holder, centred on its patch
 LAST_FINDER = 1     # signalMode: the tick's last finder, on its position
+# the arena's rules (a run's `rules`, flags; 0: the thesis's)
+DYNAMIC = 1         # field "dynamic": a beacon's field moves with its holder
+                    # (thesis 6.1.3); without, it stays where it was lit
+YIELD = 2           # crowd "yield": robots in the carried object's way step
+                    # aside; without, any robot there blocks the step
 
 # the per-robot tie-break stream of uphill (a 31-bit LCG, so numba's int64
 # and Python's ints agree without overflow)
@@ -77,6 +83,8 @@ def probe(obj, occ, base, w, n, x, y, h):
         return WALL
     k = base + cell(w, n, px, py)
     o = obj[k]
+    if o == OBSTACLE:
+        return WALL
     if o == YELLOW:
         return OBJECT
     if o == BLUE:
@@ -263,11 +271,14 @@ def recount(occ, base, w, n, xs, ys, lo, hi):
 def apply_tick(obj, owner, field, occ, stamp, base, w, n, tdx, tdy, tv, t0, t1,
                xs, ys, lo, hi, held, mv_on, mv_h, mv_step, claim, beacon_set,
                beacon_on, bsx, bsy, carry_on, carry_dx, carry_dy,
-               cx, cy, cv, cw, c0, c1, tick, sigmode, radius):
+               cx, cy, cv, cw, c0, c1, tick, sigmode, radius, rules):
     """Apply every robot's intents of tick `tick` (>= 1) in the fixed order:
     claims (lowest node wins a segment), beacons, the carried group, moves in
     node order; then recount occupancy. `stamp` marks the patches entered
-    this tick with the tick number."""
+    this tick with the tick number. The carried object is the one whose
+    cells are cx, cy (c0..c1); other objects and obstacles stay put.
+    rules: DYNAMIC, the carriers' beacons move with them; YIELD, robots in
+    the carried object's way step aside."""
     for i in range(lo, hi):
         k = claim[i]
         if k >= 0 and obj[base + k] == YELLOW:
@@ -276,8 +287,11 @@ def apply_tick(obj, owner, field, occ, stamp, base, w, n, tdx, tdy, tv, t0, t1,
             held[i] = k
     beacons(field, base, w, n, tdx, tdy, tv, t0, t1, xs, ys, lo, hi, beacon_set,
             beacon_on, bsx, bsy, sigmode, radius)
-    carry_group(obj, owner, occ, stamp, base, w, n, xs, ys, lo, hi, held,
-                carry_on, carry_dx, carry_dy, cx, cy, cv, cw, c0, c1, tick)
+    if carry_group(obj, owner, occ, stamp, base, w, n, xs, ys, lo, hi, held,
+                   carry_on, carry_dx, carry_dy, cx, cy, cv, cw, c0, c1, tick, rules) \
+            and (rules & DYNAMIC) != 0:
+        carry_beacons(field, base, w, n, tdx, tdy, tv, t0, t1, lo, hi, held, beacon_on,
+                      bsx, bsy, cx, cy, c0, c1, carry_dx, carry_dy, sigmode, radius)
     for i in range(lo, hi):
         if mv_on[i] == 0:
             continue
@@ -297,43 +311,83 @@ def apply_tick(obj, owner, field, occ, stamp, base, w, n, tdx, tdy, tv, t0, t1,
     recount(occ, base, w, n, xs, ys, lo, hi)
 
 
-def _holder_at(w, n, xs, ys, lo, hi, held, k):
-    """1 if some holder of the run stands on cell k (relative)."""
-    for i in range(lo, hi):
-        if held[i] >= 0 and cell(w, n, fx.patch(xs[i]), fx.patch(ys[i])) == k:
+def _carried(w, n, cx, cy, c0, c1, k):
+    """1 if cell k (relative) is one of the carried object's cells."""
+    for j in range(c0, c1):
+        if cell(w, n, cx[j], cy[j]) == k:
             return 1
     return 0
 
 
+def _holder_at(w, n, xs, ys, lo, hi, held, cx, cy, c0, c1, k):
+    """1 if some holder of the carried object stands on cell k (relative)."""
+    for i in range(lo, hi):
+        if held[i] >= 0 and cell(w, n, fx.patch(xs[i]), fx.patch(ys[i])) == k \
+                and _carried(w, n, cx, cy, c0, c1, held[i]):
+            return 1
+    return 0
+
+
+def carry_beacons(field, base, w, n, tdx, tdy, tv, t0, t1, lo, hi, held, beacon_on,
+                  bsx, bsy, cx, cy, c0, c1, carry_dx, carry_dy, sigmode, radius):
+    """The carriers' fields follow them one step (field DYNAMIC, thesis
+    6.1.3: a beacon belongs to its robot, so no field stays behind)."""
+    for i in range(lo, hi):
+        if held[i] < 0 or (beacon_on[i] & EMITS) == 0 or not _carried(w, n, cx, cy, c0, c1,
+                                                                         held[i]):
+            continue
+        ddx = carry_dx[i]
+        ddy = carry_dy[i]
+        if sigmode == ON_PATCH:
+            signal(field, base, w, n, tdx, tdy, tv, t0, t1, bsx[i], bsy[i], -1)
+            bsx[i] += ddx
+            bsy[i] += ddy
+            signal(field, base, w, n, tdx, tdy, tv, t0, t1, bsx[i], bsy[i], 1)
+        else:
+            signal_at(field, base, w, n, radius, bsx[i], bsy[i], -1)
+            bsx[i] += ddx * fx.ONE
+            bsy[i] += ddy * fx.ONE
+            signal_at(field, base, w, n, radius, bsx[i], bsy[i], 1)
+
+
 def carry_group(obj, owner, occ, stamp, base, w, n, xs, ys, lo, hi, held,
-                carry_on, carry_dx, carry_dy, cx, cy, cv, cw, c0, c1, tick):
+                carry_on, carry_dx, carry_dy, cx, cy, cv, cw, c0, c1, tick, rules):
     """Move the object with its holders when all of them ask for the same
-    step; a holder's request stays until the group moves or is blocked."""
+    step; a holder's request stays until the group moves or is blocked.
+    Holders of another object (a decoy) take no part. Returns 1 if it moved."""
     holders = 0
     ddx = 0
     ddy = 0
     for i in range(lo, hi):
-        if held[i] < 0:
+        if held[i] < 0 or not _carried(w, n, cx, cy, c0, c1, held[i]):
             continue
         if carry_on[i] == 0:
-            return                       # a holder that has not asked yet
+            return 0                     # a holder that has not asked yet
         if holders > 0 and (carry_dx[i] != ddx or carry_dy[i] != ddy):
-            return                       # holders disagree
+            return 0                     # holders disagree
         ddx = carry_dx[i]
         ddy = carry_dy[i]
         holders += 1
     if holders == 0:
-        return
+        return 0
     for i in range(lo, hi):
         if held[i] >= 0:
             carry_on[i] = 0              # consumed: moved or blocked
+    crowd = 0
+    if (rules & YIELD) != 0:
+        crowd = 1
     for j in range(c0, c1):
-        if _blocked(occ, base, w, n, xs, ys, lo, hi, held, cx[j] + ddx, cy[j] + ddy):
-            return
+        if _blocked(obj, occ, base, w, n, xs, ys, lo, hi, held, cx, cy, c0, c1,
+                    cx[j] + ddx, cy[j] + ddy, crowd):
+            return 0
     for i in range(lo, hi):
-        if held[i] >= 0 and _blocked(occ, base, w, n, xs, ys, lo, hi, held,
-                                     fx.patch(xs[i]) + ddx, fx.patch(ys[i]) + ddy):
-            return
+        if held[i] >= 0 and _carried(w, n, cx, cy, c0, c1, held[i]) and \
+                _blocked(obj, occ, base, w, n, xs, ys, lo, hi, held, cx, cy, c0, c1,
+                         fx.patch(xs[i]) + ddx, fx.patch(ys[i]) + ddy, crowd):
+            return 0
+    if crowd == 1 and make_way(obj, occ, stamp, base, w, n, xs, ys, lo, hi, held,
+                               cx, cy, c0, c1, ddx, ddy, tick) == 0:
+        return 0
     for j in range(c0, c1):
         k = base + cell(w, n, cx[j], cy[j])
         cv[j] = obj[k]
@@ -348,20 +402,26 @@ def carry_group(obj, owner, occ, stamp, base, w, n, xs, ys, lo, hi, held,
         owner[k] = cw[j]
         stamp[k] = tick
     for i in range(lo, hi):
-        if held[i] >= 0:
+        # the cells moved already: a carried holder's cell is now one step on
+        if held[i] >= 0 and _carried(w, n, cx, cy, c0, c1, held[i] + ddy * n + ddx):
             xs[i] += ddx * fx.ONE
             ys[i] += ddy * fx.ONE
             held[i] += ddy * n + ddx
             stamp[base + cell(w, n, fx.patch(xs[i]), fx.patch(ys[i]))] = tick
+    return 1
 
 
-def _blocked(occ, base, w, n, xs, ys, lo, hi, held, px, py):
+def _blocked(obj, occ, base, w, n, xs, ys, lo, hi, held, cx, cy, c0, c1, px, py, crowd):
     """Whether the carried group may not enter patch (px, py): off the arena,
-    or a robot that does not hold the object stands there."""
+    an obstacle or another object's segment, or (crowd 0) a robot that does
+    not hold the carried object stands there."""
     if not inside(w, px, py):
         return 1
     k = cell(w, n, px, py)
-    if occ[base + k] > 0 and not _holder_at(w, n, xs, ys, lo, hi, held, k):
+    if obj[base + k] != FREE and not _carried(w, n, cx, cy, c0, c1, k):
+        return 1
+    if crowd == 0 and occ[base + k] > 0 and \
+            not _holder_at(w, n, xs, ys, lo, hi, held, cx, cy, c0, c1, k):
         return 1
     return 0
 
@@ -469,13 +529,98 @@ def last_finder(order, lo, hi, beacon_set, beacon_on):
 def end_iteration(obj, owner, field, occ, stamp, base, w, n, tdx, tdy, tv, t0, t1,
                   xs, ys, lo, hi, held, beacon_set, beacon_on, bsx, bsy, carry_on,
                   carry_dx, carry_dy, cx, cy, cv, cw, c0, c1, tick, sigmode, radius,
-                  order):
+                  order, rules):
     """After every robot's turn: the beacons of the iteration (go's Signal
-    after the ask; the last finder in the drawn order), the carried group,
-    occupancy recounted."""
+    after the ask; the last finder in the drawn order), the carried group
+    (with the arena's `rules`, as in apply_tick), occupancy recounted."""
     beacons_last(field, base, w, n, tdx, tdy, tv, t0, t1, xs, ys, lo, hi, beacon_set,
                  beacon_on, bsx, bsy, sigmode, radius,
                  last_finder(order, lo, hi, beacon_set, beacon_on))
-    carry_group(obj, owner, occ, stamp, base, w, n, xs, ys, lo, hi, held,
-                carry_on, carry_dx, carry_dy, cx, cy, cv, cw, c0, c1, tick)
+    if carry_group(obj, owner, occ, stamp, base, w, n, xs, ys, lo, hi, held,
+                   carry_on, carry_dx, carry_dy, cx, cy, cv, cw, c0, c1, tick, rules) \
+            and (rules & DYNAMIC) != 0:
+        carry_beacons(field, base, w, n, tdx, tdy, tv, t0, t1, lo, hi, held, beacon_on,
+                      bsx, bsy, cx, cy, c0, c1, carry_dx, carry_dy, sigmode, radius)
     recount(occ, base, w, n, xs, ys, lo, hi)
+
+
+def _in_way(w, n, xs, ys, lo, hi, held, cx, cy, c0, c1, ddx, ddy, px, py):
+    """1 if patch (px, py) is one the carried group enters: a cell or a
+    carrier's patch, one step (ddx, ddy) on."""
+    for j in range(c0, c1):
+        if cx[j] + ddx == px and cy[j] + ddy == py:
+            return 1
+    for i in range(lo, hi):
+        if held[i] >= 0 and fx.patch(xs[i]) + ddx == px and fx.patch(ys[i]) + ddy == py \
+                and _carried(w, n, cx, cy, c0, c1, held[i]):
+            return 1
+    return 0
+
+
+def _aside(obj, occ, stamp, base, w, n, xs, ys, lo, hi, held, cx, cy, c0, c1, ddx, ddy,
+           tick, px, py):
+    """The cell a robot on (px, py) steps aside to, -1 if none: the first
+    neighbour (the carry's own direction first, then N, NE, E, ...) inside
+    the arena, free of objects, held by no robot at the tick's start,
+    entered or reserved by none this tick, and off the group's way."""
+    for j in range(9):
+        if j == 0:
+            qx = px + ddx
+            qy = py + ddy
+        else:
+            qx = px + UPHILL_DX[j - 1]
+            qy = py + UPHILL_DY[j - 1]
+        if not inside(w, qx, qy):
+            continue
+        k = base + cell(w, n, qx, qy)
+        if obj[k] != FREE or occ[k] > 0 or stamp[k] == tick or stamp[k] == -tick - 2:
+            continue
+        if _in_way(w, n, xs, ys, lo, hi, held, cx, cy, c0, c1, ddx, ddy, qx, qy):
+            continue
+        return k
+    return -1
+
+
+def make_way(obj, occ, stamp, base, w, n, xs, ys, lo, hi, held, cx, cy, c0, c1,
+             ddx, ddy, tick):
+    """crowd "yield": every robot that does not carry the object and stands
+    where the group goes steps aside (`_aside`), in node order. First every
+    such robot reserves its patch; if one cannot, the reservations go and 0
+    is returned (the step is blocked); else they all move, and 1."""
+    ok = 1
+    reserved = 0
+    for i in range(lo, hi):
+        if held[i] >= 0 and _carried(w, n, cx, cy, c0, c1, held[i]):
+            continue
+        px = fx.patch(xs[i])
+        py = fx.patch(ys[i])
+        if not _in_way(w, n, xs, ys, lo, hi, held, cx, cy, c0, c1, ddx, ddy, px, py):
+            continue
+        k = -1
+        if held[i] < 0:                  # a holder of another object cannot yield
+            k = _aside(obj, occ, stamp, base, w, n, xs, ys, lo, hi, held, cx, cy, c0, c1,
+                       ddx, ddy, tick, px, py)
+        if k < 0:
+            ok = 0
+            break
+        stamp[k] = -tick - 2             # reserved
+        reserved += 1
+    if reserved > 0:
+        for k in range(base, base + n * n):
+            if stamp[k] == -tick - 2:
+                stamp[k] = -1
+    if ok == 0:
+        return 0
+    for i in range(lo, hi):
+        if held[i] >= 0:
+            continue
+        px = fx.patch(xs[i])
+        py = fx.patch(ys[i])
+        if not _in_way(w, n, xs, ys, lo, hi, held, cx, cy, c0, c1, ddx, ddy, px, py):
+            continue
+        k = _aside(obj, occ, stamp, base, w, n, xs, ys, lo, hi, held, cx, cy, c0, c1,
+                   ddx, ddy, tick, px, py)
+        xs[i] += ((k - base) % n - w - px) * fx.ONE
+        ys[i] += ((k - base) // n - w - py) * fx.ONE
+        stamp[k] = tick
+    return 1

@@ -22,11 +22,12 @@ from matplotlib.patches import Circle, Patch  # noqa: E402
 from firmware_logic import fixedpoint as fx  # noqa: E402
 from firmware_logic import registry  # noqa: E402
 from sim_backend.engine import RunResult  # noqa: E402
-from sim_backend.world import BLUE, YELLOW  # noqa: E402
+from sim_backend.world import BLUE, OBSTACLE, YELLOW  # noqa: E402
 
 FIELD_CMAP = "Reds"
 OBJECT_RGB = (1.0, 0.85, 0.0)
 HELD_RGB = (0.1, 0.3, 0.9)
+OBSTACLE_RGB = (0.35, 0.35, 0.35)
 HOME_RADIUS = 2
 
 
@@ -41,8 +42,10 @@ def extent(w: Any) -> tuple[float, float, float, float]:
 
 
 def object_rgba(obj: np.ndarray) -> np.ndarray:
-    """The object's patches (yellow) and held segments (blue), transparent elsewhere."""
+    """The objects' patches (yellow), held segments (blue) and obstacles
+    (grey), transparent elsewhere."""
     rgba = np.zeros(obj.shape + (4,))
+    rgba[obj == OBSTACLE] = (*OBSTACLE_RGB, 1.0)
     rgba[obj == YELLOW] = (*OBJECT_RGB, 1.0)
     rgba[obj == BLUE] = (*HELD_RGB, 1.0)
     return rgba
@@ -108,6 +111,8 @@ def render(result: RunResult, path: Path, trails: Any = None) -> Path:
     objimg.set_data(object_rgba(np.array(w.obj).reshape(w.n, w.n)))
     handles = [Patch(color=OBJECT_RGB, label="object at the end"),
                Patch(color=HELD_RGB, label="held segment"), Patch(color="c", label="home")]
+    if w.obstacle_cells:
+        handles.append(Patch(color=OBSTACLE_RGB, label="obstacle"))
     if trails is not None:
         xs, ys, states = trails.arrays()
         segs, cols = trail_segments(xs, ys, states, colours)

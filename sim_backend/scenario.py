@@ -14,7 +14,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from sim_backend import objects
+from sim_backend import arena, objects
 from sim_backend.errors import ScenarioError
 
 MODELS = {"firefly": 1, "ant": 2}
@@ -57,6 +57,21 @@ def departures(sc: "Scenario") -> list[str]:
     return [k for k, ch in CHOICES.items() if getattr(sc, k) != ch[0]]
 
 
+def arena_features(sc: "Scenario") -> list[str]:
+    """What `sc` draws beyond the thesis's one object in an open arena with
+    its static field (the vector engine runs none of these)."""
+    out = []
+    if sc.obstacles:
+        out.append("obstacles")
+    if len(sc.objects) > 1:
+        out.append("several objects")
+    if sc.field != "static":
+        out.append(f"field={sc.field}")
+    if sc.crowd != "block":
+        out.append(f"crowd={sc.crowd}")
+    return out
+
+
 def check_seed(seed: Any, source: str = "seed") -> int:
     """The seed as an int; ScenarioError naming the range when it is outside."""
     if isinstance(seed, bool) or not isinstance(seed, int):
@@ -95,6 +110,20 @@ class Scenario:
     arrival: str = CHOICES["arrival"][0]
     starts: str = CHOICES["starts"][0]
     activation: str = CHOICES["activation"][0]
+    # -- the arena the user draws (docs/scenarios.md, "Objects and obstacles");
+    # objects empty: the flat object/objectX/objectY/objectWeight keys
+    objects: tuple = ()          # objects.Piece, the target among them
+    obstacles: tuple = ()        # objects.Piece
+    field: str = "static"        # beacons stay where lit (thesis), or move with holders
+    crowd: str = "block"         # robots block the carried object (thesis), or yield
+
+    def pieces(self) -> list:
+        """The scenario's objects as objects.Piece, the target first."""
+        if self.objects:
+            return sorted(self.objects, key=lambda p: not p.target)
+        at = None if self.objectX is None else (self.objectX, self.objectY)
+        return [objects.Piece(self.object, tuple(objects.offsets(self.object)), at,
+                              self.objectWeight, None, True)]
 
     @property
     def model(self) -> int:
@@ -174,6 +203,7 @@ def validate(raw: dict[str, Any], source: str = "scenario") -> Scenario:
         raise ScenarioError(
             f"{source}: unknown key {unknown[0]!r}; known keys: {', '.join(sorted(FIELDS))}")
     values: dict[str, Any] = {}
+    raw = arena.parse(raw, values)
     for key, value in raw.items():
         if key == "object":
             values[key] = _object_name(value)
@@ -201,7 +231,10 @@ def validate(raw: dict[str, Any], source: str = "scenario") -> Scenario:
                 raise ScenarioError(f"{key}: {value!r} is outside the allowed range {lo}..{hi}")
             values[key] = kind(value)
     sc = Scenario(**values)
-    _check_consistency(sc)
+    if sc.objects or sc.obstacles:
+        arena.check(sc)
+    else:
+        _check_consistency(sc)
     return sc
 
 
@@ -249,6 +282,9 @@ def _check_consistency(sc: Scenario) -> None:
     if sc.agents > free // 4:
         raise ScenarioError(f"agents: {sc.agents} robots crowd a {2 * w + 1}-patch arena; "
                             f"allowed 1..{free // 4} for worldSize={w}")
+
+
+
 
 
 def builtin_names() -> list[str]:

@@ -41,7 +41,7 @@ from firmware_logic.behaviours.thesis.robot import (ANT, CARRY, FIELD, FIREFLY, 
                                   HOLD, RETX_FIRST, RETX_MAX, SEARCH)
 from sim_backend.engine import RunResult
 from sim_backend.errors import EngineError
-from sim_backend.scenario import Scenario, departures
+from sim_backend.scenario import Scenario, arena_features, departures
 from sim_backend.world import BLUE, FREE, YELLOW, World, signal_table
 
 DEAD = 7          # a robot of a run that has stopped: inert until compacted
@@ -98,6 +98,11 @@ class VectorEngine:
             # a hand-written specialisation of one behaviour: never run another's scenario
             raise EngineError(f"the vector engine runs the thesis behaviour only, not "
                               f"{', '.join(other)}; use the batch engine")
+        feats = sorted({k for sc, _ in runs for k in arena_features(sc)})
+        if feats:
+            # a hand copy of the thesis's one-object open arena; the batch engine runs the rest
+            raise EngineError(f"the vector engine runs one object in an open arena with the "
+                              f"static field only, not {', '.join(feats)}; use the batch engine")
         opts = sorted({k for sc, _ in runs for k in departures(sc)})
         if opts:
             # a hand copy of the default rules only; the batch engine runs the options
@@ -651,8 +656,8 @@ class VectorEngine:
         done = []
         for r in live.tolist():
             c = self.coords[r]
-            stop = (c.delivered_tick >= 0 if self.until == "delivered"
-                    else c.converged_tick >= 0)
+            stop = (c.done() if self.until == "delivered"
+                    else c.converged_tick >= 0 or c.done())
             if stop or t >= self.max_ticks[r]:
                 done.append(r)
         if not done:

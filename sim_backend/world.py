@@ -13,8 +13,8 @@ import math
 
 from firmware_logic import fixedpoint as fx
 from firmware_logic.rng import Rng
-from sim_backend import kernel, objects
-from sim_backend.kernel import BLUE, FREE, YELLOW  # noqa: F401  (the cell values)
+from sim_backend import arena, kernel, objects
+from sim_backend.kernel import BLUE, FREE, OBSTACLE, YELLOW  # noqa: F401  (the cell values)
 from sim_backend.scenario import CHOICES, Scenario
 
 
@@ -58,12 +58,22 @@ class World:
         self.tdy = [t[1] for t in self.table]
         self.tv = [t[2] for t in self.table]
         setup = Rng(seed, 0)             # the observer's stream, as in setup
-        # CreateWorld: objx, objy = random 10
-        self.obj_x = sc.objectX if sc.objectX is not None else setup.below(10)
-        self.obj_y = sc.objectY if sc.objectY is not None else setup.below(10)
-        self.object_cells = objects.cells(sc.object, self.obj_x, self.obj_y)
-        for x, y in self.object_cells:
+        # CreateWorld: objx, objy = random 10 (the target's, when not given)
+        pieces = sc.pieces()
+        target = pieces[0]
+        self.obj_x = target.at[0] if target.at is not None else setup.below(10)
+        self.obj_y = target.at[1] if target.at is not None else setup.below(10)
+        self.object_cells = target.placed(self.obj_x, self.obj_y)   # the carried object
+        # the other objects (decoys) and the obstacles never move
+        self.decoy_cells = [c for p in pieces[1:] for c in p.placed(*p.at)]
+        self.obstacle_cells = [c for p in sc.obstacles for c in p.placed(*p.at)]
+        for x, y in self.object_cells + self.decoy_cells:
             self.obj[self.idx(x, y)] = YELLOW
+        for x, y in self.obstacle_cells:
+            self.obj[self.idx(x, y)] = OBSTACLE
+        # the arena's rules (kernel.DYNAMIC, YIELD flags; 0 the thesis's)
+        self.rules = (kernel.DYNAMIC if sc.field == arena.FIELD_MODES[1] else 0) | \
+            (kernel.YIELD if sc.crowd == arena.CROWD_MODES[1] else 0)
         self.xs: list[int] = []
         self.ys: list[int] = []
         if sc.starts == "netlogo":
@@ -139,7 +149,8 @@ class World:
                           self.ys, 0, len(self.xs), self.held, self.mv_on, self.mv_h,
                           self.mv_step, self.claim, self.beacon_set, self.beacon_on,
                           self.bsx, self.bsy, self.carry_on, self.carry_dx, self.carry_dy,
-                          cx, cy, cv, cw, 0, len(cx), tick, self.sigmode, self.sc.sigRadius)
+                          cx, cy, cv, cw, 0, len(cx), tick, self.sigmode, self.sc.sigRadius,
+                          self.rules)
         self.object_cells = list(zip(cx, cy))
 
     # -- sequential activation (kernel.SEQUENTIAL) ------------------------------
@@ -163,7 +174,7 @@ class World:
                              self.xs, self.ys, 0, len(self.xs), self.held, self.beacon_set,
                              self.beacon_on, self.bsx, self.bsy, self.carry_on,
                              self.carry_dx, self.carry_dy, cx, cy, cv, cw, 0, len(cx), tick,
-                             self.sigmode, self.sc.sigRadius, self.order)
+                             self.sigmode, self.sc.sigRadius, self.order, self.rules)
         self.object_cells = list(zip(cx, cy))
 
     def idx(self, px: int, py: int) -> int:

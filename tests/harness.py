@@ -65,3 +65,22 @@ def mixed_scenarios(n=24, seed=11):
         scs.append(sc)
         seeds.append(rnd.randrange(10 ** 6))
     return scs, seeds
+
+
+def arena_scenarios():
+    """Drawn objects, decoys, obstacles and the dynamic field (issue 11), in
+    both movement models and both fields, and the aggregate behaviour among
+    obstacles: each with two seeds."""
+    from sim_backend.scenario import load
+    scs, seeds = [], []
+    for name in ("crate", "decoy", "wall"):
+        for model in ("firefly", "ant"):
+            for field in ("static", "dynamic"):
+                sc = load(name).replace(movementModel=model, field=field, maxTicks=2500)
+                scs += [sc, sc]
+                seeds += [1, 2]
+    agg = load("wall").replace(behaviour="aggregate", maxTicks=1500)
+    # a crowd that yields to the carried object, in both fields
+    crowd = [validate({"agents": 120, "crowd": "yield", "field": f, "maxTicks": 1500})
+             for f in ("static", "dynamic")]
+    return scs + [agg, agg] + crowd * 2, seeds + [1, 2, 1, 1, 2, 2]

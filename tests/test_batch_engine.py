@@ -18,7 +18,7 @@ from sim_backend import objects
 from sim_backend.batch.engine import BatchEngine, run_batch
 from sim_backend.errors import EngineError
 from sim_backend.scenario import validate
-from tests.harness import assert_same, mixed_scenarios, reference
+from tests.harness import arena_scenarios, assert_same, mixed_scenarios, reference
 
 THESIS_DIR = Path(registry.load("thesis").folder)
 
@@ -44,6 +44,14 @@ def test_many_seeds_and_mixed_parameters_in_one_batch():
     scs, seeds = mixed_scenarios()
     got = assert_same(scs, seeds)
     assert len({r.ticks for r in got}) > 5
+
+
+def test_obstacles_several_objects_and_the_dynamic_field_identical():
+    scs, seeds = arena_scenarios()
+    got = assert_same(scs, seeds)
+    assert sum(r.delivered for r in got) >= len(got) // 2, "few deliveries: a weak comparison"
+    moved = [r for r in got if r.delivered and r.scenario.field == "dynamic"]
+    assert moved, "no dynamic-field run delivered"
 
 
 def test_until_converged_stops_where_the_reference_stops():

@@ -272,6 +272,7 @@ def format_summary(s: dict, converged_power: float | None = None) -> str:
         f"{s['power']:g}",
         f"  shape IoU        {s['shape_iou']:.3f}",
         f"  result           {'DELIVERED' if s['delivered'] else 'NOT delivered'}"
-        f" after {s['ticks']} ticks",
+        f" after {s['ticks']} ticks"
+        + ("" if s["delivered"] or not s.get("outcome") else f" ({s['outcome']})"),
     ]
     return "\n".join(lines)

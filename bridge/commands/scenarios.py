@@ -27,6 +27,16 @@ def cmd_scenarios(args: argparse.Namespace) -> int:
         allowed = f"{rng[1]}..{rng[2]}" if rng else {
             "movementModel": "firefly | ant", "object": "1-4 | " + " | ".join(
                 sorted(__import__('sim_backend.objects', fromlist=['x']).SHAPES)),
+            "objects": "[[objects]] tables (docs/scenarios.md)",
+            "obstacles": "[[obstacles]] tables (docs/scenarios.md)",
+            "field": "static | dynamic",
+            "crowd": "block | yield",
         }.get(key, "text")
         print(f"  {key:16s} {value!s:10s} {allowed}")
+    from sim_backend import objects
+    print("\nshapes (object = NAME, or shape = NAME in [[objects]]; rows top to bottom):")
+    for name in sorted(objects.SHAPES):
+        print(f"  {name}:")
+        for row in objects.art(name).split("\n"):
+            print(f"    {row}")
     return 0

@@ -52,7 +52,8 @@ ORDER_RNG = 14  # activation netlogo: the order stream (kernel.order_seed)
 FIELD_STATE = 15  # the behaviour's field state (World.field_state)
 DEFIANCE = 16   # fieldDefiance
 STEPS = 17      # activation netlogo: FSM steps of the run's robots so far
-RUN_ROWS = 18
+RULES = 18      # the arena's rules (kernel.DYNAMIC, YIELD flags)
+RUN_ROWS = 19
 
 # rows of the grids (int64[GRID_ROWS, runs * stride])
 OBJ = 0
@@ -111,6 +112,7 @@ class BatchBody:
         self.field_state = runs[FIELD_STATE]
         self.defiance = runs[DEFIANCE]
         self.steps = runs[STEPS]
+        self.rules = runs[RULES]
         self.cx = cells[0]
         self.cy = cells[1]
         self.cv = cells[2]
@@ -217,7 +219,8 @@ class BatchBody:
                           self.held, self.mv_on, self.mv_h, self.mv_step, self.claim_k,
                           self.beacon_set, self.beacon_on, self.bsx, self.bsy, self.carry_on,
                           self.carry_dx, self.carry_dy, self.cx, self.cy, self.cv, self.cw,
-                          self.c0[r], self.c1[r], tick, self.sigmode[r], self.radius[r])
+                          self.c0[r], self.c1[r], tick, self.sigmode[r], self.radius[r],
+                          self.rules[r])
 
 
     def end_iteration(self, r, tick):
@@ -227,7 +230,7 @@ class BatchBody:
                              self.held, self.beacon_set, self.beacon_on, self.bsx, self.bsy,
                              self.carry_on, self.carry_dx, self.carry_dy, self.cx, self.cy,
                              self.cv, self.cw, self.c0[r], self.c1[r], tick, self.sigmode[r],
-                             self.radius[r], self.order)
+                             self.radius[r], self.order, self.rules[r])
 
 
 def tick_all(robots, body, tick):

@@ -77,6 +77,7 @@ class BatchArrays:
             rt[B.ORDER_RNG, r] = w.order_state[0]
             rt[B.FIELD_STATE, r] = w.field_state
             rt[B.DEFIANCE, r] = w.sc.fieldDefiance
+            rt[B.RULES, r] = w.rules
         rt[B.LIVE] = 1
         table = np.zeros((3, max(1, int(tstarts[-1]))), dtype=np.int64)
         cell = np.zeros((4, max(1, int(cstarts[-1]))), dtype=np.int64)
@@ -261,7 +262,8 @@ class BatchEngine:
         done = set(np.flatnonzero((live == 1) & (self.max_ticks <= t)).tolist())
         for r in called:
             c = self.coords[r]
-            if (c.delivered_tick if self.until == "delivered" else c.converged_tick) >= 0:
+            if (c.done() if self.until == "delivered" else c.converged_tick >= 0
+                    or c.done()):
                 done.add(r)
         for r in sorted(done):
             if live[r] == 1:

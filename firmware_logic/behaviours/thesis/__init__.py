@@ -22,6 +22,14 @@ def make_coordinator(sc, journal=None, cells=None, on_reject=None):
     """
     from firmware_logic.behaviours.thesis.coordinator import Coordinator
     netlogo = sc.arrival == "netlogo"
+    # the host's map: obstacles and the other objects, all placed at fixed
+    # anchors (docs/scenarios.md); None in an open arena of one object
+    closed = None
+    if getattr(sc, "obstacles", ()) or len(getattr(sc, "objects", ())) > 1:
+        closed = []
+        for p in tuple(sc.obstacles) + tuple(sc.pieces()[1:]):
+            closed += p.placed(p.at[0], p.at[1])
     return Coordinator(sc.weight_centi, sc.homeX, sc.homeY, journal=journal,
                        home_radius=1 if netlogo else 4, by_carrier=netlogo,
-                       world_size=sc.worldSize, cells=cells, on_reject=on_reject)
+                       world_size=sc.worldSize, cells=cells, on_reject=on_reject,
+                       blocked=closed)

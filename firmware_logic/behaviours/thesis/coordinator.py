@@ -19,8 +19,14 @@ from firmware_logic import messages as msg
 from firmware_logic.roster import BAD_HELLO, CHANGED_HELLO, Roster  # noqa: F401 (re-exported)
 
 RESEND_AFTER = 4   # ticks without progress before a command is sent again
+STALL_TICKS = 2000  # transport ticks without the object moving before the run stops
+
+# why a run stopped without delivering (Coordinator.stop_code; 0: it did not)
+NO_PATH = 1
+STALLED = 2
+STOP_REASONS = ("", "no path home", "stalled")
 # host-side logic: portable, but allowed to allocate
-SUBSET_SETUP = ("Touch", "Coordinator")
+SUBSET_SETUP = ("Touch", "Coordinator", "way_home", "_free")
 STEPS = ((-1, -1), (-1, 0), (0, -1), (1, -1), (-1, 1), (1, 0), (0, 1), (1, 1))
 
 
@@ -38,6 +44,73 @@ MODELS = (1, 2)
 # a patch coordinate travels in one signed byte: the arena of a host that was
 # not told its size
 BYTE_ARENA = 127
+
+
+def way_home(w, footprint, blocked, goal_pts, home_x, home_y, home_r2, start, slack=2):
+    """wayHome over the configuration space of the object's whole footprint
+    (thesis 6.1.4, 6.2.4): {(dx, dy): steps} for every displacement of the
+    footprint (object cells and carriers, absolute cells at displacement
+    (0, 0)) that keeps it inside the arena -w..w and off every `blocked` cell,
+    counted in 8-neighbour steps (the transport's) from the displacements
+    where a `goal_pts` point lies within home_r2 of home. A breadth-first
+    search from the goal that stops `slack` layers after reaching `start`
+    (no path: `start` is missing). Plain lists and dicts: it runs on the
+    host, in CPython and MicroPython."""
+    x0 = x1 = footprint[0][0]
+    y0 = y1 = footprint[0][1]
+    for p in footprint:
+        x0 = min(x0, p[0])
+        x1 = max(x1, p[0])
+        y0 = min(y0, p[1])
+        y1 = max(y1, p[1])
+    box = (-w - x0, w - x1, -w - y0, w - y1)
+    ok = {}
+
+    dist = {}
+    frontier = []
+    r = 0
+    while r * r < home_r2:
+        r += 1
+    for gx, gy in goal_pts:
+        for a in range(-r, r + 1):
+            for b in range(-r, r + 1):
+                if a * a + b * b < home_r2:
+                    d = (home_x + a - gx, home_y + b - gy)
+                    if d not in dist and _free(d, box, footprint, blocked, ok):
+                        dist[d] = 0
+                        frontier.append(d)
+    level = 0
+    stop = -1
+    while frontier:
+        if start in dist and stop < 0:
+            stop = dist[start] + slack
+        if stop >= 0 and level >= stop:
+            break
+        level += 1
+        nxt = []
+        for d in frontier:
+            for sx, sy in STEPS:
+                e = (d[0] + sx, d[1] + sy)
+                if e not in dist and _free(e, box, footprint, blocked, ok):
+                    dist[e] = level
+                    nxt.append(e)
+        frontier = nxt
+    return dist
+
+
+def _free(d, box, footprint, blocked, ok):
+    """Whether displacement d keeps the footprint in `box` and off `blocked`
+    (memoised in ok)."""
+    v = ok.get(d)
+    if v is None:
+        v = box[0] <= d[0] <= box[1] and box[2] <= d[1] <= box[3]
+        if v and blocked:
+            for p in footprint:
+                if (p[0] + d[0], p[1] + d[1]) in blocked:
+                    v = False
+                    break
+        ok[d] = v
+    return v
 
 
 class Touch:
@@ -68,11 +141,13 @@ class Touch:
 
 
 class Coordinator(Roster):
-    NOT_SNAPSHOT = Roster.NOT_SNAPSHOT + ("home_x", "home_y", "home_r2", "by_carrier")
+    NOT_SNAPSHOT = Roster.NOT_SNAPSHOT + ("home_x", "home_y", "home_r2", "by_carrier",
+                                          "closed", "stall_ticks")
     VOLATILE = ("step_sent_tick",)     # a resend of the same TRANSPORT
 
     def __init__(self, weight, home_x=-15, home_y=-15, home_radius=4, journal=None,
-                 world_size=None, cells=None, on_reject=None, by_carrier=False):
+                 world_size=None, cells=None, on_reject=None, by_carrier=False,
+                 blocked=None, stall_ticks=STALL_TICKS):
         """weight: the object's weight in hundredths (objectWeight * 100).
 
         journal: optional callable(node, kind, fields, tick) called for every
@@ -84,8 +159,21 @@ class Coordinator(Roster):
         world_size: patches run from -world_size to +world_size (None: only
         what a byte carries). cells: the object's cells where it starts, when
         the host knows them (a simulation); None: any cell is plausible.
+        blocked: the cells the object may not enter (obstacles, other
+        objects), when the host has a map; then the transport follows
+        `way_home` round them, else the straight gradient of PaintHome's
+        wayHome (the thesis's, kept bit for bit in an open arena).
+        stall_ticks: transport ticks without the object moving before the
+        run stops as stalled.
         """
         Roster.__init__(self, MODELS, journal, on_reject)
+        self.closed = None if blocked is None else frozenset(blocked)
+        self.stall_ticks = stall_ticks
+        self.stopped_tick = -1   # stopped without delivering, stop_code says why
+        self.stop_code = 0
+        self.last_move_tick = -1
+        self.way = None          # way_home's field, from the displacement way_from
+        self.way_from = (0, 0)
         self.weight = weight
         self.home_x = home_x
         self.home_y = home_y
@@ -229,6 +317,8 @@ class Coordinator(Roster):
         """The thesis names its decisions: converged, step, delivered, halt."""
         if self.delivered_tick != before["delivered_tick"]:
             return "delivered", "object home; HALT"
+        if self.stopped_tick != before.get("stopped_tick", -1):
+            return "stopped", self.status() + "; HALT"
         if self.converged_tick != before["converged_tick"]:
             return "converged", ("converged, power %d/%d; leader robot %d; transport begins"
                                  % (self.power, self.weight, self.leader))
@@ -239,7 +329,22 @@ class Coordinator(Roster):
                 return "halt", ""
         return None
 
+    def done(self):
+        return self.delivered_tick >= 0 or self.stopped_tick >= 0
+
+    def measures(self):
+        """Why the run ended or where it stands (RunResult.summary's `outcome`)."""
+        if self.delivered_tick >= 0:
+            return {"outcome": "delivered"}
+        if self.stopped_tick >= 0:
+            return {"outcome": STOP_REASONS[self.stop_code]}
+        if self.converged_tick >= 0:
+            return {"outcome": "transporting"}
+        return {"outcome": "collecting touches"}
+
     def status(self):
+        if self.stopped_tick >= 0:
+            return "stopped at tick %d: %s" % (self.stopped_tick, STOP_REASONS[self.stop_code])
         if self.delivered_tick >= 0:
             return "delivered at tick %d" % self.delivered_tick
         if self.converged_tick >= 0:
@@ -259,14 +364,14 @@ class Coordinator(Roster):
         with power short of the weight, and after the HALT went out."""
         if self.outbox or self.acks:
             return False
-        if self.delivered_tick >= 0:
+        if self.done():
             return self.halted == 1
         return self.converged_tick < 0 and not (self.touches and self.power >= self.weight)
 
     def tick(self, tick):
         """Advance the centralised phase; return and clear the commands to send."""
         self._acks_out(self.outbox)
-        if self.delivered_tick >= 0:
+        if self.done():
             if not self.halted:
                 self.halted = 1
                 self._send(msg.HOST, msg.HALT, (0,))
@@ -281,11 +386,17 @@ class Coordinator(Roster):
         return out
 
     def _transport(self, tick):
+        if self.last_move_tick < 0:
+            self.last_move_tick = tick
+        if tick - self.last_move_tick >= self.stall_ticks:
+            self._stop(tick, STALLED)
+            return
         if self.leader_done == self.step:
             if self.moved_x == self.planned_from[0] and self.moved_y == self.planned_from[1]:
                 self.blocked += 1
             else:
                 self.blocked = 0
+                self.last_move_tick = tick
             if self._home_reached():
                 self.delivered_tick = tick
                 self.halted = 1
@@ -336,7 +447,65 @@ class Coordinator(Roster):
                 return True
         return False
 
+    def _stop(self, tick, code):
+        """End the mission without delivering: HALT every robot."""
+        self.stopped_tick = tick
+        self.stop_code = code
+        self.halted = 1
+        self._send(msg.HOST, msg.HALT, (0,))
+
+    def _footprint(self):
+        """The object's cells (its true ones when known, else the touched
+        segments) and its carriers, where they are now."""
+        if self.cells is not None:
+            pts = []
+            for x, y in self.cells:
+                pts.append((x + self.moved_x, y + self.moved_y))
+        else:
+            pts = self.segments_now()
+        return pts + self._carriers_now()
+
+    def _way(self, force=False):
+        """way_home from here, computed when first needed and again when the
+        object has left the part of the field already searched."""
+        if self.way is None or force:
+            self.way_from = (self.moved_x, self.moved_y)
+            goal = self._carriers_now() if self.by_carrier else self._points_now()
+            self.way = way_home(self.world_size, self._footprint(), self.closed, goal,
+                                self.home_x, self.home_y, self.home_r2, (0, 0))
+        return self.way
+
+    def _plan_on_way(self, tick):
+        """The next step on way_home: downhill, best first (ties to the step
+        that brings the nearest point closest to home); when every downhill
+        step was blocked in turn, sideways steps join the rotation."""
+        way = self._way()
+        here = (self.moved_x - self.way_from[0], self.moved_y - self.way_from[1])
+        if here not in way:
+            way = self._way(True)
+            here = (0, 0)
+        if here not in way:
+            self._stop(tick, NO_PATH)
+            return
+        down = []
+        side = []
+        for ddx, ddy in STEPS:
+            d = way.get((here[0] + ddx, here[1] + ddy))
+            if d is None:
+                continue
+            item = ((d, self._home_d2(ddx, ddy)), len(down) + len(side), ddx, ddy)
+            if d < way[here]:
+                down.append(item)
+            elif d == way[here]:
+                side.append(item)
+        down.sort()
+        side.sort()
+        self._take(tick, down + side if self.blocked >= len(down) else down)
+
     def _plan_step(self, tick):
+        if self.closed is not None:
+            self._plan_on_way(tick)
+            return
         # Every step that brings the object's nearest segment closer to home,
         # best first; each blocked attempt moves on to the next candidate.
         here = self._home_d2(0, 0)
@@ -346,6 +515,11 @@ class Coordinator(Roster):
             if d < here:
                 ranked.append((d, len(ranked), ddx, ddy))
         ranked.sort()
+        self._take(tick, ranked)
+
+    def _take(self, tick, ranked):
+        """Command the candidate (key, order, dx, dy) the blocked count points
+        at, the best first."""
         if not ranked:
             # no step brings the object closer: it is as near home as it gets
             # (a touch reported at home); call it delivered rather than divide

@@ -48,6 +48,7 @@ MEASURES = (
     ("shape_iou", "IoU of the perceived shape with the true one"),
     ("leader", "node of the first finder"),
     ("delivered", "the object is home"),
+    ("outcome", "delivered, no path home, stalled, transporting or collecting touches"),
 )
 
 # -- reporters: values the coordinator gives at every tick (the per-tick trace,
