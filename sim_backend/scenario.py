@@ -14,10 +14,12 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from firmware_logic.behaviours.thesis import spec as thesis_spec
 from sim_backend import objects
 from sim_backend.errors import ScenarioError
 
-MODELS = {"firefly": 1, "ant": 2}
+# movementModel names and codes: the thesis behaviour's (its spec.py)
+MODELS = {name: code for code, name in thesis_spec.MODELS}
 
 # The firmware's RNG folds a run seed modulo 1,000,003 (firmware_logic/rng.py,
 # seed_state), so seed 1,000,004 would silently repeat seed 1. Seeds are held
@@ -88,10 +90,22 @@ class Scenario:
     leaderField: str = CHOICES["leaderField"][0]
     arrival: str = CHOICES["arrival"][0]
     starts: str = CHOICES["starts"][0]
+    # -- issue 12 (the thesis's future work): ants that stay ants, more
+    # movement models, faults; ranges in EXT_RANGES / EXT_CHOICES below
+    antBlocked: str = "random"   # an ant blocked: random heading (thesis) or turn in its span
+    levyMu: float = 2.0          # levy: power-law exponent of flight lengths
+    mothNoise: int = 30          # moth: degrees of noise either side of uphill
+    frogPause: int = 4           # frog: ticks sitting between jumps
+    frogJump: int = 4            # frog: patches of one jump
 
     @property
     def model(self) -> int:
         return MODELS[self.movementModel]
+
+    @property
+    def levy_q(self) -> int:
+        """Per mille chance a Levy flight doubles (robot.py _new_flight): 2**(1 - mu)."""
+        return round(1000 * 2 ** (1 - self.levyMu))
 
     @property
     def power_centi(self) -> int:
@@ -127,6 +141,31 @@ RANGES: dict[str, tuple[type, Any, Any]] = {
     "maxTicks": (int, 1, 10_000_000),
     "quorum": (int, 1, 100),
 }
+
+# -- issue 12 block: keys whose range is the thesis behaviour's spec.PARAMS row
+EXT_CHOICES: dict[str, tuple[str, ...]] = {
+    # the thesis's rule first (the default)
+    "antBlocked": ("random", "turn"),
+}
+EXT_RANGES: dict[str, tuple[type, Any, Any]] = {
+    name: (float if isinstance(default, str) else int,
+           float(lo) if isinstance(default, str) else lo,
+           float(hi) if isinstance(default, str) else hi)
+    for name, default, lo, hi, _ in thesis_spec.PARAMS
+    if name in ("levyMu", "mothNoise", "frogPause", "frogJump")}
+RANGES.update(EXT_RANGES)
+CHOICES_ALL = {**CHOICES, **EXT_CHOICES}
+
+
+def extensions(sc: "Scenario") -> list[str]:
+    """The issue-12 keys of `sc` that change the thesis's rules (a new movement
+    model, antBlocked, faults): the hand-vectorised engine runs none of them."""
+    out = [k for k, ch in EXT_CHOICES.items() if getattr(sc, k) != ch[0]]
+    if sc.movementModel not in ("firefly", "ant"):
+        out.append("movementModel")
+    return out
+
+
 FIELDS = {f.name for f in dataclasses.fields(Scenario)}
 
 
@@ -144,11 +183,14 @@ def _object_name(value: Any) -> str:
 
 
 def _model_name(value: Any) -> str:
-    if value in (1, 2) and not isinstance(value, bool):
-        return "firefly" if value == 1 else "ant"
+    names = {code: name for name, code in MODELS.items()}
+    if not isinstance(value, bool) and value in names:
+        return names[value]
     if isinstance(value, str) and value.lower() in MODELS:
         return value.lower()
-    raise ScenarioError(f"movementModel: expected 'firefly' (1) or 'ant' (2), got {value!r}")
+    named = [f"{name!r} ({code})" for name, code in MODELS.items()]
+    raise ScenarioError(f"movementModel: expected {named[0]} or {named[1]}, or "
+                        f"{', '.join(named[2:])}, got {value!r}")
 
 
 def _behaviour_name(value: Any) -> str:
@@ -176,9 +218,9 @@ def validate(raw: dict[str, Any], source: str = "scenario") -> Scenario:
             values[key] = str(value)
         elif key == "behaviour":
             values[key] = _behaviour_name(value)
-        elif key in CHOICES:
-            if value not in CHOICES[key]:
-                raise ScenarioError(f"{key}: expected one of {', '.join(CHOICES[key])}, "
+        elif key in CHOICES_ALL:
+            if value not in CHOICES_ALL[key]:
+                raise ScenarioError(f"{key}: expected one of {', '.join(CHOICES_ALL[key])}, "
                                     f"got {value!r}")
             values[key] = value
         elif key in ("objectX", "objectY") and value is None:
@@ -199,6 +241,7 @@ def validate(raw: dict[str, Any], source: str = "scenario") -> Scenario:
 
 
 def _check_consistency(sc: Scenario) -> None:
+    _check_model(sc)
     w = sc.worldSize
     offs = objects.offsets(sc.object)
     xs = [x for x, _ in offs]
@@ -242,6 +285,17 @@ def _check_consistency(sc: Scenario) -> None:
     if sc.agents > free // 4:
         raise ScenarioError(f"agents: {sc.agents} robots crowd a {2 * w + 1}-patch arena; "
                             f"allowed 1..{free // 4} for worldSize={w}")
+
+
+def _check_model(sc: Scenario) -> None:
+    """The behaviour must know the movement model (aggregate: firefly, ant)."""
+    if sc.movementModel in ("firefly", "ant"):
+        return
+    from firmware_logic import registry
+    names = [n for _, n in registry.load(sc.behaviour).spec.MODELS]
+    if sc.movementModel not in names:
+        raise ScenarioError(f"movementModel: {sc.movementModel!r} is not a model of behaviour "
+                            f"{sc.behaviour!r}; expected one of {', '.join(names)}")
 
 
 def builtin_names() -> list[str]:

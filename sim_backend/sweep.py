@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
 
 from sim_backend.errors import ScenarioError
-from sim_backend.scenario import FIELDS, Scenario, check_seed, departures, validate
+from sim_backend.scenario import FIELDS, Scenario, check_seed, departures, extensions, validate
 
 log = logging.getLogger(__name__)
 # how long to wait for a dask scheduler to answer before calling it unreachable
@@ -108,7 +108,8 @@ def pick_engine(engine: str, sc: Scenario) -> str:
     engine for the thesis behaviour with the default rules only."""
     if engine != "auto":
         return engine
-    return "vector" if sc.behaviour == "thesis" and not departures(sc) else "batch"
+    plain = not departures(sc) and not extensions(sc)
+    return "vector" if sc.behaviour == "thesis" and plain else "batch"
 
 
 def run_chunk(jobs: Sequence[tuple[dict, dict, int]], engine: str = "auto",

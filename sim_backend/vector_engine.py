@@ -41,7 +41,7 @@ from firmware_logic.behaviours.thesis.robot import (ANT, CARRY, FIELD, FIREFLY, 
                                   HOLD, RETX_FIRST, RETX_MAX, SEARCH)
 from sim_backend.engine import RunResult
 from sim_backend.errors import EngineError
-from sim_backend.scenario import Scenario, departures
+from sim_backend.scenario import Scenario, departures, extensions
 from sim_backend.world import BLUE, FREE, YELLOW, World, signal_table
 
 DEAD = 7          # a robot of a run that has stopped: inert until compacted
@@ -98,7 +98,7 @@ class VectorEngine:
             # a hand-written specialisation of one behaviour: never run another's scenario
             raise EngineError(f"the vector engine runs the thesis behaviour only, not "
                               f"{', '.join(other)}; use the batch engine")
-        opts = sorted({k for sc, _ in runs for k in departures(sc)})
+        opts = sorted({k for sc, _ in runs for k in departures(sc) + extensions(sc)})
         if opts:
             # a hand copy of the default rules only; the batch engine runs the options
             raise EngineError(f"the vector engine runs the default rules only, not "
