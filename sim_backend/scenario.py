@@ -97,6 +97,17 @@ class Scenario:
     mothNoise: int = 30          # moth: degrees of noise either side of uphill
     frogPause: int = 4           # frog: ticks sitting between jumps
     frogJump: int = 4            # frog: patches of one jump
+    # faults (sim_backend/faults.py), all off by default; rates are shares of the swarm
+    deathRate: float = 0.0       # robots that stop for good at a random tick, holders too
+    deadlockRate: float = 0.0    # robots stuck in place for deadlockTicks from a random tick
+    deadlockTicks: int = 100
+    ignoreFieldRate: float = 0.0  # non-complying: never sense the field
+    ignoreHostRate: float = 0.0  # non-complying: drop the host's TRANSPORT and HALT
+    randomRate: float = 0.0      # random agents: wander, never claim
+    probeMiss: float = 0.0       # chance a probe misses a free segment
+    probeGhost: float = 0.0      # chance a probe of an empty patch reports a segment
+    fieldNoise: int = 0          # field readings +- up to this much
+    faultWindow: int = 1000      # deaths and deadlocks start in ticks 1..faultWindow
 
     @property
     def model(self) -> int:
@@ -153,6 +164,12 @@ EXT_RANGES: dict[str, tuple[type, Any, Any]] = {
            float(hi) if isinstance(default, str) else hi)
     for name, default, lo, hi, _ in thesis_spec.PARAMS
     if name in ("levyMu", "mothNoise", "frogPause", "frogJump")}
+EXT_RANGES.update({
+    "deathRate": (float, 0.0, 1.0), "deadlockRate": (float, 0.0, 1.0),
+    "deadlockTicks": (int, 1, 1_000_000), "ignoreFieldRate": (float, 0.0, 1.0),
+    "ignoreHostRate": (float, 0.0, 1.0), "randomRate": (float, 0.0, 1.0),
+    "probeMiss": (float, 0.0, 1.0), "probeGhost": (float, 0.0, 1.0),
+    "fieldNoise": (int, 0, 10), "faultWindow": (int, 1, 10_000_000)})
 RANGES.update(EXT_RANGES)
 CHOICES_ALL = {**CHOICES, **EXT_CHOICES}
 
@@ -163,6 +180,9 @@ def extensions(sc: "Scenario") -> list[str]:
     out = [k for k, ch in EXT_CHOICES.items() if getattr(sc, k) != ch[0]]
     if sc.movementModel not in ("firefly", "ant"):
         out.append("movementModel")
+    from sim_backend import faults
+    if faults.active(sc):
+        out.append("faults")
     return out
 
 
@@ -242,6 +262,10 @@ def validate(raw: dict[str, Any], source: str = "scenario") -> Scenario:
 
 def _check_consistency(sc: Scenario) -> None:
     _check_model(sc)
+    shares = (sc.deathRate + sc.ignoreFieldRate + sc.ignoreHostRate + sc.randomRate)
+    if shares > 1.0 + 1e-9:
+        raise ScenarioError(f"deathRate + ignoreFieldRate + ignoreHostRate + randomRate: "
+                            f"{shares:g} exceeds 1 (they are disjoint shares of the swarm)")
     w = sc.worldSize
     offs = objects.offsets(sc.object)
     xs = [x for x, _ in offs]
