@@ -40,6 +40,10 @@ def register(sub) -> None:
     p.add_argument("--seeds", default=None, metavar="N|A-B|A,B,...",
                    help="seeds: a count N (seeds 1..N), a range A-B (A <= B) or a list of "
                         "distinct seeds, each in 0..1000002 (default: 20; --thesis: 150)")
+    p.add_argument("--preset", choices=("faults",),
+                   help="faults: the robustness sweep of issue 12 (each fault alone at rates "
+                        "0-0.5, and 25%% dead + 10%% non-complying + 10%% random; 20 seeds, "
+                        "until delivered); faults.png plots delivery rate and time")
     p.add_argument("--thesis", action="store_true",
                    help="reproduce every graph and figure of the thesis's chapter 5 "
                         "(150 seeds per point, both movement models, until convergence)")
@@ -123,7 +127,16 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
     base = scenario.load(args.scenario)
     overrides = parse_overrides(args.set)
-    if args.thesis:
+    if args.preset and (args.thesis or args.grid):
+        raise UsageError(f"--preset {args.preset} runs its own grid; drop --thesis and --grid")
+    if args.preset == "faults":
+        from sim_backend import robustness
+        points = robustness.fault_points()
+        seeds = _seeds(args.seeds) if args.seeds else list(range(1, robustness.PRESET_SEEDS + 1))
+        until = args.until or "delivered"
+        overrides.setdefault("maxTicks", robustness.PRESET_MAX_TICKS)
+        grid = {}
+    elif args.thesis:
         if args.grid:
             raise UsageError("--thesis runs its own grid; drop --grid")
         points = sweep.thesis_points()
@@ -169,7 +182,10 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     pngs = []
     if not args.no_plots:
         from sim_backend import plots
-        if args.thesis:
+        if args.preset == "faults":
+            from sim_backend import robustness
+            pngs = robustness.fault_plots(rows, args.out)
+        elif args.thesis:
             pngs = plots.thesis_plots(rows, args.out)
         else:
             pngs = plots.grid_plots(rows, list(grid), args.out)
