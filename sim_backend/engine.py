@@ -123,6 +123,10 @@ class RunResult:
             "leader": c.leader or None,
             "delivered": self.delivered,
             **(c.measures() if hasattr(c, "measures") else {}),
+            # [[breeds]] (issue 12 §3): each touch's breed, in touch order
+            **({"touch_breeds": [self.scenario.breed_name(t.node)
+                                  for t in getattr(c, "touches", ())]}
+               if self.scenario.breeds else {}),
         }
 
 

@@ -31,6 +31,65 @@ def fault_points() -> list[Point]:
     return pts
 
 
+BREED_ANTS = (0, 5, 10, 15, 20)     # ants of 20 robots, the rest fireflies
+BREED_SEEDS = 30
+
+
+def breed_points(agents: int = 20) -> list[Point]:
+    """The ant share of a firefly/ant swarm: one point per count of ants."""
+    pts = []
+    for ants in BREED_ANTS:
+        breeds = tuple(b for b in (
+            (("count", ants), ("name", "ants"), ("movementModel", "ant")),
+            (("count", agents - ants), ("name", "fireflies"), ("movementModel", "firefly")))
+            if dict(b)["count"] > 0)
+        pts.append(Point(f"ants{ants}", (("breeds", breeds),)))
+    return pts
+
+
+def breed_plots(rows: Sequence[dict], out: Path) -> list[Path]:
+    """Convergence time against the share of ants."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    by: dict[int, list[float]] = {}
+    runs: dict[int, int] = {}
+    for r in rows:
+        ants = int(str(r["experiment"])[4:])
+        runs[ants] = runs.get(ants, 0) + 1
+        v = _num(r["converged_tick"])
+        if v is not None:
+            by.setdefault(ants, []).append(v)
+    xs = sorted(runs)
+    fig, ax = plt.subplots(figsize=(6, 4))
+    ax.boxplot([by.get(x, [float("nan")]) for x in xs], positions=xs, widths=2.5,
+               showfliers=False)
+    ax.plot(xs, [statistics.mean(by[x]) if x in by else float("nan") for x in xs], "o-",
+            label="mean")
+    ax.set_xticks(xs, [f"{x}\n{len(by.get(x, []))}/{runs[x]}" for x in xs])
+    ax.set_xlabel("ants among 20 robots (the rest fireflies); converged/runs")
+    ax.set_ylabel("tick of convergence")
+    ax.legend()
+    fig.suptitle("breeds: convergence against the share of ants")
+    fig.tight_layout()
+    path = out / "breeds.png"
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return [path]
+
+
+def breed_table(rows: Sequence[dict]) -> list[tuple[int, int, int, float, float]]:
+    """(ants, runs, converged, median, mean convergence tick) per point."""
+    out = []
+    for ants in BREED_ANTS:
+        rs = [r for r in rows if r["experiment"] == f"ants{ants}"]
+        got = [_num(r["converged_tick"]) for r in rs if _num(r["converged_tick"]) is not None]
+        if rs:
+            out.append((ants, len(rs), len(got), statistics.median(got) if got else None,
+                        round(statistics.mean(got), 1) if got else None))
+    return out
+
+
 def _num(v: Any) -> float | None:
     if v in (None, "", "None"):
         return None
@@ -58,7 +117,7 @@ def with_feasible(rows: Sequence[dict]) -> list[dict]:
     out = []
     for r in rows:
         raw = {k: v for k, v in r.items() if k in FIELDS and k not in ("name", "description")
-               and v not in (None, "")}
+               and v not in (None, "", "()", ())}
         sc = validate({k: _value(v) for k, v in raw.items()})
         out.append({**r, "feasible": faults.feasible(sc, int(r["seed"]))})
     return out

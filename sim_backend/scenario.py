@@ -108,10 +108,33 @@ class Scenario:
     probeGhost: float = 0.0      # chance a probe of an empty patch reports a segment
     fieldNoise: int = 0          # field readings +- up to this much
     faultWindow: int = 1000      # deaths and deadlocks start in ticks 1..faultWindow
+    # several breeds ([[breeds]] tables): each ((key, value), ...) with its count;
+    # nodes are numbered breed by breed; empty: one breed, the keys above
+    breeds: tuple = ()
 
     @property
     def model(self) -> int:
         return MODELS[self.movementModel]
+
+    def breed_index(self, node: int) -> int:
+        """The breed (index into breeds) of robot `node` (1-based); 0 without breeds."""
+        start = 1
+        for j, b in enumerate(self.breeds):
+            start += dict(b)["count"]
+            if node < start:
+                return j
+        return 0
+
+    def breed_name(self, node: int) -> str:
+        """The name of robot `node`'s breed ("" without breeds)."""
+        return dict(self.breeds[self.breed_index(node)])["name"] if self.breeds else ""
+
+    def for_node(self, node: int) -> "Scenario":
+        """The scenario robot `node` lives by: its breed's keys over this one."""
+        if not self.breeds:
+            return self
+        over = {k: v for k, v in self.breeds[self.breed_index(node)] if k in BREED_KEYS}
+        return dataclasses.replace(self, breeds=(), **over)
 
     @property
     def levy_q(self) -> int:
@@ -172,6 +195,9 @@ EXT_RANGES.update({
     "fieldNoise": (int, 0, 10), "faultWindow": (int, 1, 10_000_000)})
 RANGES.update(EXT_RANGES)
 CHOICES_ALL = {**CHOICES, **EXT_CHOICES}
+# what a [[breeds]] table may set besides its `count` and `name`
+BREED_KEYS = ("movementModel", "rPower", "robotVisionSpan", "fieldDefiance", "antBlocked",
+              "levyMu", "mothNoise", "frogPause", "frogJump")
 
 
 def extensions(sc: "Scenario") -> list[str]:
@@ -183,6 +209,8 @@ def extensions(sc: "Scenario") -> list[str]:
     from sim_backend import faults
     if faults.active(sc):
         out.append("faults")
+    if sc.breeds:
+        out.append("breeds")
     return out
 
 
@@ -238,6 +266,8 @@ def validate(raw: dict[str, Any], source: str = "scenario") -> Scenario:
             values[key] = str(value)
         elif key == "behaviour":
             values[key] = _behaviour_name(value)
+        elif key == "breeds":
+            values[key] = _breeds(value, source)
         elif key in CHOICES_ALL:
             if value not in CHOICES_ALL[key]:
                 raise ScenarioError(f"{key}: expected one of {', '.join(CHOICES_ALL[key])}, "
@@ -255,9 +285,45 @@ def validate(raw: dict[str, Any], source: str = "scenario") -> Scenario:
             if value != value or value < lo or value > hi:     # NaN compares False
                 raise ScenarioError(f"{key}: {value!r} is outside the allowed range {lo}..{hi}")
             values[key] = kind(value)
+    if values.get("breeds"):
+        total = sum(dict(b)["count"] for b in values["breeds"])
+        if "agents" in raw and values["agents"] != total:
+            raise ScenarioError(f"agents: {values['agents']} differs from the breeds' counts, "
+                                f"which add up to {total}; give one of them")
+        values["agents"] = total
     sc = Scenario(**values)
     _check_consistency(sc)
+    for node in range(1, sc.agents + 1) if sc.breeds else ():
+        _check_model(sc.for_node(node))
     return sc
+
+
+def _breeds(value: Any, source: str) -> tuple:
+    """[[breeds]] tables (or the tuple form to_dict gives back) as a tuple of
+    ((key, value), ...) per breed, each value checked like the scenario's own."""
+    if isinstance(value, dict) or not isinstance(value, (list, tuple)):
+        raise ScenarioError("breeds: expected a list of tables ([[breeds]] with count = N, "
+                            f"movementModel = ..., ...), got {value!r}")
+    out = []
+    for j, b in enumerate(value, 1):
+        d = dict(b) if isinstance(b, (dict, list, tuple)) else None
+        if d is None or "count" not in d:
+            raise ScenarioError(f"breeds #{j}: expected a table with count = N, got {b!r}")
+        unknown = sorted(set(d) - set(BREED_KEYS) - {"count", "name"})
+        if unknown:
+            raise ScenarioError(f"breeds #{j}: unknown key {unknown[0]!r}; a breed sets count, "
+                                f"name, {', '.join(BREED_KEYS)}")
+        count = d["count"]
+        if isinstance(count, bool) or not isinstance(count, int) or not 1 <= count <= 20000:
+            raise ScenarioError(f"breeds #{j}: count: expected int in 1..20000, got {count!r}")
+        keys = {k: v for k, v in d.items() if k in BREED_KEYS}
+        # each value checked alone (a light object, so a weak breed's power
+        # is not judged against the default weight; the whole swarm is, later)
+        checked = validate({**keys, "objectWeight": 0.01}, f"{source} breeds #{j}")
+        row = [("count", count), ("name", str(d.get("name", f"breed{j}")))]
+        row += [(k, getattr(checked, k)) for k in BREED_KEYS if k in keys]
+        out.append(tuple(row))
+    return tuple(out)
 
 
 def _check_consistency(sc: Scenario) -> None:
@@ -295,7 +361,16 @@ def _check_consistency(sc: Scenario) -> None:
                         f"({sc.homeX}, {sc.homeY}); it must stay at least 4 patches away: "
                         "move objectX/objectY or homeX/homeY")
     reach = objects.touchable(sc.object)
-    needed = -(-sc.weight_centi // sc.power_centi)
+    if sc.breeds:
+        powers = sorted((sc.for_node(n).power_centi for n in range(1, sc.agents + 1)),
+                        reverse=True)
+        if sum(powers[:reach]) < sc.weight_centi:
+            raise ScenarioError(
+                f"objectWeight: {sc.objectWeight} exceeds what the strongest {reach} robots "
+                f"of the breeds can hold ({sum(powers[:reach]) / 100:g}) around {sc.object!r}")
+        needed = 1
+    else:
+        needed = -(-sc.weight_centi // sc.power_centi)
     if needed > sc.agents:
         raise ScenarioError(
             f"objectWeight: {sc.objectWeight} needs {needed} robots of rPower {sc.rPower}, "

@@ -40,10 +40,12 @@ def register(sub) -> None:
     p.add_argument("--seeds", default=None, metavar="N|A-B|A,B,...",
                    help="seeds: a count N (seeds 1..N), a range A-B (A <= B) or a list of "
                         "distinct seeds, each in 0..1000002 (default: 20; --thesis: 150)")
-    p.add_argument("--preset", choices=("faults",),
+    p.add_argument("--preset", choices=("faults", "breeds"),
                    help="faults: the robustness sweep of issue 12 (each fault alone at rates "
                         "0-0.5, and 25%% dead + 10%% non-complying + 10%% random; 20 seeds, "
-                        "until delivered); faults.png plots delivery rate and time")
+                        "until delivered); faults.png plots delivery rate and time. breeds: "
+                        "0, 5, 10, 15, 20 ants in a swarm of 20 with fireflies, 30 seeds, "
+                        "until converged; breeds.png")
     p.add_argument("--thesis", action="store_true",
                    help="reproduce every graph and figure of the thesis's chapter 5 "
                         "(150 seeds per point, both movement models, until convergence)")
@@ -136,6 +138,13 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         until = args.until or "delivered"
         overrides.setdefault("maxTicks", robustness.PRESET_MAX_TICKS)
         grid = {}
+    elif args.preset == "breeds":
+        from sim_backend import robustness
+        points = robustness.breed_points()
+        seeds = _seeds(args.seeds) if args.seeds else list(range(1, robustness.BREED_SEEDS + 1))
+        until = args.until or "converged"
+        overrides.setdefault("maxTicks", 5000)
+        grid = {}
     elif args.thesis:
         if args.grid:
             raise UsageError("--thesis runs its own grid; drop --grid")
@@ -185,6 +194,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         if args.preset == "faults":
             from sim_backend import robustness
             pngs = robustness.fault_plots(rows, args.out)
+        elif args.preset == "breeds":
+            from sim_backend import robustness
+            pngs = robustness.breed_plots(rows, args.out)
         elif args.thesis:
             pngs = plots.thesis_plots(rows, args.out)
         else:
