@@ -292,9 +292,13 @@ def validate(raw: dict[str, Any], source: str = "scenario") -> Scenario:
                                 f"which add up to {total}; give one of them")
         values["agents"] = total
     sc = Scenario(**values)
+    if sc.breeds:
+        for node in range(1, sc.agents + 1):
+            _check_model(sc.for_node(node))
+        if sc.behaviour != "thesis":
+            raise ScenarioError(f"breeds: behaviour {sc.behaviour!r} does not read [[breeds]] "
+                                "(the thesis behaviour does); drop the breeds")
     _check_consistency(sc)
-    for node in range(1, sc.agents + 1) if sc.breeds else ():
-        _check_model(sc.for_node(node))
     return sc
 
 

@@ -42,6 +42,9 @@ def test_every_behaviour_model_and_object_identical(behaviour, model):
     {"movementModel": "moth"}, {"movementModel": "moth", "mothNoise": 0},
     {"movementModel": "frog"}, {"movementModel": "frog", "frogPause": 1, "frogJump": 9},
     {"movementModel": "ant", "antBlocked": "turn"},
+    {"breeds": [{"count": 6, "movementModel": "levy", "rPower": 2.0},
+                {"count": 8, "movementModel": "ant", "antBlocked": "turn"},
+                {"count": 6, "movementModel": "moth", "mothNoise": 60}]},
 ], ids=lambda d: ",".join(f"{k}={v}" for k, v in d.items()))
 def test_the_issue12_models_and_options_identical(extra):
     """The thesis behaviour's extra movement models and antBlocked (issue 12)."""

@@ -177,3 +177,83 @@ def test_the_frog_sits_then_jumps_several_patches():
     # after the first jump: runs of 5 moving ticks separated by 2 sitting ticks
     text = "".join("J" if m else "s" for m in moves)
     assert "sJJJJJss" in text and "JJJJJJ" not in text, text
+
+
+# -- several breeds (issue 12 §3) ------------------------------------------------
+
+BREEDS = [{"name": "fireflies", "count": 6, "movementModel": "firefly"},
+          {"name": "ants", "count": 8, "movementModel": "ant", "rPower": 2.0,
+           "antBlocked": "turn"},
+          {"name": "frogs", "count": 6, "movementModel": "frog", "frogJump": 6}]
+
+
+def test_breeds_load_from_toml_and_number_nodes_breed_by_breed(tmp_path):
+    f = tmp_path / "mix.toml"
+    f.write_text("".join(
+        "[[breeds]]\n" + "".join(f"{k} = {v!r}\n".replace("'", '"') for k, v in b.items())
+        for b in BREEDS))
+    from sim_backend.scenario import load
+    sc = load(f)
+    assert sc.agents == 20
+    assert [sc.breed_name(n) for n in (1, 6, 7, 14, 15, 20)] == \
+        ["fireflies", "fireflies", "ants", "ants", "frogs", "frogs"]
+    assert sc.for_node(7).rPower == 2.0 and sc.for_node(7).antBlocked == "turn"
+    assert sc.for_node(20).frogJump == 6 and sc.for_node(1).frogJump == 4
+    e = Engine(sc, 4)
+    assert [r.model for r in e.robots] == [1] * 6 + [2] * 8 + [5] * 6
+    assert [r.power for r in e.robots] == [100] * 6 + [200] * 8 + [100] * 6
+    assert e.robots[8].ant_turn == 1 and e.robots[0].ant_turn == 0
+
+
+def test_the_host_and_the_records_know_each_robots_breed():
+    sc = validate({"breeds": BREEDS, "maxTicks": 3000})
+    r = Engine(sc, 4).run()
+    # the host learnt model and power per node from each HELLO
+    assert r.coordinator.nodes[7] == (2, 200) and r.coordinator.nodes[20] == (5, 100)
+    s = r.summary()
+    assert len(s["touch_breeds"]) == len(s["touches"]) > 0
+    assert s["touch_breeds"] == [sc.breed_name(t.node) for t in r.coordinator.touches]
+    assert "touch_breeds" not in run(validate({"maxTicks": 50}), 4).summary()
+
+
+@pytest.mark.parametrize("raw, needle", [
+    ({"breeds": [{"movementModel": "ant"}]}, "breeds #1: expected a table with count"),
+    ({"breeds": [{"count": 0}]}, "breeds #1: count: expected int in 1..20000"),
+    ({"breeds": [{"count": 3, "quorum": 5}]}, "breeds #1: unknown key 'quorum'"),
+    ({"breeds": [{"count": 3, "levyMu": 9}]}, "levyMu: 9 is outside"),
+    ({"breeds": {"count": 3}}, "breeds: expected a list of tables"),
+    ({"breeds": [{"count": 3}, {"count": 4}], "agents": 8}, "agents: 8 differs"),
+    ({"breeds": [{"count": 4, "rPower": 0.5}]}, "objectWeight: 5.0 exceeds"),
+    ({"behaviour": "aggregate", "breeds": [{"count": 4, "movementModel": "levy"}]},
+     "not a model of behaviour"),
+    ({"behaviour": "aggregate", "breeds": [{"count": 8}]}, "breeds: behaviour 'aggregate'"),
+])
+def test_bad_breeds_get_one_line_errors(raw, needle):
+    with pytest.raises(ScenarioError) as err:
+        validate(raw)
+    assert needle in str(err.value) and "\n" not in str(err.value)
+
+
+def test_breeds_run_over_virtual_can_as_in_process_and_vector_refuses_them():
+    sc = validate({"breeds": BREEDS, "maxTicks": 500})
+    link = CanLink(list(range(1, sc.agents + 1)))
+    try:
+        over_can = Engine(sc, 2, link=link).run().summary()
+    finally:
+        link.close()
+    assert over_can == run(sc, 2).summary()
+    assert "breeds" in extensions(sc)
+    with pytest.raises(EngineError, match="breeds"):
+        VectorEngine([(sc, 1)])
+
+
+def test_the_breed_preset_varies_the_ant_share():
+    from sim_backend.robustness import BREED_ANTS, breed_points
+    pts = breed_points()
+    shares = []
+    for p in pts:
+        sc = validate(p.as_dict())
+        shares.append(sum(1 for n in range(1, sc.agents + 1)
+                          if sc.for_node(n).movementModel == "ant"))
+        assert sc.agents == 20
+    assert shares == list(BREED_ANTS)
