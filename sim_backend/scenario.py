@@ -108,6 +108,10 @@ class Scenario:
     probeGhost: float = 0.0      # chance a probe of an empty patch reports a segment
     fieldNoise: int = 0          # field readings +- up to this much
     faultWindow: int = 1000      # deaths and deadlocks start in ticks 1..faultWindow
+    # the link's own faults (bridge/links/canlink.py Faults), over --link can only
+    linkLoss: float = 0.0        # chance a frame is lost, each way
+    linkDup: float = 0.0         # chance a frame is sent twice
+    linkReorder: int = 1         # frames shuffled within windows of this many (1: in order)
     # several breeds ([[breeds]] tables): each ((key, value), ...) with its count;
     # nodes are numbered breed by breed; empty: one breed, the keys above
     breeds: tuple = ()
@@ -192,7 +196,14 @@ EXT_RANGES.update({
     "deadlockTicks": (int, 1, 1_000_000), "ignoreFieldRate": (float, 0.0, 1.0),
     "ignoreHostRate": (float, 0.0, 1.0), "randomRate": (float, 0.0, 1.0),
     "probeMiss": (float, 0.0, 1.0), "probeGhost": (float, 0.0, 1.0),
-    "fieldNoise": (int, 0, 10), "faultWindow": (int, 1, 10_000_000)})
+    "fieldNoise": (int, 0, 10), "faultWindow": (int, 1, 10_000_000),
+    "linkLoss": (float, 0.0, 0.9), "linkDup": (float, 0.0, 0.9), "linkReorder": (int, 1, 64)})
+LINK_FAULT_KEYS = ("linkLoss", "linkDup", "linkReorder")
+
+
+def link_faults(sc: "Scenario") -> list[str]:
+    """The link fault keys `sc` sets (they need a real link: --link can)."""
+    return [k for k in LINK_FAULT_KEYS if getattr(sc, k) != getattr(Scenario(), k)]
 RANGES.update(EXT_RANGES)
 CHOICES_ALL = {**CHOICES, **EXT_CHOICES}
 # what a [[breeds]] table may set besides its `count` and `name`

@@ -22,7 +22,8 @@ from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
 
 from sim_backend.errors import ScenarioError
-from sim_backend.scenario import FIELDS, Scenario, check_seed, departures, extensions, validate
+from sim_backend.scenario import (FIELDS, Scenario, check_seed, departures, extensions,
+                                  link_faults, validate)
 
 log = logging.getLogger(__name__)
 # how long to wait for a dask scheduler to answer before calling it unreachable
@@ -220,7 +221,10 @@ def validate_points(points: Sequence[Point], base: Scenario | None = None,
     base_d = (base or Scenario()).to_dict()
     base_d.update(overrides or {})
     for pt in points:
-        _scenario(base_d, pt.as_dict())
+        sc = _scenario(base_d, pt.as_dict())
+        if link_faults(sc):
+            raise ScenarioError(f"{link_faults(sc)[0]}: a link fault applies over "
+                                "`touchswarm run --link can`; sweeps run in process")
 
 
 def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None = None,

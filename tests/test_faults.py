@@ -19,10 +19,8 @@ OFF = {"deathRate": 0.0, "deadlockRate": 0.0, "ignoreFieldRate": 0.0, "ignoreHos
 GOAL = {"deathRate": 0.25, "ignoreFieldRate": 0.1, "randomRate": 0.1}
 
 
-def traced(raw, seed, ticks=None):
-    e = Engine(validate(raw), seed, record_trajectories=True)
-    r = e.run()
-    return r
+def traced(raw, seed):
+    return Engine(validate(raw), seed, record_trajectories=True).run()
 
 
 def test_faults_explicitly_off_are_bit_identical_to_absent():
@@ -135,3 +133,55 @@ def test_probe_misses_slow_the_first_touch_on_average():
     missy = [traced({"probeMiss": 0.9, "maxTicks": 3000}, s).coordinator.found_tick
              for s in seeds]
     assert sum(missy) > sum(clean)
+
+
+# -- the link's faults (the CAN fault injector, exposed as scenario keys) ---------
+
+def test_link_faults_over_can_are_seeded_and_change_the_run():
+    from bridge.links.canlink import CanLink, faults_of
+
+    def over_can(raw, seed):
+        sc = validate({"maxTicks": 1500, **raw})
+        link = CanLink(list(range(1, sc.agents + 1)), *faults_of(sc, seed))
+        try:
+            res = Engine(sc, seed, link=link).run()
+            dropped = link.gateway.faults.dropped if link.gateway.faults else 0
+            return res.summary(), dropped
+        finally:
+            link.close()
+    lossy = {"linkLoss": 0.3, "linkReorder": 3}
+    a, dropped = over_can(lossy, 3)
+    b, _ = over_can(lossy, 3)
+    clean, none = over_can({}, 3)
+    assert a == b and dropped > 0 and none == 0
+    assert a["delivered"], "retransmission carries the mission through 30 % loss"
+    assert (a["converged_tick"], a["home_tick"]) != (clean["converged_tick"], clean["home_tick"])
+    assert faults_of(validate({}), 3) == (None, None)
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (["run", "--set", "linkLoss=0.2"], "linkLoss: a link fault needs a link; add --link can"),
+    (["run", "--link", "can", "--set", "linkReorder=0"], "linkReorder"),
+    (["sweep", "--grid", "linkDup=0.1,0.2", "--seeds", "1"], "sweeps run in process"),
+    (["sweep", "--preset", "faults", "--grid", "deathRate=0.1"], "--preset faults runs its own"),
+    (["sweep", "--preset", "faults", "--set", "deathRate=2"], "deathRate"),
+])
+def test_fault_options_refused_in_one_line(argv, needle, capsys, tmp_path):
+    from bridge.cli import main
+    assert main([*argv, "--out", str(tmp_path / "o")] if argv[0] == "sweep" else argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert needle in err and "\n" not in err
+
+
+def test_the_fault_preset_has_each_fault_alone_and_the_goal_mix():
+    from sim_backend.robustness import FAULT_KEYS, FAULT_RATES, GOAL, fault_points, fault_table
+    pts = fault_points()
+    for k in FAULT_KEYS:
+        assert [p.as_dict()[k] for p in pts if p.experiment == k] == list(FAULT_RATES)
+    assert dict(GOAL) == {"deathRate": 0.25, "ignoreFieldRate": 0.1, "randomRate": 0.1}
+    rows = [{**validate({"maxTicks": 10, **p.as_dict()}).to_dict(), "experiment": p.experiment,
+             "seed": 1, "delivered": p.experiment == "goal", "home_tick": 9}
+            for p in pts]
+    t = fault_table(rows)
+    assert t["goal"] == [(-1.0, 1, 1, 9)]
+    assert t["deathRate"][0] == (0.0, 1, 0, None)

@@ -137,6 +137,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         seeds = _seeds(args.seeds) if args.seeds else list(range(1, robustness.PRESET_SEEDS + 1))
         until = args.until or "delivered"
         overrides.setdefault("maxTicks", robustness.PRESET_MAX_TICKS)
+        overrides.setdefault("faultWindow", robustness.PRESET_FAULT_WINDOW)
         grid = {}
     elif args.preset == "breeds":
         from sim_backend import robustness
