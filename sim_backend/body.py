@@ -10,7 +10,7 @@ from __future__ import annotations
 from firmware_logic import messages as msg
 from firmware_logic import hal
 from firmware_logic.hal import Hal
-from sim_backend import kernel
+from sim_backend import faults, kernel
 from sim_backend.world import World
 
 
@@ -24,6 +24,14 @@ class SimBody(Hal):
         self.link = link
         self.tape = None           # optional list receiving (query, arg, value)
         self.acts = None           # optional list receiving (action, a, b)
+        # faults (sim_backend/faults.py): this robot's share of the run's plan
+        self.faulty = faults.active(world.sc)
+        if self.faulty:
+            die, s0, s1, flags = faults.plan(world.sc, world.seed)
+            self.die, self.s0, self.s1, self.flags = die[index], s0[index], s1[index], flags[index]
+            self.fseed, self.miss, self.ghost, self.noise = faults.per_run(world.sc, world.seed)
+        self.t = -1                # the tick (reset_intents starts each one)
+        self.k = 0                 # fault draws this tick
         self.reset_intents()
 
     def reset_intents(self) -> None:
@@ -31,6 +39,28 @@ class SimBody(Hal):
         w.mv_on[self.i] = 0
         w.claim[self.i] = -1
         w.beacon_set[self.i] = -1
+        self.t += 1
+        self.k = 0
+        if self.faulty and self.t == self.die:
+            # it goes limp: its beacon dies and its grip lets go
+            w.beacon_set[self.i] = 0
+            faults.release(w.obj, w.owner, 0, w.held, self.i)
+
+    # -- faults ------------------------------------------------------------
+
+    def dead(self) -> bool:
+        return self.faulty and self.t >= self.die
+
+    def _draw(self) -> int:
+        self.k += 1
+        return faults.draw(self.fseed, self.i, self.t, self.k)
+
+    def _sensed_field(self, v: int) -> int:
+        if self.flags & (faults.IGNORE_FIELD | faults.RANDOM):
+            return 0
+        if self.noise:
+            v += self._draw() % (2 * self.noise + 1) - self.noise
+        return v if v > 0 else 0
 
     @property
     def held(self) -> int:
@@ -48,6 +78,13 @@ class SimBody(Hal):
     def probe(self, heading: int) -> int:
         w = self.world
         r = kernel.probe(w.obj, w.occ, 0, w.w, w.n, w.xs[self.i], w.ys[self.i], heading)
+        if self.faulty:
+            if r == hal.OBJECT and self.flags & faults.RANDOM:
+                r = hal.ROBOT
+            elif r == hal.OBJECT and self.miss and self._draw() < self.miss:
+                r = hal.NOTHING
+            elif r == hal.NOTHING and self.ghost and self._draw() < self.ghost:
+                r = hal.OBJECT
         if self.tape is not None:
             self.tape.append((hal.PROBE, heading, r))
         return r
@@ -55,6 +92,8 @@ class SimBody(Hal):
     def field_ahead(self, heading: int) -> int:
         w = self.world
         v = kernel.field_ahead(w.field, 0, w.w, w.n, w.xs[self.i], w.ys[self.i], heading)
+        if self.faulty:
+            v = self._sensed_field(v)
         if self.tape is not None:
             self.tape.append((hal.FIELD_AHEAD, heading, v))
         return v
@@ -62,6 +101,8 @@ class SimBody(Hal):
     def field_here(self) -> int:
         w = self.world
         v = kernel.field_here(w.field, 0, w.w, w.n, w.xs[self.i], w.ys[self.i])
+        if self.faulty:
+            v = self._sensed_field(v)
         if self.tape is not None:
             self.tape.append((hal.FIELD_HERE, 0, v))
         return v
@@ -69,6 +110,8 @@ class SimBody(Hal):
     def uphill(self) -> int:
         w = self.world
         out = w.uphill(self.i)
+        if self.faulty and self.flags & (faults.IGNORE_FIELD | faults.RANDOM):
+            out = -1
         if self.tape is not None:
             self.tape.append((hal.UPHILL, 0, out))
         return out
@@ -82,6 +125,8 @@ class SimBody(Hal):
     # -- acting (intents, applied by World.apply) ----------------------------------
 
     def forward(self, heading: int, step: int) -> None:
+        if self.faulty and (self.dead() or self.s0 <= self.t < self.s1):
+            return
         w = self.world
         w.mv_on[self.i] = 1
         w.mv_h[self.i] = heading
@@ -90,6 +135,8 @@ class SimBody(Hal):
             self.acts.append((hal.FORWARD, heading, step))
 
     def claim(self, heading: int) -> None:
+        if self.faulty and self.dead():
+            return
         w = self.world
         w.claim[self.i] = kernel.cell(w.w, w.n, kernel.ahead_x(w.xs[self.i], heading),
                                       kernel.ahead_y(w.ys[self.i], heading))
@@ -97,6 +144,8 @@ class SimBody(Hal):
             self.acts.append((hal.CLAIM, heading, 0))
 
     def carry(self, dx: int, dy: int) -> None:
+        if self.faulty and self.dead():
+            return
         w = self.world
         w.carry_on[self.i] = 1
         w.carry_dx[self.i] = dx
@@ -105,6 +154,8 @@ class SimBody(Hal):
             self.acts.append((hal.CARRY, dx, dy))
 
     def beacon(self, on: int) -> None:
+        if self.faulty and self.dead():
+            return
         self.world.beacon_set[self.i] = on
         if self.acts is not None:
             self.acts.append((hal.BEACON, on, 0))
@@ -112,11 +163,17 @@ class SimBody(Hal):
     # -- messages ------------------------------------------------------------------
 
     def send(self, kind: int, a0: int, a1: int, a2: int, a3: int, a4: int, a5: int) -> None:
+        if self.faulty and self.dead():
+            return
         n = len(msg.fields(kind))
         self.link.robot_send(self.node, kind, (a0, a1, a2, a3, a4, a5)[:n])
 
     def recv(self, buf: list) -> int:
         m = self.link.robot_recv(self.node)
+        while m is not None and self.faulty and (
+                self.dead() or (self.flags & faults.IGNORE_HOST
+                                and m[0] in (msg.TRANSPORT, msg.HALT))):
+            m = self.link.robot_recv(self.node)     # lost on a dead or defiant robot
         if m is None:
             if self.tape is not None:
                 self.tape.append((hal.RECV, 0, 0))

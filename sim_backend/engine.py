@@ -145,6 +145,10 @@ class RunResult:
             "activation": self.scenario.activation,
             "converged_moves": self.converged_moves(),
             **(c.measures() if hasattr(c, "measures") else {}),
+            # [[breeds]] (issue 12 §3): each touch's breed, in touch order
+            **({"touch_breeds": [self.scenario.breed_name(t.node)
+                                  for t in getattr(c, "touches", ())]}
+               if self.scenario.breeds else {}),
         }
 
 

@@ -14,10 +14,12 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from firmware_logic.behaviours.thesis import spec as thesis_spec
 from sim_backend import arena, objects
 from sim_backend.errors import ScenarioError
 
-MODELS = {"firefly": 1, "ant": 2}
+# movementModel names and codes: the thesis behaviour's (its spec.py)
+MODELS = {name: code for code, name in thesis_spec.MODELS}
 
 # The firmware's RNG folds a run seed modulo 1,000,003 (firmware_logic/rng.py,
 # seed_state), so seed 1,000,004 would silently repeat seed 1. Seeds are held
@@ -124,10 +126,60 @@ class Scenario:
         at = None if self.objectX is None else (self.objectX, self.objectY)
         return [objects.Piece(self.object, tuple(objects.offsets(self.object)), at,
                               self.objectWeight, None, True)]
+    # -- issue 12 (the thesis's future work): ants that stay ants, more
+    # movement models, faults; ranges in EXT_RANGES / EXT_CHOICES below
+    antBlocked: str = "random"   # an ant blocked: random heading (thesis) or turn in its span
+    levyMu: float = 2.0          # levy: power-law exponent of flight lengths
+    mothNoise: int = 30          # moth: degrees of noise either side of uphill
+    frogPause: int = 4           # frog: ticks sitting between jumps
+    frogJump: int = 4            # frog: patches of one jump
+    # faults (sim_backend/faults.py), all off by default; rates are shares of the swarm
+    deathRate: float = 0.0       # robots that stop for good at a random tick, holders too
+    deadlockRate: float = 0.0    # robots stuck in place for deadlockTicks from a random tick
+    deadlockTicks: int = 100
+    ignoreFieldRate: float = 0.0  # non-complying: never sense the field
+    ignoreHostRate: float = 0.0  # non-complying: drop the host's TRANSPORT and HALT
+    randomRate: float = 0.0      # random agents: wander, never claim
+    probeMiss: float = 0.0       # chance a probe misses a free segment
+    probeGhost: float = 0.0      # chance a probe of an empty patch reports a segment
+    fieldNoise: int = 0          # field readings +- up to this much
+    faultWindow: int = 1000      # deaths and deadlocks start in ticks 1..faultWindow
+    # the link's own faults (bridge/links/canlink.py Faults), over --link can only
+    linkLoss: float = 0.0        # chance a frame is lost, each way
+    linkDup: float = 0.0         # chance a frame is sent twice
+    linkReorder: int = 1         # frames shuffled within windows of this many (1: in order)
+    # several breeds ([[breeds]] tables): each ((key, value), ...) with its count;
+    # nodes are numbered breed by breed; empty: one breed, the keys above
+    breeds: tuple = ()
 
     @property
     def model(self) -> int:
         return MODELS[self.movementModel]
+
+    def breed_index(self, node: int) -> int:
+        """The breed (index into breeds) of robot `node` (1-based); 0 without breeds."""
+        start = 1
+        for j, b in enumerate(self.breeds):
+            start += dict(b)["count"]
+            if node < start:
+                return j
+        return 0
+
+    def breed_name(self, node: int) -> str:
+        """The name of robot `node`'s breed ("" without breeds)."""
+        return dict(self.breeds[self.breed_index(node)])["name"] if self.breeds else ""
+
+    def for_node(self, node: int) -> "Scenario":
+        """The scenario robot `node` lives by: its breed's keys over this one."""
+        if not self.breeds:
+            return self
+        over = {k: v for k, v in self.breeds[self.breed_index(node)] if k in BREED_KEYS}
+        return dataclasses.replace(self, breeds=(), **over)
+
+    @property
+    def levy_q(self) -> int:
+        """Per mille chance a Levy flight doubles (robot.py _new_flight): 2**(1 - mu)."""
+        return round(1000 * 2 ** (1 - self.levyMu))
 
     @property
     def power_centi(self) -> int:
@@ -163,6 +215,52 @@ RANGES: dict[str, tuple[type, Any, Any]] = {
     "maxTicks": (int, 1, 10_000_000),
     "quorum": (int, 1, 100),
 }
+
+# -- issue 12 block: keys whose range is the thesis behaviour's spec.PARAMS row
+EXT_CHOICES: dict[str, tuple[str, ...]] = {
+    # the thesis's rule first (the default)
+    "antBlocked": ("random", "turn"),
+}
+EXT_RANGES: dict[str, tuple[type, Any, Any]] = {
+    name: (float if isinstance(default, str) else int,
+           float(lo) if isinstance(default, str) else lo,
+           float(hi) if isinstance(default, str) else hi)
+    for name, default, lo, hi, _ in thesis_spec.PARAMS
+    if name in ("levyMu", "mothNoise", "frogPause", "frogJump")}
+EXT_RANGES.update({
+    "deathRate": (float, 0.0, 1.0), "deadlockRate": (float, 0.0, 1.0),
+    "deadlockTicks": (int, 1, 1_000_000), "ignoreFieldRate": (float, 0.0, 1.0),
+    "ignoreHostRate": (float, 0.0, 1.0), "randomRate": (float, 0.0, 1.0),
+    "probeMiss": (float, 0.0, 1.0), "probeGhost": (float, 0.0, 1.0),
+    "fieldNoise": (int, 0, 10), "faultWindow": (int, 1, 10_000_000),
+    "linkLoss": (float, 0.0, 0.9), "linkDup": (float, 0.0, 0.9), "linkReorder": (int, 1, 64)})
+LINK_FAULT_KEYS = ("linkLoss", "linkDup", "linkReorder")
+
+
+def link_faults(sc: "Scenario") -> list[str]:
+    """The link fault keys `sc` sets (they need a real link: --link can)."""
+    return [k for k in LINK_FAULT_KEYS if getattr(sc, k) != getattr(Scenario(), k)]
+RANGES.update(EXT_RANGES)
+CHOICES_ALL = {**CHOICES, **EXT_CHOICES}
+# what a [[breeds]] table may set besides its `count` and `name`
+BREED_KEYS = ("movementModel", "rPower", "robotVisionSpan", "fieldDefiance", "antBlocked",
+              "levyMu", "mothNoise", "frogPause", "frogJump")
+
+
+def extensions(sc: "Scenario") -> list[str]:
+    """The issue-12 keys of `sc` that change the thesis's rules (a new movement
+    model, antBlocked, faults): the hand-vectorised engine runs none of them."""
+    out = [k for k, ch in EXT_CHOICES.items() if getattr(sc, k) != ch[0]]
+    if sc.movementModel not in ("firefly", "ant"):
+        out.append("movementModel")
+    from sim_backend import faults
+    if faults.active(sc):
+        out.append("faults")
+    if sc.breeds:
+        out.append("breeds")
+    return out
+
+
 FIELDS = {f.name for f in dataclasses.fields(Scenario)}
 
 
@@ -180,11 +278,14 @@ def _object_name(value: Any) -> str:
 
 
 def _model_name(value: Any) -> str:
-    if value in (1, 2) and not isinstance(value, bool):
-        return "firefly" if value == 1 else "ant"
+    names = {code: name for name, code in MODELS.items()}
+    if not isinstance(value, bool) and value in names:
+        return names[value]
     if isinstance(value, str) and value.lower() in MODELS:
         return value.lower()
-    raise ScenarioError(f"movementModel: expected 'firefly' (1) or 'ant' (2), got {value!r}")
+    named = [f"{name!r} ({code})" for name, code in MODELS.items()]
+    raise ScenarioError(f"movementModel: expected {named[0]} or {named[1]}, or "
+                        f"{', '.join(named[2:])}, got {value!r}")
 
 
 def _behaviour_name(value: Any) -> str:
@@ -213,9 +314,11 @@ def validate(raw: dict[str, Any], source: str = "scenario") -> Scenario:
             values[key] = str(value)
         elif key == "behaviour":
             values[key] = _behaviour_name(value)
-        elif key in CHOICES:
-            if value not in CHOICES[key]:
-                raise ScenarioError(f"{key}: expected one of {', '.join(CHOICES[key])}, "
+        elif key == "breeds":
+            values[key] = _breeds(value, source)
+        elif key in CHOICES_ALL:
+            if value not in CHOICES_ALL[key]:
+                raise ScenarioError(f"{key}: expected one of {', '.join(CHOICES_ALL[key])}, "
                                     f"got {value!r}")
             values[key] = value
         elif key in ("objectX", "objectY") and value is None:
@@ -230,7 +333,25 @@ def validate(raw: dict[str, Any], source: str = "scenario") -> Scenario:
             if value != value or value < lo or value > hi:     # NaN compares False
                 raise ScenarioError(f"{key}: {value!r} is outside the allowed range {lo}..{hi}")
             values[key] = kind(value)
+    if values.get("breeds"):
+        total = sum(dict(b)["count"] for b in values["breeds"])
+        if "agents" in raw and values["agents"] != total:
+            raise ScenarioError(f"agents: {values['agents']} differs from the breeds' counts, "
+                                f"which add up to {total}; give one of them")
+        values["agents"] = total
     sc = Scenario(**values)
+    if sc.breeds:
+        for node in range(1, sc.agents + 1):
+            _check_model(sc.for_node(node))
+        if sc.behaviour != "thesis":
+            raise ScenarioError(f"breeds: behaviour {sc.behaviour!r} does not read [[breeds]] "
+                                "(the thesis behaviour does); drop the breeds")
+    if sc.activation != "sync":
+        from sim_backend import faults
+        if faults.active(sc):
+            # fault draws and deaths are keyed to the synchronous tick
+            raise ScenarioError(f"activation: {sc.activation!r} runs without faults; faults "
+                                "(deathRate, probeMiss, ...) need activation \"sync\"")
     if sc.objects or sc.obstacles:
         arena.check(sc)
     else:
@@ -238,7 +359,40 @@ def validate(raw: dict[str, Any], source: str = "scenario") -> Scenario:
     return sc
 
 
+def _breeds(value: Any, source: str) -> tuple:
+    """[[breeds]] tables (or the tuple form to_dict gives back) as a tuple of
+    ((key, value), ...) per breed, each value checked like the scenario's own."""
+    if isinstance(value, dict) or not isinstance(value, (list, tuple)):
+        raise ScenarioError("breeds: expected a list of tables ([[breeds]] with count = N, "
+                            f"movementModel = ..., ...), got {value!r}")
+    out = []
+    for j, b in enumerate(value, 1):
+        d = dict(b) if isinstance(b, (dict, list, tuple)) else None
+        if d is None or "count" not in d:
+            raise ScenarioError(f"breeds #{j}: expected a table with count = N, got {b!r}")
+        unknown = sorted(set(d) - set(BREED_KEYS) - {"count", "name"})
+        if unknown:
+            raise ScenarioError(f"breeds #{j}: unknown key {unknown[0]!r}; a breed sets count, "
+                                f"name, {', '.join(BREED_KEYS)}")
+        count = d["count"]
+        if isinstance(count, bool) or not isinstance(count, int) or not 1 <= count <= 20000:
+            raise ScenarioError(f"breeds #{j}: count: expected int in 1..20000, got {count!r}")
+        keys = {k: v for k, v in d.items() if k in BREED_KEYS}
+        # each value checked alone (a light object, so a weak breed's power
+        # is not judged against the default weight; the whole swarm is, later)
+        checked = validate({**keys, "objectWeight": 0.01}, f"{source} breeds #{j}")
+        row = [("count", count), ("name", str(d.get("name", f"breed{j}")))]
+        row += [(k, getattr(checked, k)) for k in BREED_KEYS if k in keys]
+        out.append(tuple(row))
+    return tuple(out)
+
+
 def _check_consistency(sc: Scenario) -> None:
+    _check_model(sc)
+    shares = (sc.deathRate + sc.ignoreFieldRate + sc.ignoreHostRate + sc.randomRate)
+    if shares > 1.0 + 1e-9:
+        raise ScenarioError(f"deathRate + ignoreFieldRate + ignoreHostRate + randomRate: "
+                            f"{shares:g} exceeds 1 (they are disjoint shares of the swarm)")
     w = sc.worldSize
     offs = objects.offsets(sc.object)
     xs = [x for x, _ in offs]
@@ -268,7 +422,16 @@ def _check_consistency(sc: Scenario) -> None:
                         f"({sc.homeX}, {sc.homeY}); it must stay at least 4 patches away: "
                         "move objectX/objectY or homeX/homeY")
     reach = objects.touchable(sc.object)
-    needed = -(-sc.weight_centi // sc.power_centi)
+    if sc.breeds:
+        powers = sorted((sc.for_node(n).power_centi for n in range(1, sc.agents + 1)),
+                        reverse=True)
+        if sum(powers[:reach]) < sc.weight_centi:
+            raise ScenarioError(
+                f"objectWeight: {sc.objectWeight} exceeds what the strongest {reach} robots "
+                f"of the breeds can hold ({sum(powers[:reach]) / 100:g}) around {sc.object!r}")
+        needed = 1
+    else:
+        needed = -(-sc.weight_centi // sc.power_centi)
     if needed > sc.agents:
         raise ScenarioError(
             f"objectWeight: {sc.objectWeight} needs {needed} robots of rPower {sc.rPower}, "
@@ -284,7 +447,15 @@ def _check_consistency(sc: Scenario) -> None:
                             f"allowed 1..{free // 4} for worldSize={w}")
 
 
-
+def _check_model(sc: Scenario) -> None:
+    """The behaviour must know the movement model (aggregate: firefly, ant)."""
+    if sc.movementModel in ("firefly", "ant"):
+        return
+    from firmware_logic import registry
+    names = [n for _, n in registry.load(sc.behaviour).spec.MODELS]
+    if sc.movementModel not in names:
+        raise ScenarioError(f"movementModel: {sc.movementModel!r} is not a model of behaviour "
+                            f"{sc.behaviour!r}; expected one of {', '.join(names)}")
 
 
 def builtin_names() -> list[str]:

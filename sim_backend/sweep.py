@@ -23,7 +23,7 @@ from typing import Any, Callable, Iterable, Sequence
 
 from sim_backend.errors import ScenarioError
 from sim_backend.scenario import (FIELDS, Scenario, arena_features, check_seed, departures,
-                                   validate)
+                                   extensions, link_faults, validate)
 
 log = logging.getLogger(__name__)
 # how long to wait for a dask scheduler to answer before calling it unreachable
@@ -109,8 +109,8 @@ def pick_engine(engine: str, sc: Scenario) -> str:
     engine for the thesis behaviour with the default rules only."""
     if engine != "auto":
         return engine
-    return "vector" if sc.behaviour == "thesis" and not departures(sc) \
-        and not arena_features(sc) else "batch"
+    plain = not departures(sc) and not extensions(sc) and not arena_features(sc)
+    return "vector" if sc.behaviour == "thesis" and plain else "batch"
 
 
 def run_chunk(jobs: Sequence[tuple[dict, dict, int]], engine: str = "auto",
@@ -249,7 +249,10 @@ def validate_points(points: Sequence[Point], base: Scenario | None = None,
     base_d = (base or Scenario()).to_dict()
     base_d.update(overrides or {})
     for pt in points:
-        _scenario(base_d, pt.as_dict())
+        sc = _scenario(base_d, pt.as_dict())
+        if link_faults(sc):
+            raise ScenarioError(f"{link_faults(sc)[0]}: a link fault applies over "
+                                "`touchswarm run --link can`; sweeps run in process")
 
 
 def run_key(row: dict) -> tuple[str, str, str]:

@@ -41,7 +41,7 @@ from firmware_logic.behaviours.thesis.robot import (ANT, CARRY, FIELD, FIREFLY, 
                                   HOLD, RETX_FIRST, RETX_MAX, SEARCH)
 from sim_backend.engine import RunResult
 from sim_backend.errors import EngineError
-from sim_backend.scenario import Scenario, arena_features, departures
+from sim_backend.scenario import Scenario, arena_features, departures, extensions
 from sim_backend.world import BLUE, FREE, YELLOW, World, signal_table
 
 DEAD = 7          # a robot of a run that has stopped: inert until compacted
@@ -103,7 +103,7 @@ class VectorEngine:
             # a hand copy of the thesis's one-object open arena; the batch engine runs the rest
             raise EngineError(f"the vector engine runs one object in an open arena with the "
                               f"static field only, not {', '.join(feats)}; use the batch engine")
-        opts = sorted({k for sc, _ in runs for k in departures(sc)})
+        opts = sorted({k for sc, _ in runs for k in departures(sc) + extensions(sc)})
         if opts:
             # a hand copy of the default rules only; the batch engine runs the options
             raise EngineError(f"the vector engine runs the default rules only, not "

@@ -38,6 +38,26 @@ def test_every_behaviour_model_and_object_identical(behaviour, model, activation
     assert any(r.delivered for r in got), "no run reached its goal: a weak comparison"
 
 
+@pytest.mark.parametrize("extra", [
+    {"movementModel": "levy"}, {"movementModel": "levy", "levyMu": 1.2},
+    {"movementModel": "moth"}, {"movementModel": "moth", "mothNoise": 0},
+    {"movementModel": "frog"}, {"movementModel": "frog", "frogPause": 1, "frogJump": 9},
+    {"movementModel": "ant", "antBlocked": "turn"},
+    {"breeds": [{"count": 6, "movementModel": "levy", "rPower": 2.0},
+                {"count": 8, "movementModel": "ant", "antBlocked": "turn"},
+                {"count": 6, "movementModel": "moth", "mothNoise": 60}]},
+], ids=lambda d: ",".join(f"{k}={v}" for k, v in d.items()))
+def test_the_issue12_models_and_options_identical(extra):
+    """The thesis behaviour's extra movement models and antBlocked (issue 12)."""
+    scs, seeds = [], []
+    for obj in ("bar", "L"):
+        for seed in (1, 2):
+            scs.append(validate({**extra, "object": obj, "maxTicks": 1500}))
+            seeds.append(seed)
+    got = assert_same(scs, seeds)
+    assert any(r.coordinator.converged_tick >= 0 for r in got), "nothing converged"
+
+
 def test_many_seeds_and_mixed_parameters_in_one_batch():
     """Runs of one batch stop at different ticks (delivered or at maxTicks)
     while the others go on."""

@@ -168,12 +168,16 @@ def cmd_run(args: argparse.Namespace) -> int:
     sc = scenario_from_args(args)
     if args.link == "can":
         check_link_limits(sc, "CAN")
+    else:
+        from sim_backend.scenario import link_faults
+        if link_faults(sc):
+            raise UsageError(f"{link_faults(sc)[0]}: a link fault needs a link; add --link can")
     check_outputs(args)
     nodes = list(range(1, sc.agents + 1))
     link = None
     if args.link == "can":
-        from bridge.links.canlink import CanLink
-        link = CanLink(nodes)
+        from bridge.links.canlink import CanLink, faults_of
+        link = CanLink(nodes, *faults_of(sc, args.seed))
     recorder = None
     try:
         if args.record:

@@ -21,11 +21,11 @@ def cmd_scenarios(args: argparse.Namespace) -> int:
     base = scenario.Scenario()
     for key, value in base.to_dict().items():
         rng = scenario.RANGES.get(key)
-        if key in scenario.CHOICES:
-            print(f"  {key:16s} {value!s:10s} {' | '.join(scenario.CHOICES[key])}")
+        if key in scenario.CHOICES_ALL:
+            print(f"  {key:16s} {value!s:10s} {' | '.join(scenario.CHOICES_ALL[key])}")
             continue
         allowed = f"{rng[1]}..{rng[2]}" if rng else {
-            "movementModel": "firefly | ant", "object": "1-4 | " + " | ".join(
+            "movementModel": " | ".join(scenario.MODELS), "object": "1-4 | " + " | ".join(
                 sorted(__import__('sim_backend.objects', fromlist=['x']).SHAPES)),
             "objects": "[[objects]] tables (docs/scenarios.md)",
             "obstacles": "[[obstacles]] tables (docs/scenarios.md)",

@@ -46,6 +46,12 @@ def register(sub) -> None:
     p.add_argument("--seeds", default=None, metavar="N|A-B|A,B,...",
                    help="seeds: a count N (seeds 1..N), a range A-B (A <= B) or a list of "
                         "distinct seeds, each in 0..1000002 (default: 20; --thesis: 150)")
+    p.add_argument("--preset", choices=("faults", "breeds"),
+                   help="faults: the robustness sweep of issue 12 (each fault alone at rates "
+                        "0-0.5, and 25%% dead + 10%% non-complying + 10%% random; 20 seeds, "
+                        "until delivered); faults.png plots delivery rate and time. breeds: "
+                        "0, 5, 10, 15, 20 ants in a swarm of 20 with fireflies, 30 seeds, "
+                        "until converged; breeds.png")
     p.add_argument("--thesis", action="store_true",
                    help="reproduce every graph and figure of the thesis's chapter 5 "
                         "(150 seeds per point, both movement models, until convergence)")
@@ -190,7 +196,27 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         overrides["activation"] = args.activation
         cfg["set"] = dict(cfg["set"], activation=args.activation)   # saved with the experiment
     grid: dict = {}
-    if args.thesis:
+    if args.preset and (args.thesis or cfg.get("grid")):
+        raise UsageError(f"--preset {args.preset} runs its own grid; drop --thesis and --grid")
+    if args.preset and args.save_experiment:
+        raise UsageError(f"--save-experiment saves a --grid sweep; --preset {args.preset} is "
+                         "its own experiment already")
+    if args.preset == "faults":
+        from sim_backend import robustness
+        points = robustness.fault_points()
+        seeds = _seeds(cfg["seeds"]) if "seeds" in cfg else \
+            list(range(1, robustness.PRESET_SEEDS + 1))
+        until = cfg.get("until") or "delivered"
+        overrides.setdefault("maxTicks", robustness.PRESET_MAX_TICKS)
+        overrides.setdefault("faultWindow", robustness.PRESET_FAULT_WINDOW)
+    elif args.preset == "breeds":
+        from sim_backend import robustness
+        points = robustness.breed_points()
+        seeds = _seeds(cfg["seeds"]) if "seeds" in cfg else \
+            list(range(1, robustness.BREED_SEEDS + 1))
+        until = cfg.get("until") or "converged"
+        overrides.setdefault("maxTicks", 5000)
+    elif args.thesis:
         if args.grid:
             raise UsageError("--thesis runs its own grid; drop --grid")
         if args.save_experiment:
@@ -275,7 +301,13 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if not args.no_plots:
         from sim_backend import plots
         saved = sweep.read_csv(csv_path)
-        if args.thesis:
+        if args.preset == "faults":
+            from sim_backend import robustness
+            pngs = robustness.fault_plots(saved, out)
+        elif args.preset == "breeds":
+            from sim_backend import robustness
+            pngs = robustness.breed_plots(saved, out)
+        elif args.thesis:
             from sim_backend import thesis_figures
             pngs = plots.thesis_plots(saved, out) + thesis_figures.plots(saved, out)
         else:

@@ -71,6 +71,16 @@ class Faults:
         return out
 
 
+def faults_of(sc: Any, seed: int) -> tuple[Faults | None, Faults | None]:
+    """The scenario's link faults (linkLoss, linkDup, linkReorder) as the
+    injectors up (robots -> host) and down, seeded from the run seed; (None,
+    None) when all are off, so such a link is the plain one."""
+    if not (sc.linkLoss or sc.linkDup or sc.linkReorder > 1):
+        return None, None
+    return (Faults(seed * 2 + 1, sc.linkLoss, sc.linkDup, sc.linkReorder),
+            Faults(seed * 2 + 2, sc.linkLoss, sc.linkDup, sc.linkReorder))
+
+
 class Gateway:
     """Every simulated robot on one bus (the robots' side of a link)."""
 

@@ -9,7 +9,8 @@ this file, the kernel and the behaviour's firmware modules with numba
 and run uncompiled, like the rest.
 """
 
-from sim_backend import kernel
+from firmware_logic import messages as msg
+from sim_backend import faults, kernel
 
 # rows of the per-robot table (int64[ROBOT_ROWS, robots])
 XS = 0
@@ -31,7 +32,11 @@ IN_HEAD = 15    # inbox ring: next message to read
 IN_TAIL = 16    # inbox ring: next free slot
 TIE = 17        # uphill's tie-break stream (kernel.tie_seed)
 ORDER = 18      # activation netlogo: this go iteration's order (robot indices)
-ROBOT_ROWS = 19
+DIE = 19        # faults (sim_backend/faults.py plan): tick it dies
+STUCK0 = 20     # first tick stuck in place
+STUCK1 = 21     # first tick free again
+FLAGS = 22      # faults.IGNORE_FIELD | IGNORE_HOST | RANDOM
+ROBOT_ROWS = 23
 
 # rows of the per-run table (int64[RUN_ROWS, runs])
 BASE = 0        # first cell of the run's grids
@@ -53,7 +58,12 @@ FIELD_STATE = 15  # the behaviour's field state (World.field_state)
 DEFIANCE = 16   # fieldDefiance
 STEPS = 17      # activation netlogo: FSM steps of the run's robots so far
 RULES = 18      # the arena's rules (kernel.DYNAMIC, YIELD flags)
-RUN_ROWS = 19
+FAULTY = 19     # 1 if the run injects faults (faults.active)
+FSEED = 20      # faults.per_run: the draws' seed, probe miss, ghost, field noise
+MISS = 21
+GHOST = 22
+NOISE = 23
+RUN_ROWS = 24
 
 # rows of the grids (int64[GRID_ROWS, runs * stride])
 OBJ = 0
@@ -94,6 +104,17 @@ class BatchBody:
         self.in_tail = robots[IN_TAIL]
         self.tie = robots[TIE]
         self.order = robots[ORDER]
+        self.die = robots[DIE]
+        self.stuck0 = robots[STUCK0]
+        self.stuck1 = robots[STUCK1]
+        self.flags = robots[FLAGS]
+        self.faulty = runs[FAULTY]
+        self.fseed = runs[FSEED]
+        self.miss = runs[MISS]
+        self.ghost = runs[GHOST]
+        self.noise = runs[NOISE]
+        self.t = 0                  # the tick being stepped
+        self.k = 0                  # fault draws of robot i this tick
         self.base = runs[BASE]
         self.w = runs[W]
         self.n = runs[N]
@@ -128,6 +149,24 @@ class BatchBody:
         self.in_nf = in_nf          # fields each inbox message carries
         self.in_f = in_f            # [robots, ring size, FIELDS]
 
+    # -- faults (sim_backend/faults.py; the reference's are in sim_backend/body.py) --
+
+    def dead(self):
+        return self.faulty[self.run[self.i]] == 1 and self.t >= self.die[self.i]
+
+    def _draw(self):
+        self.k += 1
+        return faults.draw(self.fseed[self.run[self.i]], self.i - self.lo[self.run[self.i]],
+                           self.t, self.k)
+
+    def _sensed_field(self, v):
+        if self.flags[self.i] & (faults.IGNORE_FIELD | faults.RANDOM):
+            return 0
+        nz = self.noise[self.run[self.i]]
+        if nz:
+            v += self._draw() % (2 * nz + 1) - nz
+        return v if v > 0 else 0
+
     # -- sensing ------------------------------------------------------------------
 
     def x(self):
@@ -138,23 +177,40 @@ class BatchBody:
 
     def probe(self, heading):
         r = self.run[self.i]
-        return kernel.probe(self.obj, self.occ, self.base[r], self.w[r], self.n[r],
-                            self.xs[self.i], self.ys[self.i], heading)
+        p = kernel.probe(self.obj, self.occ, self.base[r], self.w[r], self.n[r],
+                         self.xs[self.i], self.ys[self.i], heading)
+        if self.faulty[r] == 1:
+            if p == kernel.OBJECT and self.flags[self.i] & faults.RANDOM:
+                p = kernel.ROBOT
+            elif p == kernel.OBJECT and self.miss[r] and self._draw() < self.miss[r]:
+                p = kernel.NOTHING
+            elif p == kernel.NOTHING and self.ghost[r] and self._draw() < self.ghost[r]:
+                p = kernel.OBJECT
+        return p
 
     def field_ahead(self, heading):
         r = self.run[self.i]
-        return kernel.field_ahead(self.field, self.base[r], self.w[r], self.n[r],
-                                  self.xs[self.i], self.ys[self.i], heading)
+        v = kernel.field_ahead(self.field, self.base[r], self.w[r], self.n[r],
+                               self.xs[self.i], self.ys[self.i], heading)
+        if self.faulty[r] == 1:
+            v = self._sensed_field(v)
+        return v
 
     def field_here(self):
         r = self.run[self.i]
-        return kernel.field_here(self.field, self.base[r], self.w[r], self.n[r],
-                                 self.xs[self.i], self.ys[self.i])
+        v = kernel.field_here(self.field, self.base[r], self.w[r], self.n[r],
+                              self.xs[self.i], self.ys[self.i])
+        if self.faulty[r] == 1:
+            v = self._sensed_field(v)
+        return v
 
     def uphill(self):
         r = self.run[self.i]
-        return kernel.uphill(self.field, self.base[r], self.w[r], self.n[r],
-                             self.xs[self.i], self.ys[self.i], self.ties[r], self.tie, self.i)
+        u = kernel.uphill(self.field, self.base[r], self.w[r], self.n[r],
+                          self.xs[self.i], self.ys[self.i], self.ties[r], self.tie, self.i)
+        if self.faulty[r] == 1 and self.flags[self.i] & (faults.IGNORE_FIELD | faults.RANDOM):
+            return -1
+        return u
 
     def holding(self):
         r = self.run[self.i]
@@ -164,27 +220,38 @@ class BatchBody:
     # -- acting: intents ----------------------------------------------------------------
 
     def forward(self, heading, step):
+        if self.dead() or (self.faulty[self.run[self.i]] == 1
+                           and self.stuck0[self.i] <= self.t < self.stuck1[self.i]):
+            return
         self.mv_on[self.i] = 1
         self.mv_h[self.i] = heading
         self.mv_step[self.i] = step
 
     def claim(self, heading):
+        if self.dead():
+            return
         r = self.run[self.i]
         self.claim_k[self.i] = kernel.cell(self.w[r], self.n[r],
                                            kernel.ahead_x(self.xs[self.i], heading),
                                            kernel.ahead_y(self.ys[self.i], heading))
 
     def carry(self, dx, dy):
+        if self.dead():
+            return
         self.carry_on[self.i] = 1
         self.carry_dx[self.i] = dx
         self.carry_dy[self.i] = dy
 
     def beacon(self, on):
+        if self.dead():
+            return
         self.beacon_set[self.i] = on
 
     # -- messages ------------------------------------------------------------------------
 
     def send(self, kind, a0, a1, a2, a3, a4, a5):
+        if self.dead():
+            return
         j = self.out_n[0]
         if j >= len(self.out_kind):
             self.out_n[1] = 1               # the engine stops with a named error
@@ -205,6 +272,16 @@ class BatchBody:
         if head == self.in_tail[i]:
             return 0
         slot = head % self.in_kind.shape[1]
+        if self.faulty[self.run[i]] == 1:
+            # lost on a dead robot, or a defiant one's TRANSPORT and HALT
+            while self.dead() or (self.flags[i] & faults.IGNORE_HOST and (
+                    self.in_kind[i, slot] == msg.TRANSPORT
+                    or self.in_kind[i, slot] == msg.HALT)):
+                head += 1
+                self.in_head[i] = head
+                if head == self.in_tail[i]:
+                    return 0
+                slot = head % self.in_kind.shape[1]
         for j in range(self.in_nf[i, slot]):
             buf[j] = self.in_f[i, slot, j]
         self.in_head[i] = head + 1
@@ -238,13 +315,19 @@ def tick_all(robots, body, tick):
     the tick-start world in node order, then each run's intents are applied.
     Sequential runs (activation netlogo): one go iteration, go_iteration."""
     body.out_n[0] = 0
+    body.t = tick
     for i in range(len(robots)):
         r = body.run[i]
         if body.live[r] == 1 and body.act[r] == kernel.SYNC:
             body.i = i
+            body.k = 0
             body.mv_on[i] = 0
             body.claim_k[i] = -1
             body.beacon_set[i] = -1
+            if body.faulty[body.run[i]] == 1 and tick == body.die[i]:
+                # it goes limp: beacon off, grip released (faults.release)
+                body.beacon_set[i] = 0
+                faults.release(body.obj, body.owner, body.base[body.run[i]], body.held, i)
             robots[i].step(body)
     for r in range(len(body.live)):
         if body.live[r] == 1:

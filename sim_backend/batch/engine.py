@@ -27,6 +27,7 @@ import numpy as np
 
 from firmware_logic import messages as msg
 from firmware_logic import registry
+from sim_backend import faults
 from sim_backend.batch import body as B
 from sim_backend.batch.compiler import twins
 from sim_backend.engine import RunResult
@@ -98,6 +99,16 @@ class BatchArrays:
             rb[B.YS, lo:hi] = w.ys
             rb[B.RUN, lo:hi] = r
             rb[B.TIE, lo:hi] = w.tie
+        for r, w in enumerate(worlds):
+            # faults (sim_backend/faults.py): the plan the reference body reads
+            if faults.active(w.sc):
+                die, s0, s1, flags = faults.plan(w.sc, w.seed)
+                lo, hi = int(starts[r]), int(starts[r + 1])
+                rb[B.DIE, lo:hi], rb[B.STUCK0, lo:hi] = die, s0
+                rb[B.STUCK1, lo:hi], rb[B.FLAGS, lo:hi] = s1, flags
+                rt[B.FAULTY, r] = 1
+                rt[B.FSEED, r], rt[B.MISS, r], rt[B.GHOST, r], rt[B.NOISE, r] = \
+                    faults.per_run(w.sc, w.seed)
         rb[B.HELD] = -1
         rb[B.CLAIM] = -1
         rb[B.BEACON_SET] = -1

@@ -6,9 +6,13 @@ SUBSET_SETUP = ("robot_args", "make_coordinator")   # host side: may allocate
 
 
 def robot_args(node, seed, sc):
-    """The FSM's constructor arguments for robot `node` of scenario `sc`."""
+    """The FSM's constructor arguments for robot `node` of scenario `sc`
+    (its breed's keys when the scenario declares [[breeds]])."""
+    if getattr(sc, "breeds", ()):
+        sc = sc.for_node(node)
     return (node, seed, sc.model, sc.robotVisionSpan, sc.fieldDefiance, sc.power_centi,
-            1 if sc.leaderField == "netlogo" else 0)
+            1 if sc.leaderField == "netlogo" else 0, 1 if sc.antBlocked == "turn" else 0,
+            sc.levy_q, sc.mothNoise, sc.frogPause, sc.frogJump)
 
 
 def make_coordinator(sc, journal=None, cells=None, on_reject=None):

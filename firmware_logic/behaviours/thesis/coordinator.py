@@ -17,6 +17,7 @@ reason, passed to `on_reject` (the host process logs it) and not ACKed.
 
 from firmware_logic import messages as msg
 from firmware_logic.roster import BAD_HELLO, CHANGED_HELLO, Roster  # noqa: F401 (re-exported)
+from firmware_logic.behaviours.thesis import spec
 
 RESEND_AFTER = 4   # ticks without progress before a command is sent again
 STALL_TICKS = 2000  # transport ticks without the object moving before the run stops
@@ -39,7 +40,10 @@ NOT_OBJECT = "segment not on the object"
 AT_HOME = "segment at home"
 WRONG_POWER = "power differs from HELLO"
 SECOND_TOUCH = "second touch from node"
-MODELS = (1, 2)
+# the movement model codes a HELLO may announce: the spec's
+MODELS = ()
+for _code, _name in spec.MODELS:
+    MODELS = MODELS + (_code,)
 
 # a patch coordinate travels in one signed byte: the arena of a host that was
 # not told its size

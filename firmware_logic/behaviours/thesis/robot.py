@@ -18,7 +18,8 @@ from firmware_logic import messages as msg
 from firmware_logic.rng import Rng
 
 from firmware_logic.behaviours.thesis.spec import (ANT, CARRY, FIELD, FIREFLY,  # noqa: F401
-                                                   GRASP, HALT, HOLD, SEARCH, STATES)
+                                                   FROG, GRASP, HALT, HOLD, LEVY, MOTH,
+                                                   SEARCH, STATES)
 from firmware_logic.hal import (BEACON_LEADER, BEACON_ON, CLAIMED, NOTHING,  # noqa: F401
                                OBJECT, ROBOT, WALL)
 
@@ -28,10 +29,17 @@ STATE_NAMES = STATES
 RETX_FIRST = 4
 RETX_MAX = 64
 HEARTBEAT_EVERY = 64
+# Levy flights: a flight is 2**k + random(2**k) steps, k >= 1 with probability
+# levy_q / 1000, k >= 2 with (levy_q / 1000)**2, ...; k stops at LEVY_KMAX
+# (63 steps: longer than the 37-patch arena is crossed anyway)
+LEVY_KMAX = 5
+# moth: degrees it turns each step where the field peaks (circling the light)
+MOTH_SPIRAL = 45
 
 
 class Robot:
-    def __init__(self, node, seed, model, vision_span, field_defiance, power, leader_field=0):
+    def __init__(self, node, seed, model, vision_span, field_defiance, power, leader_field=0,
+                 ant_turn=0, levy_q=500, moth_noise=30, frog_pause=4, frog_jump=4):
         self.node = node
         # 1: a leader (found the object from outside any field) lights its
         # beacon as BEACON_LEADER, and the world pins its patch's field to 10
@@ -41,7 +49,16 @@ class Robot:
         self.span = vision_span
         self.defiance = field_defiance
         self.power = power            # hundredths of a unit (rPower * 100)
-        self.step_len = fx.ONE if model == FIREFLY else fx.QUARTER
+        self.step_len = fx.QUARTER if model == ANT else fx.ONE
+        # 1: an ant blocked on its step turns within its span (thesis 6.1.1's
+        # redesign, scenario antBlocked = "turn"); 0: a random heading (Appendix A)
+        self.ant_turn = ant_turn
+        self.levy_q = levy_q          # per mille: levyMu's chance of doubling a flight
+        self.moth_noise = moth_noise  # degrees either side of the moth's uphill heading
+        self.frog_pause = frog_pause  # ticks a frog sits between jumps
+        self.frog_jump = frog_jump    # steps of one jump
+        self.flight = 0               # Levy: steps left of the flight; frog: of the jump
+        self.pause = 0                # frog: ticks left sitting
         self.rng = Rng(seed, node)
         self.heading = self.rng.below(360)
         self.state = SEARCH
@@ -150,7 +167,8 @@ class Robot:
     # -- thesis procedures -------------------------------------------------
 
     def _find_object(self, hal):
-        if self.model == FIREFLY:
+        m = self.model
+        if m == FIREFLY:
             h = 0
             while h < 360:
                 if self._look_for_object(hal, h):
@@ -158,7 +176,17 @@ class Robot:
                 self.heading = self.rng.below(360)
                 h += 90
             return 0
-        self._turn()
+        if m == FROG and self.flight <= 0:
+            # sitting: looks round, the four quarters from its heading
+            h = 0
+            while h < 360:
+                if self._look_for_object(hal, (self.heading + h) % 360):
+                    return 1
+                h += 90
+            return 0
+        if m == ANT or m == MOTH:
+            self._turn()
+        # Levy and a jumping frog look along their flight
         return self._look_for_object(hal, self.heading)
 
     def _look_for_object(self, hal, h):
@@ -181,17 +209,66 @@ class Robot:
             self.heading = (self.heading - self.rng.below(self.span)) % 360
 
     def _random_head(self, hal):
-        if self.model == FIREFLY:
+        m = self.model
+        if m == FIREFLY:
             self.heading = self.rng.below(360)
+        elif m == LEVY:
+            if self.flight <= 0:
+                self._new_flight()
+            self.flight -= 1
+        elif m == FROG:
+            if self.flight <= 0:
+                # sitting; when the pause is over, jump: frogJump forward steps
+                self.pause -= 1
+                if self.pause > 0:
+                    return
+                self.heading = self.rng.below(360)
+                self.flight = self.frog_jump
+            self.flight -= 1
+            if self.flight <= 0:
+                self.pause = self.frog_pause
+        elif m == MOTH and self.state == FIELD:
+            self._moth_steer(hal)
         self._head_carefully(hal)
+
+    def _new_flight(self):
+        # a truncated discrete power law (docs/movement-models.md): P(flight
+        # >= 2**k) = q**k, so P(length > L) ~ L**-(mu - 1) for q = 2**(1 - mu)
+        k = 0
+        while k < LEVY_KMAX and self.rng.below(1000) < self.levy_q:
+            k += 1
+        self.flight = (1 << k) + self.rng.below(1 << k)
+        self.heading = self.rng.below(360)
+
+    def _moth_steer(self, hal):
+        # toward the strongest reading with noise; where the field peaks
+        # (no neighbour stronger), circle round the light
+        u = hal.uphill()
+        if u >= 0:
+            n = self.moth_noise
+            self.heading = (u + self.rng.below(2 * n + 1) - n + 360) % 360
+        else:
+            self.heading = (self.heading + MOTH_SPIRAL) % 360
 
     def _head_carefully(self, hal):
         if hal.probe(self.heading) != NOTHING:
-            self.heading = self.rng.below(360)
+            m = self.model
+            if m == ANT and self.ant_turn:
+                self._turn()
+            else:
+                self.heading = self.rng.below(360)
+            if m == LEVY or m == FROG:
+                # the flight or jump ends at an obstacle (a frog sits again)
+                self.flight = 0
+                self.pause = self.frog_pause
             return
         hal.forward(self.heading, self.step_len)
 
     def _follow_field(self, hal):
+        if self.model == MOTH:
+            self._moth_steer(hal)
+            self._head_carefully(hal)
+            return
         u = hal.uphill()
         if u >= 0:
             self.heading = u

@@ -23,7 +23,10 @@ STATES = ("search", "field", "grasp", "hold", "carry", "halt")
 # -- movement models (HELLO.model); the thesis's movementModel values --------
 FIREFLY = 1
 ANT = 2
-MODELS = ((FIREFLY, "firefly"), (ANT, "ant"))
+LEVY = 3     # Levy walk: straight flights of power-law length (docs/movement-models.md)
+MOTH = 4     # moth-like: steers up the field with noise, circles where it peaks
+FROG = 5     # frog-like: pauses looking round, then jumps several patches
+MODELS = ((FIREFLY, "firefly"), (ANT, "ant"), (LEVY, "levy"), (MOTH, "moth"), (FROG, "frog"))
 
 # -- messages: the link's own (firmware_logic/messages.py MESSAGES); this
 # behaviour fills HELLO.model with MODELS and HEARTBEAT.state with STATES.
@@ -33,10 +36,17 @@ MODELS = ((FIREFLY, "firefly"), (ANT, "ant"))
 # -- parameters: thesis name, default, low, high, meaning ---------------------
 # (scenario keys; the world's own keys are in sim_backend/scenario.py)
 PARAMS = (
-    ("movementModel", "firefly", None, None, "firefly (1) or ant (2)"),
+    ("movementModel", "firefly", None, None,
+     "firefly (1), ant (2), levy (3), moth (4) or frog (5)"),
     ("robotVisionSpan", 45, 0, 360, "ant turn range, degrees either side"),
     ("fieldDefiance", 2, 0, 50, "random steps between two uphill steps in a field"),
     ("rPower", "1.0", "0.01", "655.0", "power of one robot (weight units)"),
+    ("antBlocked", "random", None, None,
+     "an ant blocked on its step: random heading (thesis) or turn within its span"),
+    ("levyMu", "2.0", "1.1", "3.0", "Levy walk: power-law exponent of flight lengths"),
+    ("mothNoise", 30, 0, 180, "moth: noise on its uphill heading, degrees either side"),
+    ("frogPause", 4, 1, 100, "frog: ticks it sits looking round between jumps"),
+    ("frogJump", 4, 1, 30, "frog: patches of one jump"),
 )
 
 # -- measures a run reports (summary keys) -----------------------------------
