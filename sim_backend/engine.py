@@ -90,6 +90,9 @@ class RunResult:
     robots: list[Any]         # the behaviour's FSMs
     trajectories: list[tuple[list[int], list[int]]] = field(default_factory=list)
     states: list[list[int]] = field(default_factory=list)   # every robot's state per tick
+    # measures watching the run (e.g. bridge/perception's Perceiver): each
+    # adds its summary() fields; see Engine.instruments
+    instruments: list[Any] = field(default_factory=list)
 
     @property
     def delivered(self) -> bool:
@@ -123,6 +126,7 @@ class RunResult:
             "leader": c.leader or None,
             "delivered": self.delivered,
             **(c.measures() if hasattr(c, "measures") else {}),
+            **{k: v for inst in self.instruments for k, v in inst.summary().items()},
         }
 
 
@@ -151,6 +155,9 @@ class Engine:
         self.msgs_up = 0                 # messages the host received this tick
         self.msgs_down = 0               # messages (commands) it sent this tick
         self.bad_seen = 0                # the link's bad frames counted so far
+        # measures that watch the run through `observe` and add summary
+        # fields and trace columns (COLUMNS, row()); none by default
+        self.instruments: list[Any] = []
 
     def observe(self, fn: Callable[[Any], None]) -> None:
         """Call fn(snapshot) after every tick from now on."""
@@ -202,7 +209,7 @@ class Engine:
             if progress is not None:
                 progress(self.tick)
         return RunResult(self.sc, self.seed, self.tick, self.world, self.coordinator,
-                         self.robots, self.trajectories, self.states)
+                         self.robots, self.trajectories, self.states, self.instruments)
 
 
 def run(sc: Scenario, seed: int, **kw) -> RunResult:
