@@ -15,7 +15,7 @@ the truth per tick. It adds trace columns (COLUMNS) and summary fields
 from __future__ import annotations
 
 import logging
-from typing import Any
+from typing import Any, NamedTuple
 
 from firmware_logic import fixedpoint as fx
 from bridge.perception.evidence import Evidence, iou
@@ -28,6 +28,16 @@ log = logging.getLogger(__name__)
 COLUMNS = (("estimate_iou", "IoU of the new shape estimate (recognised shape's MAP placement, "
                             "else the hull minus known-free cells) with the true shape"),
            ("recognised_p", "posterior of the most probable library shape (0 before a touch)"))
+
+
+class AtTouches(NamedTuple):
+    """The host's view when its k-th touch arrived."""
+    tick: int
+    estimate_iou: float       # the new estimate
+    hull_free_iou: float      # the hull minus known-free cells (no library)
+    hull_iou: float           # the touched cells' hull (summary shape_iou's outline)
+    best: str | None          # the most probable library shape
+    p: float                  # its posterior
 
 
 class Perceiver:
@@ -65,8 +75,8 @@ class Perceiver:
         self.recognised_tick: int | None = None
         self.recognised_as: str | None = None
         self.curve: list[tuple[int, float, float]] = []   # (tick, estimate IoU, p)
-        # per number of touches k: (tick, estimate IoU, hull-minus-free IoU, best, p)
-        self.by_touches: dict[int, tuple[int, float, float, str | None, float]] = {}
+        # per number of touches k: what the host knew when the k-th arrived
+        self.by_touches: dict[int, AtTouches] = {}
         if watch:
             engine.observe(lambda snap: self.update())
         instruments = getattr(engine, "instruments", None)
@@ -121,8 +131,8 @@ class Perceiver:
         self.curve.append((e.tick, est_iou, self.rec.p if self.ev.touched else 0.0))
         k = len(self.ev.touched)
         if k and k not in self.by_touches:
-            entry = (e.tick, est_iou, iou(self.ev.hull_estimate(), self.truth),
-                     self.rec.best, self.rec.p)
+            entry = AtTouches(e.tick, est_iou, iou(self.ev.hull_estimate(), self.truth),
+                              iou(self.ev.hull_cells(), self.truth), self.rec.best, self.rec.p)
             for j in range(len(self.by_touches) + 1, k + 1):   # touches arriving together
                 self.by_touches[j] = entry
 
