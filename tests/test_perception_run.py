@@ -91,3 +91,13 @@ def test_perception_columns_are_documented():
     text = DOCS.read_text()
     for name, _ in COLUMNS:
         assert f"`{name}`" in text, name
+
+
+def test_bad_perceiver_parameters_are_refused():
+    import pytest
+    e = Engine(scenario.load("default").replace(maxTicks=5), 1)
+    for kw, word in (({"threshold": 0.0}, "threshold"), ({"free_every": -1}, "free_every"),
+                     ({"every": 0}, "every")):
+        with pytest.raises(ValueError, match=word):
+            Perceiver(e, **kw)
+    assert e.instruments == [] and e.observers == []

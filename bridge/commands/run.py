@@ -116,7 +116,8 @@ def register(sub) -> None:
                         "the suffix picks the format: " + ", ".join(FORMATS))
     p.add_argument("--trace", type=path_arg, metavar="FILE",
                    help="one row per tick: robots per state, power, IoU, touches, messages, "
-                        "bad frames and the behaviour's reporters (docs/outputs.md); the "
+                        "bad frames, the behaviour's reporters and the new shape estimate's "
+                        "IoU and recognition posterior (docs/outputs.md); the "
                         "suffix picks the format: .csv or .parquet")
     p.add_argument("--animate", type=path_arg, metavar="FILE",
                    help="draw the run over time to FILE.gif (or .mp4 when ffmpeg is on PATH): "
