@@ -95,6 +95,9 @@ class RunResult:
     # FSM steps the swarm had taken when it converged (activation netlogo; -1:
     # not converged, or sync, where it is converged_tick x agents)
     conv_steps: int = -1
+    # measures watching the run (e.g. bridge/perception's Perceiver): each
+    # adds its summary() fields; see Engine.instruments
+    instruments: list[Any] = field(default_factory=list)
 
     @property
     def delivered(self) -> bool:
@@ -149,6 +152,7 @@ class RunResult:
             **({"touch_breeds": [self.scenario.breed_name(t.node)
                                   for t in getattr(c, "touches", ())]}
                if self.scenario.breeds else {}),
+            **{k: v for inst in self.instruments for k, v in inst.summary().items()},
         }
 
 
@@ -179,6 +183,9 @@ class Engine:
         self.bad_seen = 0                # the link's bad frames counted so far
         self.steps = 0                   # FSM steps of every robot so far (netlogo activation)
         self.conv_steps = -1             # self.steps when the swarm converged
+        # measures that watch the run through `observe` and add summary
+        # fields and trace columns (COLUMNS, row()); none by default
+        self.instruments: list[Any] = []
 
     def observe(self, fn: Callable[[Any], None]) -> None:
         """Call fn(snapshot) after every tick from now on."""
@@ -266,7 +273,8 @@ class Engine:
             if progress is not None:
                 progress(self.tick)
         return RunResult(self.sc, self.seed, self.tick, self.world, self.coordinator,
-                         self.robots, self.trajectories, self.states, self.conv_steps)
+                         self.robots, self.trajectories, self.states, self.conv_steps,
+                         self.instruments)
 
 
 def run(sc: Scenario, seed: int, **kw) -> RunResult:

@@ -49,13 +49,17 @@ class Trace:
 
     def __init__(self, engine: Any) -> None:
         self.names = [name for name, _ in columns(engine.behaviour)]
+        # the engine's instruments add their columns last (docs/outputs.md)
+        self.instruments = list(getattr(engine, "instruments", ()))
+        self.names += [name for inst in self.instruments for name, _ in inst.COLUMNS]
         self.rows: list[list[Any]] = []
         engine.observe(self.add)
 
     def add(self, s: Snapshot) -> None:
         counts = s.counts()
         self.rows.append([s.tick, *counts.values(), s.power, s.iou, len(s.touches),
-                          s.msgs_up, s.msgs_down, s.bad_frames, *s.reporters.values()])
+                          s.msgs_up, s.msgs_down, s.bad_frames, *s.reporters.values(),
+                          *(v for inst in self.instruments for v in inst.row())])
 
     def write(self, path: Path) -> Path:
         if trace_format(path) == "parquet":

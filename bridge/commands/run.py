@@ -116,7 +116,8 @@ def register(sub) -> None:
                         "the suffix picks the format: " + ", ".join(FORMATS))
     p.add_argument("--trace", type=path_arg, metavar="FILE",
                    help="one row per tick: robots per state, power, IoU, touches, messages, "
-                        "bad frames and the behaviour's reporters (docs/outputs.md); the "
+                        "bad frames, the behaviour's reporters and the new shape estimate's "
+                        "IoU and recognition posterior (docs/outputs.md); the "
                         "suffix picks the format: .csv or .parquet")
     p.add_argument("--animate", type=path_arg, metavar="FILE",
                    help="draw the run over time to FILE.gif (or .mp4 when ffmpeg is on PATH): "
@@ -198,6 +199,8 @@ def cmd_run(args: argparse.Namespace) -> int:
 def _watchers(args: argparse.Namespace, engine) -> tuple:
     """The per-tick observers the options ask for: (trails, trace, animation)."""
     trails = trace = anim = None
+    from bridge.perception.tracker import attach
+    attach(engine)          # the new shape estimate and recognition: summary fields, trace columns
     if args.out or args.animate:
         from sim_backend.observe import Trails
         trails = Trails(engine)
@@ -256,6 +259,19 @@ def power_at_convergence(coord) -> float | None:
     return sum(t.power for t in coord.touches if t.tick <= coord.converged_tick) / 100
 
 
+def _perception_lines(s: dict) -> list[str]:
+    """The new estimate and recognition (bridge/perception), when measured."""
+    if "estimate_iou" not in s:
+        return []
+    if s["recognised"] is None:
+        rec = f"no shape above p {s['recognition_threshold']:g} (best p {s['recognised_p']:.3f})"
+    else:
+        rec = f"{s['recognised']} p {s['recognised_p']:.3f}, from tick {s['recognised_tick']}"
+    return [f"  estimate IoU     {s['estimate_iou']:.3f} ({s['estimate_kind']}; hull minus "
+            f"free {s['hull_free_iou']:.3f})",
+            f"  recognised       {rec}"]
+
+
 def format_summary(s: dict, converged_power: float | None = None) -> str:
     def t(v):
         return "never" if v is None else f"tick {v}"
@@ -275,6 +291,7 @@ def format_summary(s: dict, converged_power: float | None = None) -> str:
         f"  touches          {len(s['touches'])} robots hold the object, power "
         f"{s['power']:g}",
         f"  shape IoU        {s['shape_iou']:.3f}",
+        *_perception_lines(s),
         f"  result           {'DELIVERED' if s['delivered'] else 'NOT delivered'}"
         f" after {s['ticks']} ticks"
         + ("" if s["delivered"] or not s.get("outcome") else f" ({s['outcome']})"),

@@ -1,0 +1,124 @@
+"""The evidence grid: every arena cell is known object, known free or unknown.
+
+Cells are kept in the object's frame, the frame the host stores touches in
+(the object where it stood when it was first touched): a pose reported after
+the object moved `(mx, my)` patches is shifted back by that much. So the
+evidence of the search phase and of the transport add up in one grid.
+
+Sources:
+  touch(x, y)   a touched segment (the host accepted the report): object.
+  free(x, y)    a cell a robot occupied (its pose from a HEARTBEAT on a link,
+                or every tick in simulation): free.
+
+A cell is never both. A touch is authoritative (the coordinator checked the
+report against the object), so a touch on a cell seen free turns it into
+object and counts a conflict; a free observation of a touched cell is
+ignored and counted (a robot started on the object, or its pose was taken a
+tick before the host learnt that the object moved).
+"""
+
+from __future__ import annotations
+
+from typing import Iterable
+
+import numpy as np
+
+from firmware_logic import perception
+
+UNKNOWN = 0
+OBJECT = 1
+FREE = 2
+
+Cell = tuple[int, int]
+
+
+class Evidence:
+    """The evidence about one object on an arena from -w..w on both axes."""
+
+    def __init__(self, world_size: int) -> None:
+        if world_size < 1:
+            raise ValueError(f"world_size: {world_size}; expected >= 1")
+        self.w = world_size
+        self.n = 2 * world_size + 1
+        self.grid = np.zeros((self.n, self.n), dtype=np.int8)   # row = y + w
+        self.touched: list[Cell] = []        # object cells, in order of touch
+        self.free_cells = 0
+        self.conflicts = 0                   # free seen on object, or object on free
+        self.version = 0                     # bumps whenever the grid changes
+
+    def inside(self, x: int, y: int) -> bool:
+        return -self.w <= x <= self.w and -self.w <= y <= self.w
+
+    def at(self, x: int, y: int) -> int:
+        return int(self.grid[y + self.w, x + self.w]) if self.inside(x, y) else UNKNOWN
+
+    def touch(self, x: int, y: int) -> bool:
+        """A touched segment; True if it was news."""
+        if not self.inside(x, y):
+            return False
+        v = self.grid[y + self.w, x + self.w]
+        if v == OBJECT:
+            return False
+        if v == FREE:
+            self.conflicts += 1
+            self.free_cells -= 1
+        self.grid[y + self.w, x + self.w] = OBJECT
+        self.touched.append((x, y))
+        self.version += 1
+        return True
+
+    def free(self, x: int, y: int) -> bool:
+        """A cell a robot occupied; True if it was news."""
+        if not self.inside(x, y):
+            return False
+        v = self.grid[y + self.w, x + self.w]
+        if v == OBJECT:
+            self.conflicts += 1
+            return False
+        if v == FREE:
+            return False
+        self.grid[y + self.w, x + self.w] = FREE
+        self.free_cells += 1
+        self.version += 1
+        return True
+
+    def free_many(self, cells: Iterable[Cell]) -> int:
+        return sum(1 for c in cells if self.free(*c))
+
+    def heartbeat(self, fields: tuple, moved: Cell = (0, 0)) -> bool:
+        """A HEARTBEAT's pose (fields: state, x, y in Q8 patches, heading,
+        step) as free evidence, shifted into the object's frame."""
+        x = (fields[1] + 128) >> 8
+        y = (fields[2] + 128) >> 8
+        return self.free(x - moved[0], y - moved[1])
+
+    # -- views -------------------------------------------------------------
+
+    def object_cells(self) -> set[Cell]:
+        return set(self.touched)
+
+    def free_set(self) -> set[Cell]:
+        ys, xs = np.nonzero(self.grid == FREE)
+        return {(int(x) - self.w, int(y) - self.w) for x, y in zip(xs, ys)}
+
+    def hull_cells(self) -> set[Cell]:
+        """The thesis-style outline: touched cells and every cell inside their hull."""
+        return perception.outline_cells(self.touched)
+
+    def hull_estimate(self) -> set[Cell]:
+        """The estimate without a library: the hull minus every known-free cell."""
+        return {c for c in self.hull_cells() if self.at(*c) != FREE}
+
+    def uncertainty(self) -> dict[str, int]:
+        """Cells inside the hull: known object, known free, unknown."""
+        counts = {"object": 0, "free": 0, "unknown": 0}
+        for c in self.hull_cells():
+            v = self.at(*c)
+            counts["object" if v == OBJECT else "free" if v == FREE else "unknown"] += 1
+        return counts
+
+
+def iou(a: Iterable[Cell], b: Iterable[Cell]) -> float:
+    """IoU of two cell sets, rounded to 6 places as summaries have it."""
+    inter, union = perception.iou_counts(a, b)
+    return round(inter / union, 6) if union else 0.0

@@ -1,0 +1,106 @@
+"""The shape library: every candidate shape in its distinct orientations.
+
+A shape is a set of cells up to translation. The grid has 8 rotations and
+mirrors (the dihedral group of the square); a symmetric shape has fewer
+distinct ones (the plus: 1, the bar: 2), and the prior spreads over the
+distinct ones only, so a symmetric shape is not favoured by being counted
+several times.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Iterable, Mapping
+
+import numpy as np
+
+from sim_backend import objects
+
+Cell = tuple[int, int]
+
+# (x, y) -> the 8 maps of the dihedral group D4
+TRANSFORMS = (
+    lambda x, y: (x, y), lambda x, y: (-y, x), lambda x, y: (-x, -y), lambda x, y: (y, -x),
+    lambda x, y: (-x, y), lambda x, y: (y, x), lambda x, y: (x, -y), lambda x, y: (-y, -x),
+)
+STEPS4 = ((1, 0), (-1, 0), (0, 1), (0, -1))
+
+
+def normalise(cells: Iterable[Cell]) -> tuple[Cell, ...]:
+    """Cells shifted so the smallest x and y are 0, sorted."""
+    cs = set(cells)
+    if not cs:
+        raise ValueError("a shape needs at least one cell")
+    mx = min(c[0] for c in cs)
+    my = min(c[1] for c in cs)
+    return tuple(sorted((x - mx, y - my) for x, y in cs))
+
+
+def orientations(cells: Iterable[Cell]) -> list[tuple[Cell, ...]]:
+    """The distinct normalised images of a shape under the 8 grid maps, in
+    the order of TRANSFORMS (the identity first)."""
+    base = list(cells)
+    out: dict[tuple[Cell, ...], None] = {}
+    for t in TRANSFORMS:
+        out.setdefault(normalise(t(x, y) for x, y in base), None)
+    return list(out)
+
+
+@dataclass(frozen=True)
+class Pose:
+    """One orientation of a shape: its cells from the placement origin, and
+    the touchable ones (a free 4-neighbour: where a robot can touch it)."""
+    shape: str
+    index: int                     # which distinct orientation
+    cells: tuple[Cell, ...]
+    touchable: tuple[Cell, ...]
+    width: int
+    height: int
+
+    def placed(self, ox: int, oy: int) -> set[Cell]:
+        return {(ox + x, oy + y) for x, y in self.cells}
+
+
+def _pose(name: str, index: int, cells: tuple[Cell, ...]) -> Pose:
+    cs = set(cells)
+    touch = tuple(c for c in cells
+                  if any((c[0] + dx, c[1] + dy) not in cs for dx, dy in STEPS4))
+    return Pose(name, index, cells, touch, max(c[0] for c in cells) + 1,
+                max(c[1] for c in cells) + 1)
+
+
+def _mask(pose: Pose, cells: tuple[Cell, ...]) -> np.ndarray:
+    m = np.zeros((pose.height, pose.width), dtype=np.int32)
+    for x, y in cells:
+        m[y, x] = 1
+    return m
+
+
+class Library:
+    """Candidate shapes by name, each with its distinct orientations."""
+
+    def __init__(self, shapes: Mapping[str, Iterable[Cell]]) -> None:
+        if not shapes:
+            raise ValueError("a shape library needs at least one shape")
+        self.names = list(shapes)
+        self.poses: dict[str, list[Pose]] = {
+            name: [_pose(name, i, o) for i, o in enumerate(orientations(cells))]
+            for name, cells in shapes.items()}
+        # per pose: (cells mask, touchable mask) as (height, width) int32 arrays
+        self.masks: dict[tuple[str, int], tuple[np.ndarray, np.ndarray]] = {
+            (p.shape, p.index): (_mask(p, p.cells), _mask(p, p.touchable))
+            for ps in self.poses.values() for p in ps}
+
+    @classmethod
+    def builtin(cls, known: Mapping[str, Iterable[Cell]] | None = None) -> "Library":
+        """The built-in objects (sim_backend/objects.py) plus any shape a
+        scenario marks as known (name -> cells), which replaces a built-in
+        of the same name."""
+        shapes: dict[str, Iterable[Cell]] = {n: objects.offsets(n) for n in objects.SHAPES}
+        shapes.update(known or {})
+        return cls(shapes)
+
+    def extent(self) -> int:
+        """The largest width or height of any pose."""
+        return max(max(p.width, p.height) for ps in self.poses.values() for p in ps)
+
