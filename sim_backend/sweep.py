@@ -34,7 +34,10 @@ CONNECT_TIMEOUT_S = 5.0
 ENGINES = ("auto", "batch", "vector", "reference")
 MEASURES = ["ticks", "found_tick", "converged_tick", "home_tick", "n_touches", "power",
             "shape_iou", "leader", "delivered", "segments"]
-SCENARIO_KEYS = [k for k in Scenario.__dataclass_fields__ if k not in ("name", "description")]
+# the drawn pieces (tables, not values) go in one text column, `pieces`
+PIECE_KEYS = ("objects", "obstacles")
+SCENARIO_KEYS = [k for k in Scenario.__dataclass_fields__
+                 if k not in ("name", "description") + PIECE_KEYS]
 
 
 @dataclass(frozen=True)
@@ -447,6 +450,7 @@ def make_row(pt: Point, sc: Scenario, seed: int, s: dict, until: str) -> dict:
                            "point": ";".join(f"{k}={v}" for k, v in pt.params)}
     for k in SCENARIO_KEYS:
         row[k] = getattr(sc, k)
+    row["pieces"] = " ".join(repr(p) for k in PIECE_KEYS for p in getattr(sc, k))
     row["required"] = -(-sc.weight_centi // sc.power_centi)
     row["seed"] = seed
     row["until"] = until
