@@ -164,7 +164,9 @@ def plot_shapes(rows: Sequence[dict], objs: Sequence[str], title: str, path: Pat
             if r is None:
                 ax.axis("off")
                 continue
-            sc = validate({k: _num(r[k]) for k in SCENARIO_KEYS if r.get(k) not in (None, "")})
+            # breeds (a tuple, "()" in a CSV) are not numbers: a shapes point has none
+            sc = validate({k: _num(r[k]) for k in SCENARIO_KEYS
+                           if r.get(k) not in (None, "", (), "()")})
             true = World(sc, int(_num(r["seed"]))).object_cells
             segs = [tuple(int(v) for v in p.split(":")) for p in str(r["segments"]).split()]
             outline = perception.outline_cells(segs)

@@ -103,9 +103,9 @@ def test_one_rule_changed_in_the_source_changes_both_engines_identically(tmp_pat
     shutil.copytree(THESIS_DIR, mutant, ignore=shutil.ignore_patterns("__pycache__"))
     robot = mutant / "robot.py"
     src = robot.read_text()
-    rule = ("        if self.model == FIREFLY:\n"
+    rule = ("        if m == FIREFLY:\n"
             "            self.heading = self.rng.below(360)\n"
-            "        self._head_carefully(hal)")
+            "        elif m == LEVY:")
     assert src.count(rule) == 1, "the rule this test mutates has moved; update the test"
     robot.write_text(src.replace(rule, rule.replace("below(360)", "below(180)")))
     original = validate({"maxTicks": 400})

@@ -146,7 +146,8 @@ def test_cli_check_json(capsys: pytest.CaptureFixture[str]) -> None:
     assert out["ok"] == (not out["subset_violations"] and out["conformance_ok"])
     assert rc == (0 if out["ok"] else 1)
     assert out["mpy_total"] > 0
-    assert [m["model"] for m in out["models"]] == ["firefly", "ant"]
+    from firmware_logic.behaviours.thesis import spec
+    assert [m["model"] for m in out["models"]] == [n for _, n in spec.MODELS]
     assert all(m["heap_per_step"] == 0 for m in out["models"])
 
 

@@ -25,7 +25,9 @@ def cmd_scenarios(args: argparse.Namespace) -> int:
             print(f"  {key:16s} {value!s:10s} {' | '.join(scenario.CHOICES_ALL[key])}")
             continue
         allowed = f"{rng[1]}..{rng[2]}" if rng else {
-            "movementModel": " | ".join(scenario.MODELS), "object": "1-4 | " + " | ".join(
+            "movementModel": " | ".join(scenario.MODELS),
+            "breeds": "[[breeds]] tables: count, name, " + ", ".join(scenario.BREED_KEYS),
+            "object": "1-4 | " + " | ".join(
                 sorted(__import__('sim_backend.objects', fromlist=['x']).SHAPES)),
             "objects": "[[objects]] tables (docs/scenarios.md)",
             "obstacles": "[[obstacles]] tables (docs/scenarios.md)",
