@@ -33,11 +33,12 @@ CONNECT_TIMEOUT_S = 5.0
 # sweep sizes, docs/performance.md), the compiled batch engine for any other
 ENGINES = ("auto", "batch", "vector", "reference")
 MEASURES = ["ticks", "found_tick", "converged_tick", "home_tick", "n_touches", "power",
-            "shape_iou", "leader", "delivered", "segments"]
+            "shape_iou", "leader", "delivered", "segments", "touches", "converged_moves"]
 # the drawn pieces (tables, not values) go in one text column, `pieces`
 PIECE_KEYS = ("objects", "obstacles")
+# [[breeds]] tables go in one text column too, `breeds`
 SCENARIO_KEYS = [k for k in Scenario.__dataclass_fields__
-                 if k not in ("name", "description") + PIECE_KEYS]
+                 if k not in ("name", "description", "breeds") + PIECE_KEYS]
 
 
 @dataclass(frozen=True)
@@ -429,7 +430,9 @@ def columns(behaviours: Iterable[str]) -> list[str]:
     """sweep.csv's columns, in order, for rows of these behaviours: the
     fixed ones, then each behaviour's declared measures not already there."""
     from firmware_logic import registry
-    names = ["experiment", "point", *SCENARIO_KEYS, "required", "seed", "until", *MEASURES]
+    names = ["experiment", "point", *SCENARIO_KEYS, "pieces", "breeds", "required", "seed",
+             "until",
+             *MEASURES]
     for b in dict.fromkeys(behaviours):
         for name, _ in registry.load(b).spec.MEASURES:
             if name not in names:
@@ -451,6 +454,7 @@ def make_row(pt: Point, sc: Scenario, seed: int, s: dict, until: str) -> dict:
     for k in SCENARIO_KEYS:
         row[k] = getattr(sc, k)
     row["pieces"] = " ".join(repr(p) for k in PIECE_KEYS for p in getattr(sc, k))
+    row["breeds"] = " ".join(f"{dict(b)['name']}:{dict(b)['count']}" for b in sc.breeds)
     row["required"] = -(-sc.weight_centi // sc.power_centi)
     row["seed"] = seed
     row["until"] = until
