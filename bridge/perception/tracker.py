@@ -21,7 +21,6 @@ from firmware_logic import fixedpoint as fx
 from bridge.perception.evidence import Evidence, iou
 from bridge.perception.recognise import THRESHOLD, Recognition, estimate, recognise
 from bridge.perception.shapes import Library
-from sim_backend import objects
 
 log = logging.getLogger(__name__)
 
@@ -65,7 +64,8 @@ class Perceiver:
         self.ev = Evidence(engine.sc.worldSize)
         w = engine.world
         # the truth in the object's frame: where it stands at the start
-        self.truth = set(objects.cells(engine.sc.object, w.obj_x, w.obj_y))
+        # (the target's cells as the world placed them: a built-in or a drawn object)
+        self.truth = set(w.object_cells)
         self.start = w.object_cells[0]
         self.extent = self.library.extent()
         self.rec = recognise(self.ev, self.library)
