@@ -122,10 +122,7 @@ def plot_convergence(rows: Sequence[dict], experiment: str, factor: str, title: 
         ax.legend(fontsize=7)
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=80)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def _example(rows, obj, n):
@@ -195,10 +192,7 @@ def plot_shapes(rows: Sequence[dict], objs: Sequence[str], title: str, path: Pat
         ax.set_title(f"{obj}: n={min(p[4] for p in pts)}/point", fontsize=7)
     fig.suptitle(title, fontsize=9)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=80)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def thesis_plots(rows: Sequence[dict], out: Path) -> list[Path]:

@@ -19,7 +19,7 @@ from collections import defaultdict
 from pathlib import Path
 from typing import Sequence
 
-from sim_backend.plots import SHAPE_FIGURES, _example, _num, _stats
+from sim_backend.plots import SHAPE_FIGURES, _example, _num, _save, _stats
 
 
 def graph1_table(rows: Sequence[dict]) -> dict:
@@ -69,10 +69,7 @@ def plot_graph1_units(rows: Sequence[dict], path: Path) -> Path | None:
         ax.legend(fontsize=7)
     fig.suptitle(f"Graph 1 in both units (activation {', '.join(act)})", fontsize=10)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=80)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def polygon(points: Sequence[tuple[int, int]]) -> list[tuple[float, float]]:
@@ -143,10 +140,7 @@ def plot_shapes_thesis_way(rows: Sequence[dict], objs: Sequence[str], title: str
             _draw_holders(ax, obj, n, r)
     fig.suptitle(title, fontsize=9)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=80)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def plots(rows: Sequence[dict], out: Path) -> list[Path]:
