@@ -16,7 +16,7 @@ from firmware_logic import registry
 from sim_backend import kernel
 from sim_backend.engine import Engine
 from sim_backend.errors import EngineError
-from sim_backend.scenario import CHOICES, departures, validate
+from sim_backend.scenario import CHOICES, Scenario, departures, validate
 from sim_backend.sweep import pick_engine
 from sim_backend.vector_engine import VectorEngine
 from sim_backend.world import World
@@ -239,3 +239,16 @@ def test_batch_engine_equals_reference_with_the_netlogo_options(model):
         seeds.append(rnd.randrange(10 ** 6))
     got = assert_same(scs, seeds)
     assert any(r.delivered for r in got)
+
+
+def test_an_object_against_the_wall_is_planned_round_it_not_retried_forever():
+    # seed 10, arrival "netlogo": every step that brings the nearest carrier
+    # closer to home pushed the object off the arena, and the host retried them
+    # until maxTicks; it now plans round the edge (way_home) and delivers
+    sc = Scenario(arrival="netlogo", maxTicks=3000)
+    res = Engine(sc, 10).run()
+    assert res.summary()["outcome"] == "delivered"
+    assert res.coordinator.closed == frozenset()       # the edge planner took over
+    # a run that is never walled keeps the greedy rule
+    other = Engine(Scenario(arrival="netlogo", maxTicks=3000), 1).run()
+    assert other.delivered and other.coordinator.closed is None

@@ -519,7 +519,32 @@ class Coordinator(Roster):
             if d < here:
                 ranked.append((d, len(ranked), ddx, ddy))
         ranked.sort()
+        if ranked and self.world_size is not None and self._walled(ranked):
+            # against the arena's edge every step toward home would push the
+            # object or a carrier off the arena, and retrying them would go on
+            # forever (arrival "netlogo", seed 10): from now on plan round the
+            # edge with way_home (no obstacles); runs never walled are unchanged
+            self.closed = frozenset()
+            self._plan_on_way(tick)
+            return
         self._take(tick, ranked)
+
+    def _walled(self, ranked):
+        """True if every step in `ranked` would put a cell of the object or a
+        carrier outside the arena -w..w."""
+        w = self.world_size
+        pts = self._footprint()
+        for item in ranked:
+            fits = True
+            for x, y in pts:
+                nx = x + item[2]
+                ny = y + item[3]
+                if nx < -w or nx > w or ny < -w or ny > w:
+                    fits = False
+                    break
+            if fits:
+                return False
+        return True
 
     def _take(self, tick, ranked):
         """Command the candidate (key, order, dx, dy) the blocked count points
