@@ -394,10 +394,10 @@ def category_figure(rows: Sequence[dict], factor: str, others: Sequence[str]):
     return fig
 
 
-def _save(fig, path: Path) -> Path:
+def _save(fig, path: Path, dpi: int = 80) -> Path:
     import matplotlib.pyplot as plt
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=80)
+    fig.savefig(path, dpi=dpi)
     plt.close(fig)
     return path
 

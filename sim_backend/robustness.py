@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 from typing import Any, Sequence
 
+from sim_backend.plots import _save
 from sim_backend.sweep import Point
 
 FAULT_RATES = (0.0, 0.1, 0.25, 0.5)
@@ -76,9 +77,7 @@ def breed_plots(rows: Sequence[dict], out: Path) -> list[Path]:
     fig.suptitle("breeds: convergence against the share of ants")
     fig.tight_layout()
     path = out / "breeds.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return [path]
+    return [_save(fig, path, dpi=110)]
 
 
 def breed_table(rows: Sequence[dict]) -> list[tuple[int, int, int, float, float]]:
@@ -169,9 +168,7 @@ def fault_plots(rows: Sequence[dict], out: Path) -> list[Path]:
     fig.suptitle("robustness: each fault alone (touchswarm sweep --preset faults)")
     fig.tight_layout()
     path = out / "faults.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return [path]
+    return [_save(fig, path, dpi=110)]
 
 
 def category_plot(rows: Sequence[dict], factor: str, path: Path) -> Path:
@@ -199,9 +196,7 @@ def category_plot(rows: Sequence[dict], factor: str, path: Path) -> Path:
         ax.set_title(title)
     fig.suptitle(f"{factor}: ticks to first touch and to convergence (n reached/runs)")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, path, dpi=110)
 
 
 def trajectories_plot(path: Path, seed: int = 3, ticks: int = 150) -> Path:
@@ -230,9 +225,7 @@ def trajectories_plot(path: Path, seed: int = 3, ticks: int = 150) -> Path:
         ax.set_aspect("equal")
         ax.set_title(f"{model} (node 1, {len(xs)} ticks)", fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, path, dpi=110)
 
 
 def main(argv: list[str]) -> int:
