@@ -228,6 +228,58 @@ def trajectories_plot(path: Path, seed: int = 3, ticks: int = 150) -> Path:
     return _save(fig, path, dpi=110)
 
 
+# why a run of a fault scenario did not deliver (diagnose)
+WHY_ORDER = ("delivered", "infeasible", "never converged", "leader dead", "power lost",
+             "blocked by dead robots", "stuck")
+
+
+def diagnose(r: Any) -> str:
+    """Why a finished run (engine.RunResult) of a fault scenario ended as it
+    did, one of WHY_ORDER: infeasible (faults.feasible is false), never
+    converged, leader dead (the leader died after convergence and the
+    transport waits for its pose), power lost (the live holders' power is
+    below the weight), blocked by dead robots (a dead robot stands next to
+    the object or a carrier when it stopped moving) or stuck (anything
+    else that kept it from moving: walls, live robots, no path)."""
+    from firmware_logic.fixedpoint import patch
+    from sim_backend import faults
+    sc, c, w = r.scenario, r.coordinator, r.world
+    if r.delivered:
+        return "delivered"
+    if not faults.feasible(sc, r.seed):
+        return "infeasible"
+    if c.converged_tick < 0:
+        return "never converged"
+    die = faults.plan(sc, r.seed)[0]
+    dead = {i + 1 for i, d in enumerate(die) if d <= r.ticks}
+    lost = set(getattr(c, "lost", ()))
+    if c.leader in dead and c.leader not in lost:
+        return "leader dead"
+    live = sum(t.power for t in c.touches if t.node not in dead)
+    if live < sc.weight_centi:
+        return "power lost"
+    near = set()
+    for x, y in list(w.object_cells) + c._carriers_now():
+        for a in (-1, 0, 1):
+            for b in (-1, 0, 1):
+                near.add((x + a, y + b))
+    if any((patch(w.xs[i - 1]), patch(w.ys[i - 1])) in near for i in dead):
+        return "blocked by dead robots"
+    return "stuck"
+
+
+def why_table(raw: dict, seeds: Sequence[int]) -> dict[str, list[int]]:
+    """Run the scenario `raw` on the reference engine for each seed, until
+    delivered or maxTicks: diagnosis -> seeds."""
+    from sim_backend.engine import Engine
+    from sim_backend.scenario import validate
+    sc = validate(raw)
+    out: dict[str, list[int]] = {}
+    for seed in seeds:
+        out.setdefault(diagnose(Engine(sc, seed).run()), []).append(seed)
+    return out
+
+
 def main(argv: list[str]) -> int:
     import csv
     if argv[:1] == ["models"] and len(argv) == 4:
@@ -243,8 +295,16 @@ def main(argv: list[str]) -> int:
             print(exp, pts)
         print(fault_plots(rows, Path(argv[2])))
         return 0
+    if argv[:1] == ["why"] and len(argv) == 2:
+        # the goal mix, preset settings, seeds 1..N: why each run ended
+        raw = {**dict(GOAL), "maxTicks": PRESET_MAX_TICKS, "faultWindow": PRESET_FAULT_WINDOW}
+        got = why_table(raw, range(1, int(argv[1]) + 1))
+        for why in WHY_ORDER:
+            if why in got:
+                print(f"{why:24s} {len(got[why]):3d}  seeds {got[why]}")
+        return 0
     print("usage: python -m sim_backend.robustness models CSV FACTOR OUT.png | "
-          "trajectories OUT.png | faults CSV OUTDIR", file=sys.stderr)
+          "trajectories OUT.png | faults CSV OUTDIR | why SEEDS", file=sys.stderr)
     return 2
 
 

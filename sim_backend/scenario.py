@@ -144,6 +144,7 @@ class Scenario:
     probeGhost: float = 0.0      # chance a probe of an empty patch reports a segment
     fieldNoise: int = 0          # field readings +- up to this much
     faultWindow: int = 1000      # deaths and deadlocks start in ticks 1..faultWindow
+    lostAfter: int = 0           # host: a holder silent this many ticks is lost (0: never)
     # the link's own faults (bridge/links/canlink.py Faults), over --link can only
     linkLoss: float = 0.0        # chance a frame is lost, each way
     linkDup: float = 0.0         # chance a frame is sent twice
@@ -233,6 +234,7 @@ EXT_RANGES.update({
     "ignoreHostRate": (float, 0.0, 1.0), "randomRate": (float, 0.0, 1.0),
     "probeMiss": (float, 0.0, 1.0), "probeGhost": (float, 0.0, 1.0),
     "fieldNoise": (int, 0, 10), "faultWindow": (int, 1, 10_000_000),
+    "lostAfter": (int, 0, 1_000_000),
     "linkLoss": (float, 0.0, 0.9), "linkDup": (float, 0.0, 0.9), "linkReorder": (int, 1, 64)})
 LINK_FAULT_KEYS = ("linkLoss", "linkDup", "linkReorder")
 
@@ -387,12 +389,21 @@ def _breeds(value: Any, source: str) -> tuple:
     return tuple(out)
 
 
+def _check_lost_after(sc: Scenario) -> None:
+    from firmware_logic.behaviours.thesis.robot import HEARTBEAT_EVERY
+    if 0 < sc.lostAfter <= HEARTBEAT_EVERY:
+        # a holder waiting for the transport reports once per HEARTBEAT_EVERY
+        raise ScenarioError(f"lostAfter: {sc.lostAfter} must be 0 (never) or more than "
+                            f"{HEARTBEAT_EVERY}, the ticks between a waiting holder's reports")
+
+
 def _check_consistency(sc: Scenario) -> None:
     _check_model(sc)
     shares = (sc.deathRate + sc.ignoreFieldRate + sc.ignoreHostRate + sc.randomRate)
     if shares > 1.0 + 1e-9:
         raise ScenarioError(f"deathRate + ignoreFieldRate + ignoreHostRate + randomRate: "
                             f"{shares:g} exceeds 1 (they are disjoint shares of the swarm)")
+    _check_lost_after(sc)
     w = sc.worldSize
     offs = objects.offsets(sc.object)
     xs = [x for x, _ in offs]

@@ -36,4 +36,4 @@ def make_coordinator(sc, journal=None, cells=None, on_reject=None):
     return Coordinator(sc.weight_centi, sc.homeX, sc.homeY, journal=journal,
                        home_radius=1 if netlogo else 4, by_carrier=netlogo,
                        world_size=sc.worldSize, cells=cells, on_reject=on_reject,
-                       blocked=closed)
+                       blocked=closed, lost_after=getattr(sc, "lostAfter", 0))

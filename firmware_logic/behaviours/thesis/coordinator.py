@@ -50,7 +50,8 @@ for _code, _name in spec.MODELS:
 BYTE_ARENA = 127
 
 
-def way_home(w, footprint, blocked, goal_pts, home_x, home_y, home_r2, start, slack=2):
+def way_home(w, footprint, blocked, goal_pts, home_x, home_y, home_r2, start, slack=2,
+             avoid=None):
     """wayHome over the configuration space of the object's whole footprint
     (thesis 6.1.4, 6.2.4): {(dx, dy): steps} for every displacement of the
     footprint (object cells and carriers, absolute cells at displacement
@@ -58,7 +59,8 @@ def way_home(w, footprint, blocked, goal_pts, home_x, home_y, home_r2, start, sl
     counted in 8-neighbour steps (the transport's) from the displacements
     where a `goal_pts` point lies within home_r2 of home. A breadth-first
     search from the goal that stops `slack` layers after reaching `start`
-    (no path: `start` is missing). Plain lists and dicts: it runs on the
+    (no path: `start` is missing). avoid: displacements to leave out (steps
+    the transport tried and found blocked). Plain lists and dicts: it runs on the
     host, in CPython and MicroPython."""
     x0 = x1 = footprint[0][0]
     y0 = y1 = footprint[0][1]
@@ -69,6 +71,9 @@ def way_home(w, footprint, blocked, goal_pts, home_x, home_y, home_r2, start, sl
         y1 = max(y1, p[1])
     box = (-w - x0, w - x1, -w - y0, w - y1)
     ok = {}
+    if avoid:
+        for d in avoid:
+            ok[d] = False
 
     dist = {}
     frontier = []
@@ -151,7 +156,7 @@ class Coordinator(Roster):
 
     def __init__(self, weight, home_x=-15, home_y=-15, home_radius=4, journal=None,
                  world_size=None, cells=None, on_reject=None, by_carrier=False,
-                 blocked=None, stall_ticks=STALL_TICKS):
+                 blocked=None, stall_ticks=STALL_TICKS, lost_after=0):
         """weight: the object's weight in hundredths (objectWeight * 100).
 
         journal: optional callable(node, kind, fields, tick) called for every
@@ -169,6 +174,8 @@ class Coordinator(Roster):
         wayHome (the thesis's, kept bit for bit in an open arena).
         stall_ticks: transport ticks without the object moving before the
         run stops as stalled.
+        lost_after: ticks of silence after which a holder is lost (0: never,
+        the thesis's host); see `_liveness` and docs/extensions.md.
         """
         Roster.__init__(self, MODELS, journal, on_reject)
         self.closed = None if blocked is None else frozenset(blocked)
@@ -214,10 +221,22 @@ class Coordinator(Roster):
         self.dx = 0
         self.dy = 0
         self.halted = 0
+        # liveness (lost_after > 0): holders dropped as silent, and where each
+        # stood (x, y pairs, flat), an obstacle from then on; both journalled
+        # with the decision that dropped it, so a resumed host agrees
+        self.lost_after = lost_after
+        self.lost = ()
+        self.lost_cells = ()
+        self.heard = {}          # node -> (tick, moved_x, moved_y) when last heard
+        # displacements a transport step was blocked at (x, y pairs, flat):
+        # the plan goes round them (dead robots stand still; see _bump)
+        self.bumps = ()
 
     # -- input -------------------------------------------------------------
 
     def on_message(self, node, kind, f, tick):
+        if self.lost_after and node in self.nodes:
+            self.heard[node] = (tick, self.moved_x, self.moved_y)
         if kind == msg.HELLO:
             self._hello(node, f, tick)
         elif kind == msg.TOUCH:
@@ -313,7 +332,7 @@ class Coordinator(Roster):
     def carriers(self):
         out = []
         for t in self.touches:
-            if t.node not in out:
+            if t.node not in out and t.node not in self.lost:
                 out.append(t.node)
         return out
 
@@ -323,6 +342,9 @@ class Coordinator(Roster):
             return "delivered", "object home; HALT"
         if self.stopped_tick != before.get("stopped_tick", -1):
             return "stopped", self.status() + "; HALT"
+        if list(self.lost) != before.get("lost", []):
+            return "lost", ("holders lost %s; power %d/%d; leader robot %d"
+                            % (list(self.lost), self.power, self.weight, self.leader))
         if self.converged_tick != before["converged_tick"]:
             return "converged", ("converged, power %d/%d; leader robot %d; transport begins"
                                  % (self.power, self.weight, self.leader))
@@ -370,11 +392,15 @@ class Coordinator(Roster):
             return False
         if self.done():
             return self.halted == 1
+        if self.lost_after and self.touches:
+            return False             # a holder's silence is counted every tick
         return self.converged_tick < 0 and not (self.touches and self.power >= self.weight)
 
     def tick(self, tick):
         """Advance the centralised phase; return and clear the commands to send."""
         self._acks_out(self.outbox)
+        if self.lost_after and not self.done():
+            self._liveness(tick)
         if self.done():
             if not self.halted:
                 self.halted = 1
@@ -390,6 +416,12 @@ class Coordinator(Roster):
         return out
 
     def _transport(self, tick):
+        if self.power < self.weight:
+            # holders were lost: the transport pauses (no command; the stall
+            # clock starts again when it goes on) while the swarm converges
+            # on the object again
+            self.last_move_tick = -1
+            return
         if self.last_move_tick < 0:
             self.last_move_tick = tick
         if tick - self.last_move_tick >= self.stall_ticks:
@@ -398,6 +430,8 @@ class Coordinator(Roster):
         if self.leader_done == self.step:
             if self.moved_x == self.planned_from[0] and self.moved_y == self.planned_from[1]:
                 self.blocked += 1
+                if self.lost_after:
+                    self._bump()
             else:
                 self.blocked = 0
                 self.last_move_tick = tick
@@ -427,7 +461,8 @@ class Coordinator(Roster):
     def _carriers_now(self):
         out = []
         for t in self.touches:
-            out.append((t.rx + self.moved_x, t.ry + self.moved_y))
+            if t.node not in self.lost:
+                out.append((t.rx + self.moved_x, t.ry + self.moved_y))
         return out
 
     def _home_d2(self, ddx, ddy):
@@ -475,8 +510,9 @@ class Coordinator(Roster):
         if self.way is None or force:
             self.way_from = (self.moved_x, self.moved_y)
             goal = self._carriers_now() if self.by_carrier else self._points_now()
-            self.way = way_home(self.world_size, self._footprint(), self.closed, goal,
-                                self.home_x, self.home_y, self.home_r2, (0, 0))
+            self.way = way_home(self.world_size, self._footprint(), self._closed_now(), goal,
+                                self.home_x, self.home_y, self.home_r2, (0, 0),
+                                avoid=self._avoid())
         return self.way
 
     def _plan_on_way(self, tick):
@@ -486,6 +522,12 @@ class Coordinator(Roster):
         way = self._way()
         here = (self.moved_x - self.way_from[0], self.moved_y - self.way_from[1])
         if here not in way:
+            way = self._way(True)
+            here = (0, 0)
+        if here not in way and self.bumps:
+            # the blocked steps remembered cut every way home: some blocker
+            # was a robot passing by; forget them and try again
+            self.bumps = ()
             way = self._way(True)
             here = (0, 0)
         if here not in way:
@@ -507,7 +549,7 @@ class Coordinator(Roster):
         self._take(tick, down + side if self.blocked >= len(down) else down)
 
     def _plan_step(self, tick):
-        if self.closed is not None:
+        if self.closed is not None or self.lost_cells or self.bumps:
             self._plan_on_way(tick)
             return
         # Every step that brings the object's nearest segment closer to home,
@@ -566,3 +608,107 @@ class Coordinator(Roster):
         self.step_sent_tick = tick
         for node in self.carriers():
             self._send(node, msg.TRANSPORT, (self.step, self.dx, self.dy))
+
+    # -- liveness: holders that fall silent (lost_after > 0) ---------------------
+
+    def _liveness(self, tick):
+        """Drop every holder not heard for more than lost_after ticks (its
+        power leaves the total, its cell becomes an obstacle, a new leader is
+        chosen among the live holders) and take back a dropped one heard
+        again. Runs in tick(), so the change is a decision, journalled with
+        its snapshot (`lost`, `lost_cells`)."""
+        lost = list(self.lost)
+        cells = list(self.lost_cells)
+        for t in self.touches:
+            h = self.heard.get(t.node)
+            if t.node in lost:
+                if h is not None:            # heard again since it was dropped
+                    k = lost.index(t.node)
+                    del lost[k]
+                    del cells[2 * k:2 * k + 2]
+            elif h is None:
+                # not heard since this host started (a resume): count from now
+                self.heard[t.node] = (tick, self.moved_x, self.moved_y)
+            elif tick - h[0] > self.lost_after:
+                lost.append(t.node)
+                cells += [t.rx + h[1], t.ry + h[2]]
+                del self.heard[t.node]
+        if tuple(lost) != self.lost:
+            self.lost = tuple(lost)
+            self.lost_cells = tuple(cells)
+            self._relost()
+
+    def _relost(self):
+        """Power, leader and plan after `lost` changed."""
+        power, leader = self._live()
+        self.power = power
+        if leader != self.leader:
+            self.leader = leader
+            lead = self.leader_touch()
+            if lead is not None:
+                # its pose now; its next HEARTBEAT says which step it has
+                # done (0: none yet, never a step number)
+                self.leader_x = lead.rx + self.moved_x
+                self.leader_y = lead.ry + self.moved_y
+                self.leader_done = 0
+        self.way = None              # the obstacles changed
+
+    def _live(self):
+        """(power, leader) of the holders not lost: the leader is the first
+        live one to have touched."""
+        power = 0
+        leader = 0
+        for t in self.touches:
+            if t.node not in self.lost:
+                power += t.power
+                if leader == 0:
+                    leader = t.node
+        return power, leader
+
+    def replay(self, node, kind, f, tick):
+        Roster.replay(self, node, kind, f, tick)
+        # a journalled report says nothing of who is alive now: a resumed
+        # host counts every holder's silence from its own first tick
+        self.heard = {}
+
+    def adopt(self, state):
+        unknown = Roster.adopt(self, state)
+        if "lost" in state:
+            # the replayed reports rebuilt power and leader knowing nothing
+            # of the lost holders: take them out again (the leader's pose is
+            # in the snapshot)
+            live = self._live()
+            if live != (self.power, self.leader):
+                self.power, self.leader = live
+                self.way = None
+        return unknown
+
+    def _closed_now(self):
+        """The cells the object may not enter: the map's and the lost holders'."""
+        if not self.lost_cells:
+            return self.closed
+        out = set(self.closed or ())
+        c = self.lost_cells
+        for k in range(0, len(c), 2):
+            out.add((c[k], c[k + 1]))
+        return out
+
+    def _bump(self):
+        """The step planned from planned_from was blocked: remember the
+        displacement it aimed at, so the plan (way_home from then on) goes
+        round whatever stands there. A robot that stopped for good (dead,
+        never heard of by the host when it was searching) blocks the same
+        step forever, and the greedy rotation of the open arena can retry
+        the same few blocked steps until the run stalls."""
+        self.bumps = self.bumps + (self.planned_from[0] + self.dx,
+                                   self.planned_from[1] + self.dy)
+        self.blocked = 0
+        self.way = None
+
+    def _avoid(self):
+        """The bumped displacements, relative to where the way is planned from."""
+        out = []
+        b = self.bumps
+        for k in range(0, len(b), 2):
+            out.append((b[k] - self.moved_x, b[k + 1] - self.moved_y))
+        return out
