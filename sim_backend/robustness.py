@@ -25,6 +25,9 @@ PRESET_MAX_TICKS = 3000
 # deaths and deadlocks strike in ticks 1..200, while the swarm searches and
 # carries (a default run delivers near tick 150); later ones miss the mission
 PRESET_FAULT_WINDOW = 200
+# the host drops a holder silent this long (a waiting holder reports every
+# 64 ticks, a carrying one every tick; docs/extensions.md)
+PRESET_LOST_AFTER = 100
 
 
 def fault_points() -> list[Point]:
@@ -113,7 +116,11 @@ def _value(v: Any) -> Any:
 
 
 def with_feasible(rows: Sequence[dict]) -> list[dict]:
-    """Rows with `feasible`: the robots that never die and may claim can lift it."""
+    """Rows with `feasible` (docs/extensions.md): the robots that never die and
+    may claim can lift the object (faults.feasible), and the run did not end
+    with the host finding no way home round the obstacles it knows (the
+    map's, and with lostAfter the cells of the holders that died: an object
+    pinned by dead robots cannot be delivered by anyone)."""
     from sim_backend import faults
     from sim_backend.scenario import FIELDS, validate
     out = []
@@ -121,7 +128,8 @@ def with_feasible(rows: Sequence[dict]) -> list[dict]:
         raw = {k: v for k, v in r.items() if k in FIELDS and k not in ("name", "description")
                and v not in (None, "", "()", ())}
         sc = validate({k: _value(v) for k, v in raw.items()})
-        out.append({**r, "feasible": faults.feasible(sc, int(r["seed"]))})
+        out.append({**r, "feasible": faults.feasible(sc, int(r["seed"]))
+                    and r.get("outcome") != NO_PATH})
     return out
 
 
@@ -229,13 +237,15 @@ def trajectories_plot(path: Path, seed: int = 3, ticks: int = 150) -> Path:
 
 
 # why a run of a fault scenario did not deliver (diagnose)
-WHY_ORDER = ("delivered", "infeasible", "never converged", "leader dead", "power lost",
+NO_PATH = "no path home"           # the thesis coordinator's stop reason
+WHY_ORDER = ("delivered", "infeasible", "no path home", "never converged", "leader dead", "power lost",
              "blocked by dead robots", "stuck")
 
 
 def diagnose(r: Any) -> str:
     """Why a finished run (engine.RunResult) of a fault scenario ended as it
-    did, one of WHY_ORDER: infeasible (faults.feasible is false), never
+    did, one of WHY_ORDER: infeasible (faults.feasible is false), no path
+    home (the host found none round the obstacles it knows), never
     converged, leader dead (the leader died after convergence and the
     transport waits for its pose), power lost (the live holders' power is
     below the weight), blocked by dead robots (a dead robot stands next to
@@ -248,6 +258,8 @@ def diagnose(r: Any) -> str:
         return "delivered"
     if not faults.feasible(sc, r.seed):
         return "infeasible"
+    if c.measures().get("outcome") == NO_PATH:
+        return NO_PATH
     if c.converged_tick < 0:
         return "never converged"
     die = faults.plan(sc, r.seed)[0]
@@ -295,16 +307,18 @@ def main(argv: list[str]) -> int:
             print(exp, pts)
         print(fault_plots(rows, Path(argv[2])))
         return 0
-    if argv[:1] == ["why"] and len(argv) == 2:
+    if argv[:1] == ["why"] and len(argv) in (2, 3):
         # the goal mix, preset settings, seeds 1..N: why each run ended
-        raw = {**dict(GOAL), "maxTicks": PRESET_MAX_TICKS, "faultWindow": PRESET_FAULT_WINDOW}
+        # (lostAfter: the preset's, or 0 for the thesis's host)
+        raw = {**dict(GOAL), "maxTicks": PRESET_MAX_TICKS, "faultWindow": PRESET_FAULT_WINDOW,
+               "lostAfter": int(argv[2]) if len(argv) == 3 else PRESET_LOST_AFTER}
         got = why_table(raw, range(1, int(argv[1]) + 1))
         for why in WHY_ORDER:
             if why in got:
                 print(f"{why:24s} {len(got[why]):3d}  seeds {got[why]}")
         return 0
     print("usage: python -m sim_backend.robustness models CSV FACTOR OUT.png | "
-          "trajectories OUT.png | faults CSV OUTDIR | why SEEDS", file=sys.stderr)
+          "trajectories OUT.png | faults CSV OUTDIR | why SEEDS [LOST_AFTER]", file=sys.stderr)
     return 2
 
 

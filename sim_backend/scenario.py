@@ -258,6 +258,10 @@ def extensions(sc: "Scenario") -> list[str]:
     from sim_backend import faults
     if faults.active(sc):
         out.append("faults")
+    if sc.lostAfter:
+        # the host counts every holder's heartbeats; the vector engine passes
+        # the coordinator the leader's only
+        out.append("lostAfter")
     if sc.breeds:
         out.append("breeds")
     return out

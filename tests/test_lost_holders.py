@@ -235,3 +235,18 @@ def test_without_faults_nobody_is_lost_and_only_blocked_steps_are_planned_differ
     conv = a.coordinator.converged_tick
     assert b.coordinator.converged_tick == conv
     assert a.trajectories[:conv + 1] == b.trajectories[:conv + 1]
+
+
+def test_why_a_run_failed_is_diagnosed_and_a_pinned_object_is_not_feasible():
+    from sim_backend.robustness import fault_table, why_table
+    assert why_table({**GOAL, "lostAfter": 0}, [1]) == {"leader dead": [1]}
+    # seed 35: two dead holders pin the object (a bar with carriers at both
+    # ends) against them; no way home exists for anyone
+    assert why_table({**GOAL, "lostAfter": 100}, [1, 35]) == \
+        {"delivered": [1], "no path home": [35]}
+    row = {"experiment": "goal", "seed": 35, "deathRate": 0.25, "ignoreFieldRate": 0.1,
+           "randomRate": 0.1, "delivered": False, "home_tick": None}
+    pinned = fault_table([{**row, "outcome": "no path home"}])
+    stalled = fault_table([{**row, "outcome": "stalled"}])
+    assert pinned["goal"] == [(-1.0, 0, 0, None)]
+    assert stalled["goal"] == [(-1.0, 1, 0, None)]

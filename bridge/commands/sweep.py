@@ -49,7 +49,7 @@ def register(sub) -> None:
     p.add_argument("--preset", choices=("faults", "breeds"),
                    help="faults: the robustness sweep of issue 12 (each fault alone at rates "
                         "0-0.5, and 25%% dead + 10%% non-complying + 10%% random; 20 seeds, "
-                        "until delivered); faults.png plots delivery rate and time. breeds: "
+                        "until delivered, lostAfter 100); faults.png plots delivery rate and time. breeds: "
                         "0, 5, 10, 15, 20 ants in a swarm of 20 with fireflies, 30 seeds, "
                         "until converged; breeds.png")
     p.add_argument("--thesis", action="store_true",
@@ -209,6 +209,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         until = cfg.get("until") or "delivered"
         overrides.setdefault("maxTicks", robustness.PRESET_MAX_TICKS)
         overrides.setdefault("faultWindow", robustness.PRESET_FAULT_WINDOW)
+        overrides.setdefault("lostAfter", robustness.PRESET_LOST_AFTER)
     elif args.preset == "breeds":
         from sim_backend import robustness
         points = robustness.breed_points()
