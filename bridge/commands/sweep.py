@@ -48,7 +48,7 @@ def register(sub) -> None:
                         "distinct seeds, each in 0..1000002 (default: 20; --thesis: 150)")
     p.add_argument("--preset", choices=("faults", "breeds"),
                    help="faults: the robustness sweep of issue 12 (each fault alone at rates "
-                        "0-0.5, and 25%% dead + 10%% non-complying + 10%% random; 20 seeds, "
+                        "0-0.5, and 25%% dead + 10%% non-complying + 10%% random; 40 seeds, "
                         "until delivered, lostAfter 100); faults.png plots delivery rate and time. breeds: "
                         "0, 5, 10, 15, 20 ants in a swarm of 20 with fireflies, 30 seeds, "
                         "until converged; breeds.png")
