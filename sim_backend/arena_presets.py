@@ -12,7 +12,7 @@ import statistics
 from pathlib import Path
 from typing import Any, Sequence
 
-from sim_backend.plots import _save
+from sim_backend.plots import _delivered, _save
 from sim_backend.robustness import _num
 from sim_backend.sweep import Point
 
@@ -77,7 +77,7 @@ def summarise(rows: Sequence[dict]) -> list[dict]:
     out = []
     for p in order:
         rs = by[p]
-        home = [_num(r["home_tick"]) for r in rs if str(r["delivered"]) == "True"]
+        home = [_num(r["home_tick"]) for r in rs if _delivered(r)]
         ious = [v for v in (_num(r["shape_iou"]) for r in rs) if v is not None]
         out.append({"point": label(p), "n": len(rs), "delivered": len(home),
                     "median_home_tick": statistics.median(home) if home else None,
