@@ -104,6 +104,9 @@ def plots(rows: Sequence[dict], out: Path, name: str) -> list[Path]:
     axes[1].barh(y, [s["median_home_tick"] or 0 for s in summary], color="tab:blue")
     axes[1].set_title("median ticks to delivery (delivered runs)")
     axes[2].barh(y, [s["mean_iou"] or 0 for s in summary], color="tab:orange")
+    for yy, s in zip(y, summary):
+        if s["mean_iou"] is None:
+            axes[2].text(0.02, yy, "n/a", va="center", fontsize=8)
     axes[2].set_xlim(0, 1)
     axes[2].set_title("mean IoU of the perceived shape")
     axes[0].set_yticks(y)
