@@ -142,3 +142,11 @@ def test_scenarios_lists_the_wrap_key():
                        text=True, check=True)
     line = next(ln for ln in p.stdout.splitlines() if ln.strip().startswith("wrap "))
     assert "False" in line and "false | true" in line
+
+
+def test_a_mission_with_a_real_body_refuses_wrap():
+    from bridge.bodies import BodyURLError, parse_body_url
+    from bridge.mission import MixedMission
+    sc = validate({"wrap": True})
+    with pytest.raises(BodyURLError, match="wrap = true needs every robot simulated"):
+        MixedMission(sc, 1, {1: parse_body_url("khepera://loop://")})
