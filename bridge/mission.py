@@ -301,6 +301,11 @@ class MixedMission:
                                    f"scenario (1..{sc.agents})")
         if tick_s <= 0:
             raise BodyURLError(f"tick {tick_s} s: expected a positive period")
+        real = sorted(n for n, spec in bodies.items() if spec.scheme != "sim")
+        if getattr(sc, "wrap", False) and real:
+            # a robot on a real floor cannot leave one edge and enter at the other
+            raise BodyURLError(f"--body {real[0]}=...: wrap = true needs every robot "
+                               "simulated; a real body cannot cross an edge of the torus")
         self.sc = sc
         self.seed = seed
         self.tick_s = tick_s

@@ -150,6 +150,11 @@ def parse(raw: dict[str, Any], values: dict[str, Any]) -> dict[str, Any]:
         if f not in CROWD_MODES:
             raise ScenarioError(f"crowd: expected one of {', '.join(CROWD_MODES)}, got {f!r}")
         values["crowd"] = f
+    if "wrap" in raw:
+        f = raw.pop("wrap")
+        if not isinstance(f, bool):
+            raise ScenarioError(f"wrap: expected true or false, got {f!r}")
+        values["wrap"] = f
     if "obstacles" in raw:
         values["obstacles"] = tuple(_obstacle(j, t) for j, t in
                                     enumerate(_array("obstacles", raw.pop("obstacles"))))

@@ -77,7 +77,8 @@ class SimBody(Hal):
 
     def probe(self, heading: int) -> int:
         w = self.world
-        r = kernel.probe(w.obj, w.occ, 0, w.w, w.n, w.xs[self.i], w.ys[self.i], heading)
+        r = kernel.probe(w.obj, w.occ, 0, w.w, w.n, w.xs[self.i], w.ys[self.i], heading,
+                         w.rules)
         if self.faulty:
             if r == hal.OBJECT and self.flags & faults.RANDOM:
                 r = hal.ROBOT
@@ -91,7 +92,8 @@ class SimBody(Hal):
 
     def field_ahead(self, heading: int) -> int:
         w = self.world
-        v = kernel.field_ahead(w.field, 0, w.w, w.n, w.xs[self.i], w.ys[self.i], heading)
+        v = kernel.field_ahead(w.field, 0, w.w, w.n, w.xs[self.i], w.ys[self.i], heading,
+                               w.rules)
         if self.faulty:
             v = self._sensed_field(v)
         if self.tape is not None:
@@ -138,8 +140,8 @@ class SimBody(Hal):
         if self.faulty and self.dead():
             return
         w = self.world
-        w.claim[self.i] = kernel.cell(w.w, w.n, kernel.ahead_x(w.xs[self.i], heading),
-                                      kernel.ahead_y(w.ys[self.i], heading))
+        w.claim[self.i] = kernel.ahead_cell(w.w, w.n, w.xs[self.i], w.ys[self.i], heading,
+                                            w.rules)
         if self.acts is not None:
             self.acts.append((hal.CLAIM, heading, 0))
 

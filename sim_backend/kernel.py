@@ -44,6 +44,9 @@ DYNAMIC = 1         # field "dynamic": a beacon's field moves with its holder
                     # (thesis 6.1.3); without, it stays where it was lit
 YIELD = 2           # crowd "yield": robots in the carried object's way step
                     # aside; without, any robot there blocks the step
+WRAP = 4            # wrap: the search phase is toroidal as NetLogo's default
+                    # world (moves, probes, uphill and the field wrap at the
+                    # edges); the carried object stays inside the arena
 
 # the per-robot tie-break stream of uphill (a 31-bit LCG, so numba's int64
 # and Python's ints agree without overflow)
@@ -65,6 +68,23 @@ def cell(w, n, px, py):
     return (py + w) * n + (px + w)
 
 
+def fold(w, n, p, rules):
+    """Patch coordinate p on the torus when the run wraps (rules WRAP), else p:
+    one patch past +w is -w, as in NetLogo's wrapping world."""
+    if (rules & WRAP) != 0:
+        return (p + w) % n - w
+    return p
+
+
+def fold_q8(w, n, q, rules):
+    """A Q8 coordinate q brought back onto the torus (rules WRAP), so that
+    fx.patch(q) lies in -w..w; else q itself."""
+    if (rules & WRAP) != 0:
+        edge = w * fx.ONE + fx.HALF          # the arena's west (south) edge, in Q8
+        return (q + edge) % (n * fx.ONE) - edge
+    return q
+
+
 def ahead_x(x, h):
     """Patch column one patch ahead of Q8 x along heading h."""
     return fx.patch(x + fx.dx(h, fx.ONE))
@@ -74,11 +94,17 @@ def ahead_y(y, h):
     return fx.patch(y + fx.dy(h, fx.ONE))
 
 
+def ahead_cell(w, n, x, y, h, rules):
+    """Cell (relative) of the patch one ahead along h, wrapped when the run
+    wraps: the patch a probe saw, which a claim takes."""
+    return cell(w, n, fold(w, n, ahead_x(x, h), rules), fold(w, n, ahead_y(y, h), rules))
+
+
 # -- sensing: the world as it stood at the start of the tick ------------------
 
-def probe(obj, occ, base, w, n, x, y, h):
-    px = ahead_x(x, h)
-    py = ahead_y(y, h)
+def probe(obj, occ, base, w, n, x, y, h, rules):
+    px = fold(w, n, ahead_x(x, h), rules)
+    py = fold(w, n, ahead_y(y, h), rules)
     if not inside(w, px, py):
         return WALL
     k = base + cell(w, n, px, py)
@@ -97,9 +123,9 @@ def probe(obj, occ, base, w, n, x, y, h):
     return NOTHING
 
 
-def field_ahead(field, base, w, n, x, y, h):
-    px = ahead_x(x, h)
-    py = ahead_y(y, h)
+def field_ahead(field, base, w, n, x, y, h, rules):
+    px = fold(w, n, ahead_x(x, h), rules)
+    py = fold(w, n, ahead_y(y, h), rules)
     if not inside(w, px, py):
         return 0
     return field[base + cell(w, n, px, py)]
@@ -114,7 +140,7 @@ def tie_seed(seed, node):
     return (seed * 7919 + node * 104729 + 1) % TIE_MOD
 
 
-def uphill(field, base, w, n, x, y, ties, tie, i):
+def uphill(field, base, w, n, x, y, ties, tie, i, rules):
     """Heading to the strongest neighbour if stronger than here, else -1.
 
     Ties (ties == ORDERED) go to the first in N, NE, E, ... order; with
@@ -129,8 +155,8 @@ def uphill(field, base, w, n, x, y, ties, tie, i):
     out = -1
     count = 0
     for j in range(8):
-        qx = px + UPHILL_DX[j]
-        qy = py + UPHILL_DY[j]
+        qx = fold(w, n, px + UPHILL_DX[j], rules)
+        qy = fold(w, n, py + UPHILL_DY[j], rules)
         if inside(w, qx, qy):
             v = field[base + cell(w, n, qx, qy)]
             if v > best:
@@ -144,8 +170,8 @@ def uphill(field, base, w, n, x, y, ties, tie, i):
     tie[i] = (tie[i] * TIE_MUL + TIE_ADD) % TIE_MOD
     k = (tie[i] >> 16) % count
     for j in range(8):
-        qx = px + UPHILL_DX[j]
-        qy = py + UPHILL_DY[j]
+        qx = fold(w, n, px + UPHILL_DX[j], rules)
+        qy = fold(w, n, py + UPHILL_DY[j], rules)
         if inside(w, qx, qy) and field[base + cell(w, n, qx, qy)] == best:
             if k == 0:
                 return UPHILL_H[j]
@@ -161,11 +187,13 @@ def holding(owner, base, held, node):
 
 # -- the field --------------------------------------------------------------------
 
-def signal(field, base, w, n, tdx, tdy, tv, t0, t1, px, py, sign):
-    """Add (sign 1) or remove (sign -1) one beacon's field centred on a patch."""
+def signal(field, base, w, n, tdx, tdy, tv, t0, t1, px, py, sign, rules):
+    """Add (sign 1) or remove (sign -1) one beacon's field centred on a patch
+    (on the torus when the run wraps: sigRadius <= worldSize, so no patch is
+    reached twice)."""
     for t in range(t0, t1):
-        x = px + tdx[t]
-        y = py + tdy[t]
+        x = fold(w, n, px + tdx[t], rules)
+        y = fold(w, n, py + tdy[t], rules)
         if inside(w, x, y):
             field[base + cell(w, n, x, y)] += sign * tv[t]
 
@@ -184,7 +212,7 @@ def signal_value(d2):
     return v
 
 
-def signal_at(field, base, w, n, radius, x, y, sign):
+def signal_at(field, base, w, n, radius, x, y, sign, rules):
     """Signal as Appendix A writes it, centred on the Q8 position (x, y):
     every patch within `radius` of the patch holding it (`patches in-radius`,
     by patch centres) gets round(10 / (1 + d)), d its centre's distance from
@@ -197,15 +225,17 @@ def signal_at(field, base, w, n, radius, x, y, sign):
                 continue
             qx = px + ddx
             qy = py + ddy
-            if not inside(w, qx, qy):
-                continue
             ex = qx * fx.ONE - x
             ey = qy * fx.ONE - y
+            qx = fold(w, n, qx, rules)   # the distance is the torus's: to the nearest image
+            qy = fold(w, n, qy, rules)
+            if not inside(w, qx, qy):
+                continue
             field[base + cell(w, n, qx, qy)] += sign * signal_value(ex * ex + ey * ey)
 
 
 def beacons(field, base, w, n, tdx, tdy, tv, t0, t1, xs, ys, lo, hi, beacon_set,
-            beacon_on, bsx, bsy, sigmode, radius):
+            beacon_on, bsx, bsy, sigmode, radius, rules):
     """Beacons turned on or off this tick, then every leader's pinned patch.
 
     BEACON_ON lights a beacon, BEACON_LEADER a leader's (it pins its patch to
@@ -221,11 +251,11 @@ def beacons(field, base, w, n, tdx, tdy, tv, t0, t1, xs, ys, lo, hi, beacon_set,
         if b >= 1 and beacon_on[i] == 0:
             last = i
     beacons_last(field, base, w, n, tdx, tdy, tv, t0, t1, xs, ys, lo, hi, beacon_set,
-                 beacon_on, bsx, bsy, sigmode, radius, last)
+                 beacon_on, bsx, bsy, sigmode, radius, last, rules)
 
 
 def beacons_last(field, base, w, n, tdx, tdy, tv, t0, t1, xs, ys, lo, hi, beacon_set,
-                 beacon_on, bsx, bsy, sigmode, radius, last):
+                 beacon_on, bsx, bsy, sigmode, radius, last, rules):
     """`beacons` with the last finder given (robot index, -1: none)."""
     for i in range(lo, hi):
         b = beacon_set[i]
@@ -233,9 +263,10 @@ def beacons_last(field, base, w, n, tdx, tdy, tv, t0, t1, xs, ys, lo, hi, beacon
             if beacon_on[i] & EMITS:
                 # our addition: a beacon switched off takes its field with it
                 if sigmode == ON_PATCH:
-                    signal(field, base, w, n, tdx, tdy, tv, t0, t1, bsx[i], bsy[i], -1)
+                    signal(field, base, w, n, tdx, tdy, tv, t0, t1, bsx[i], bsy[i], -1,
+                           rules)
                 else:
-                    signal_at(field, base, w, n, radius, bsx[i], bsy[i], -1)
+                    signal_at(field, base, w, n, radius, bsx[i], bsy[i], -1, rules)
             beacon_on[i] = 0
     for i in range(lo, hi):
         if (beacon_on[i] & PINS) or (beacon_set[i] == BEACON_LEADER and beacon_on[i] == 0):
@@ -249,12 +280,12 @@ def beacons_last(field, base, w, n, tdx, tdy, tv, t0, t1, xs, ys, lo, hi, beacon
             bsx[i] = fx.patch(xs[i])
             bsy[i] = fx.patch(ys[i])
             beacon_on[i] = EMITS | pins
-            signal(field, base, w, n, tdx, tdy, tv, t0, t1, bsx[i], bsy[i], 1)
+            signal(field, base, w, n, tdx, tdy, tv, t0, t1, bsx[i], bsy[i], 1, rules)
         elif i == last:
             bsx[i] = xs[i]
             bsy[i] = ys[i]
             beacon_on[i] = EMITS | pins
-            signal_at(field, base, w, n, radius, bsx[i], bsy[i], 1)
+            signal_at(field, base, w, n, radius, bsx[i], bsy[i], 1, rules)
         else:
             beacon_on[i] = pins
 
@@ -286,17 +317,17 @@ def apply_tick(obj, owner, field, occ, stamp, base, w, n, tdx, tdy, tv, t0, t1,
             owner[base + k] = i - lo + 1
             held[i] = k
     beacons(field, base, w, n, tdx, tdy, tv, t0, t1, xs, ys, lo, hi, beacon_set,
-            beacon_on, bsx, bsy, sigmode, radius)
+            beacon_on, bsx, bsy, sigmode, radius, rules)
     if carry_group(obj, owner, occ, stamp, base, w, n, xs, ys, lo, hi, held,
                    carry_on, carry_dx, carry_dy, cx, cy, cv, cw, c0, c1, tick, rules) \
             and (rules & DYNAMIC) != 0:
         carry_beacons(field, base, w, n, tdx, tdy, tv, t0, t1, lo, hi, held, beacon_on,
-                      bsx, bsy, cx, cy, c0, c1, carry_dx, carry_dy, sigmode, radius)
+                      bsx, bsy, cx, cy, c0, c1, carry_dx, carry_dy, sigmode, radius, rules)
     for i in range(lo, hi):
         if mv_on[i] == 0:
             continue
-        nx = xs[i] + fx.dx(mv_h[i], mv_step[i])
-        ny = ys[i] + fx.dy(mv_h[i], mv_step[i])
+        nx = fold_q8(w, n, xs[i] + fx.dx(mv_h[i], mv_step[i]), rules)
+        ny = fold_q8(w, n, ys[i] + fx.dy(mv_h[i], mv_step[i]), rules)
         px = fx.patch(nx)
         py = fx.patch(ny)
         if px != fx.patch(xs[i]) or py != fx.patch(ys[i]):
@@ -329,7 +360,7 @@ def _holder_at(w, n, xs, ys, lo, hi, held, cx, cy, c0, c1, k):
 
 
 def carry_beacons(field, base, w, n, tdx, tdy, tv, t0, t1, lo, hi, held, beacon_on,
-                  bsx, bsy, cx, cy, c0, c1, carry_dx, carry_dy, sigmode, radius):
+                  bsx, bsy, cx, cy, c0, c1, carry_dx, carry_dy, sigmode, radius, rules):
     """The carriers' fields follow them one step (field DYNAMIC, thesis
     6.1.3: a beacon belongs to its robot, so no field stays behind)."""
     for i in range(lo, hi):
@@ -339,15 +370,15 @@ def carry_beacons(field, base, w, n, tdx, tdy, tv, t0, t1, lo, hi, held, beacon_
         ddx = carry_dx[i]
         ddy = carry_dy[i]
         if sigmode == ON_PATCH:
-            signal(field, base, w, n, tdx, tdy, tv, t0, t1, bsx[i], bsy[i], -1)
+            signal(field, base, w, n, tdx, tdy, tv, t0, t1, bsx[i], bsy[i], -1, rules)
             bsx[i] += ddx
             bsy[i] += ddy
-            signal(field, base, w, n, tdx, tdy, tv, t0, t1, bsx[i], bsy[i], 1)
+            signal(field, base, w, n, tdx, tdy, tv, t0, t1, bsx[i], bsy[i], 1, rules)
         else:
-            signal_at(field, base, w, n, radius, bsx[i], bsy[i], -1)
+            signal_at(field, base, w, n, radius, bsx[i], bsy[i], -1, rules)
             bsx[i] += ddx * fx.ONE
             bsy[i] += ddy * fx.ONE
-            signal_at(field, base, w, n, radius, bsx[i], bsy[i], 1)
+            signal_at(field, base, w, n, radius, bsx[i], bsy[i], 1, rules)
 
 
 def carry_group(obj, owner, occ, stamp, base, w, n, xs, ys, lo, hi, held,
@@ -484,7 +515,7 @@ def turn_length(steps, k, claimed, was, state, field_state, defiance):
 
 
 def apply_robot(obj, owner, occ, base, w, n, xs, ys, lo, i, held, mv_on, mv_h, mv_step,
-                claim):
+                claim, rules):
     """Apply robot i's claim and move at once, against the world as the
     robots before it left it: a move into another patch fails if that patch
     is off the arena, part of the object or holds a robot now."""
@@ -497,8 +528,8 @@ def apply_robot(obj, owner, occ, base, w, n, xs, ys, lo, i, held, mv_on, mv_h, m
     if mv_on[i] == 0:
         return
     mv_on[i] = 0
-    nx = xs[i] + fx.dx(mv_h[i], mv_step[i])
-    ny = ys[i] + fx.dy(mv_h[i], mv_step[i])
+    nx = fold_q8(w, n, xs[i] + fx.dx(mv_h[i], mv_step[i]), rules)
+    ny = fold_q8(w, n, ys[i] + fx.dy(mv_h[i], mv_step[i]), rules)
     px = fx.patch(nx)
     py = fx.patch(ny)
     ox = fx.patch(xs[i])
@@ -535,12 +566,12 @@ def end_iteration(obj, owner, field, occ, stamp, base, w, n, tdx, tdy, tv, t0, t
     (with the arena's `rules`, as in apply_tick), occupancy recounted."""
     beacons_last(field, base, w, n, tdx, tdy, tv, t0, t1, xs, ys, lo, hi, beacon_set,
                  beacon_on, bsx, bsy, sigmode, radius,
-                 last_finder(order, lo, hi, beacon_set, beacon_on))
+                 last_finder(order, lo, hi, beacon_set, beacon_on), rules)
     if carry_group(obj, owner, occ, stamp, base, w, n, xs, ys, lo, hi, held,
                    carry_on, carry_dx, carry_dy, cx, cy, cv, cw, c0, c1, tick, rules) \
             and (rules & DYNAMIC) != 0:
         carry_beacons(field, base, w, n, tdx, tdy, tv, t0, t1, lo, hi, held, beacon_on,
-                      bsx, bsy, cx, cy, c0, c1, carry_dx, carry_dy, sigmode, radius)
+                      bsx, bsy, cx, cy, c0, c1, carry_dx, carry_dy, sigmode, radius, rules)
     recount(occ, base, w, n, xs, ys, lo, hi)
 
 

@@ -30,6 +30,8 @@ def _num(v):
         return None
     if isinstance(v, (int, float)):
         return v
+    if v in ("True", "False"):        # a boolean key (wrap) as the CSV writes it
+        return v == "True"
     try:
         f = float(v)
     except ValueError:

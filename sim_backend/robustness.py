@@ -107,6 +107,8 @@ def _value(v: Any) -> Any:
         return v
     if v == "None":
         return None
+    if v in ("True", "False"):        # a boolean key (wrap)
+        return v == "True"
     for kind in (int, float):
         try:
             return kind(v)

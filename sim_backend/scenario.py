@@ -69,8 +69,8 @@ def arena_features(sc: "Scenario") -> list[str]:
         out.append("several objects")
     if sc.field != "static":
         out.append(f"field={sc.field}")
-    if sc.crowd != "block":
-        out.append(f"crowd={sc.crowd}")
+    if sc.wrap:
+        out.append("wrap")
     return out
 
 
@@ -117,7 +117,10 @@ class Scenario:
     objects: tuple = ()          # objects.Piece, the target among them
     obstacles: tuple = ()        # objects.Piece
     field: str = "static"        # beacons stay where lit (thesis), or move with holders
-    crowd: str = "block"         # robots block the carried object (thesis), or yield
+    # issue 11: robots in the carried object's way step aside (NetLogo's turtles
+    # overlap, so nothing stopped the thesis's object), or block it ("block")
+    crowd: str = "yield"
+    wrap: bool = False           # issue 10: a toroidal search phase (NetLogo's default world)
 
     def pieces(self) -> list:
         """The scenario's objects as objects.Piece, the target first."""
@@ -208,7 +211,8 @@ RANGES: dict[str, tuple[type, Any, Any]] = {
     "sigRadius": (int, 0, 30),
     "rPower": (float, 0.01, 655.0),
     "objectWeight": (float, 0.01, 10000.0),
-    "worldSize": (int, 10, 400),
+    # 414: 10,000 robots at the default arena's density (arena_presets.scaled_world)
+    "worldSize": (int, 10, 420),
     "homeX": (int, -60, 60),
     "homeY": (int, -60, 60),
     "objectX": (int, -60, 60),
@@ -358,6 +362,11 @@ def validate(raw: dict[str, Any], source: str = "scenario") -> Scenario:
             # fault draws and deaths are keyed to the synchronous tick
             raise ScenarioError(f"activation: {sc.activation!r} runs without faults; faults "
                                 "(deathRate, probeMiss, ...) need activation \"sync\"")
+    if sc.wrap and sc.sigRadius > sc.worldSize:
+        # a wider field would meet itself round the torus, reaching a patch twice
+        raise ScenarioError(f"wrap: sigRadius {sc.sigRadius} exceeds worldSize "
+                            f"{sc.worldSize}; on the torus a field must not reach round "
+                            "to itself: lower sigRadius or enlarge worldSize")
     if sc.objects or sc.obstacles:
         arena.check(sc)
     else:

@@ -42,6 +42,7 @@ from firmware_logic.behaviours.thesis.robot import (ANT, CARRY, FIELD, FIREFLY, 
 from sim_backend.engine import RunResult
 from sim_backend.errors import EngineError
 from sim_backend.scenario import Scenario, arena_features, departures, extensions
+from sim_backend import kernel
 from sim_backend.world import BLUE, FREE, YELLOW, World, signal_table
 
 DEAD = 7          # a robot of a run that has stopped: inert until compacted
@@ -495,7 +496,9 @@ class VectorEngine:
             ny = self.y[m] + ((_COS[h] * st + 8192) >> 14)
             px = (nx + 128) >> 8
             py = (ny + 128) >> 8
-            same = (px == self.opx[m]) & (py == self.opy[m])
+            # from where the robot stands now: a robot that stepped aside for
+            # the carried object (crowd "yield") moves on from its new patch
+            same = (px == (self.x[m] + 128) >> 8) & (py == (self.y[m] + 128) >> 8)
             w = self.wr[m]
             ins = (px >= -w) & (px <= w) & (py >= -w) & (py <= w)
             k = np.where(ins, self.base[m] + (py + w) * self.nn + px + w, 0)
@@ -551,6 +554,7 @@ class VectorEngine:
             hold_idx = {int(k) for k in self.cell[hold]}
             cells = self.cells[r]
             robots_at = list(zip(self.opx[hold].tolist(), self.opy[hold].tolist()))
+            crowd = sc.crowd == "yield"
             blocked = False
             for x, y in cells + robots_at:
                 nx, ny = x + ddx, y + ddy
@@ -558,10 +562,10 @@ class VectorEngine:
                     blocked = True
                     break
                 k = idx(nx, ny)
-                if self.occ[k] > 0 and k not in hold_idx:
+                if not crowd and self.occ[k] > 0 and k not in hold_idx:
                     blocked = True
                     break
-            if blocked:
+            if blocked or (crowd and not self._make_way(r, lo, hi, hold, ddx, ddy, entered)):
                 continue
             ks = [idx(x, y) for x, y in cells]
             old_o = self.obj[ks].copy()
@@ -581,6 +585,36 @@ class VectorEngine:
             entered.extend((base + (py + w) * nn + px + w).tolist())
             entered.extend(nk)
         return np.array(entered, dtype=np.int64) if entered else None
+
+    def _make_way(self, r: int, lo: int, hi: int, hold: np.ndarray, ddx: int, ddy: int,
+                  entered: list[int]) -> bool:
+        """crowd "yield": kernel.make_way for run r, on the robots it reads
+        (the carriers and the robots standing on the group's way, in node
+        order; no other robot moves or is read, so the result is the
+        kernel's); the patches they step to join `entered`."""
+        sc = self.runs[r][0]
+        w, nn = sc.worldSize, self.nn
+        base = int(self.run_slot[r]) * self.stride
+        way = {(x + ddx, y + ddy) for x, y in self.cells[r]}
+        way |= {(x + ddx, y + ddy) for x, y in zip(self.opx[hold].tolist(),
+                                                   self.opy[hold].tolist())}
+        px = self.opx[lo:hi].tolist()
+        py = self.opy[lo:hi].tolist()
+        sub = [lo + j for j in range(hi - lo) if (px[j], py[j]) in way or self.held[lo + j] >= 0]
+        xs = self.x[sub].tolist()
+        ys = self.y[sub].tolist()
+        held = [int(k) - base if k >= 0 else -1 for k in self.held[sub].tolist()]
+        cx = [c[0] for c in self.cells[r]]
+        cy = [c[1] for c in self.cells[r]]
+        grid = slice(base, base + self.stride)
+        stamp = np.full(self.stride, -1, dtype=np.int64)
+        if not kernel.make_way(self.obj[grid], self.occ[grid], stamp, 0, w, nn, xs, ys, 0,
+                               len(sub), held, cx, cy, 0, len(cx), ddx, ddy, 1):
+            return False
+        self.x[sub] = xs
+        self.y[sub] = ys
+        entered.extend((base + np.flatnonzero(stamp == 1)).tolist())
+        return True
 
     # -- exchange ------------------------------------------------------------------------------
 

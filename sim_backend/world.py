@@ -73,7 +73,8 @@ class World:
             self.obj[self.idx(x, y)] = OBSTACLE
         # the arena's rules (kernel.DYNAMIC, YIELD flags; 0 the thesis's)
         self.rules = (kernel.DYNAMIC if sc.field == arena.FIELD_MODES[1] else 0) | \
-            (kernel.YIELD if sc.crowd == arena.CROWD_MODES[1] else 0)
+            (kernel.YIELD if sc.crowd == arena.CROWD_MODES[1] else 0) | \
+            (kernel.WRAP if sc.wrap else 0)
         self.xs: list[int] = []
         self.ys: list[int] = []
         if sc.starts == "netlogo":
@@ -164,7 +165,7 @@ class World:
         """Robot i's claim and move of its last step, at once."""
         kernel.apply_robot(self.obj, self.owner, self.occ, 0, self.w, self.n, self.xs,
                            self.ys, 0, i, self.held, self.mv_on, self.mv_h, self.mv_step,
-                           self.claim)
+                           self.claim, self.rules)
 
     def end_iteration(self, tick: int) -> None:
         """Beacons, the carried group and occupancy after every robot's turn."""
@@ -189,9 +190,9 @@ class World:
     def uphill(self, i: int) -> int:
         """kernel.uphill for robot index i."""
         return kernel.uphill(self.field, 0, self.w, self.n, self.xs[i], self.ys[i],
-                             self.ties, self.tie, i)
+                             self.ties, self.tie, i, self.rules)
 
     def signal(self, px: int, py: int, sign: int = 1) -> None:
         """Add (or, sign=-1, remove) one beacon's field centred on a patch."""
         kernel.signal(self.field, 0, self.w, self.n, self.tdx, self.tdy, self.tv, 0,
-                      len(self.tv), px, py, sign)
+                      len(self.tv), px, py, sign, self.rules)

@@ -84,3 +84,23 @@ def arena_scenarios():
     crowd = [validate({"agents": 120, "crowd": "yield", "field": f, "maxTicks": 1500})
              for f in ("static", "dynamic")]
     return scs + [agg, agg] + crowd * 2, seeds + [1, 2, 1, 1, 2, 2]
+
+
+def wrap_scenarios():
+    """wrap = true (issue 10): both movement models, both activations, the
+    NetLogo Signal and tie rules, and a yielding crowd with the dynamic field
+    in a small arena, so robots and fields cross the edges often; each with
+    two seeds."""
+    scs, seeds = [], []
+    for model in ("firefly", "ant"):
+        for act in ("sync", "netlogo"):
+            sc = validate({"wrap": True, "movementModel": model, "activation": act,
+                           "maxTicks": 1200})
+            scs += [sc, sc]
+            seeds += [1, 2]
+    nl = validate({"wrap": True, "signalMode": "netlogo", "uphillTies": "netlogo",
+                   "leaderField": "netlogo", "maxTicks": 1200})
+    small = validate({"wrap": True, "worldSize": 12, "agents": 30, "objectX": 0,
+                      "objectY": 0, "homeX": -9, "homeY": -9, "sigRadius": 7,
+                      "field": "dynamic", "crowd": "yield", "maxTicks": 1200})
+    return scs + [nl, nl, small, small], seeds + [1, 2, 1, 2]

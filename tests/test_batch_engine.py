@@ -18,7 +18,7 @@ from sim_backend import objects
 from sim_backend.batch.engine import BatchEngine, run_batch
 from sim_backend.errors import EngineError
 from sim_backend.scenario import validate
-from tests.harness import arena_scenarios, assert_same, mixed_scenarios, reference
+from tests.harness import arena_scenarios, assert_same, mixed_scenarios, reference, wrap_scenarios
 
 THESIS_DIR = Path(registry.load("thesis").folder)
 
@@ -72,6 +72,13 @@ def test_obstacles_several_objects_and_the_dynamic_field_identical():
     assert sum(r.delivered for r in got) >= len(got) // 2, "few deliveries: a weak comparison"
     moved = [r for r in got if r.delivered and r.scenario.field == "dynamic"]
     assert moved, "no dynamic-field run delivered"
+
+
+def test_a_wrapping_world_identical():
+    """wrap = true: moves, probes, claims, uphill and the field on the torus."""
+    scs, seeds = wrap_scenarios()
+    got = assert_same(scs, seeds)
+    assert sum(r.delivered for r in got) >= len(got) // 2, "few deliveries: a weak comparison"
 
 
 def test_until_converged_stops_where_the_reference_stops():

@@ -58,3 +58,13 @@ def test_one_scenario_many_seeds_and_results():
 def test_refuses_another_behaviour():
     with pytest.raises(EngineError, match="thesis behaviour only"):
         VectorEngine([(validate({"behaviour": "aggregate"}), 1)])
+
+
+@pytest.mark.parametrize("crowd", ["yield", "block"])
+def test_both_crowd_rules_identical_in_a_dense_swarm(crowd):
+    """crowd "yield" (the default) and "block": 150 robots crowd the object,
+    so robots stand in the carried group's way and (yield) step aside."""
+    sc = validate({"agents": 150, "crowd": crowd, "maxTicks": 1500})
+    got = same([sc, sc.replace(movementModel="ant")], [1, 2])
+    if crowd == "yield":
+        assert all(r.delivered for r in got)

@@ -46,12 +46,16 @@ def register(sub) -> None:
     p.add_argument("--seeds", default=None, metavar="N|A-B|A,B,...",
                    help="seeds: a count N (seeds 1..N), a range A-B (A <= B) or a list of "
                         "distinct seeds, each in 0..1000002 (default: 20; --thesis: 150)")
-    p.add_argument("--preset", choices=("faults", "breeds"),
+    p.add_argument("--preset", choices=("faults", "breeds", "sizes", "obstacles", "field"),
                    help="faults: the robustness sweep of issue 12 (each fault alone at rates "
                         "0-0.5, and 25%% dead + 10%% non-complying + 10%% random; 40 seeds, "
                         "until delivered, lostAfter 100); faults.png plots delivery rate and time. breeds: "
                         "0, 5, 10, 15, 20 ants in a swarm of 20 with fireflies, 30 seeds, "
-                        "until converged; breeds.png")
+                        "until converged; breeds.png. sizes: 20-300 robots in the default "
+                        "arena, 1,000 and 10,000 in arenas of the same density; obstacles: "
+                        "the wall scenario with and without its wall; field: static and "
+                        "dynamic field at 20-300 robots (issue 11; 10 seeds, until delivered, "
+                        "maxTicks 6000; <preset>.png: delivery rate, time, IoU)")
     p.add_argument("--thesis", action="store_true",
                    help="reproduce every graph and figure of the thesis's chapter 5 "
                         "(150 seeds per point, both movement models, until convergence)")
@@ -217,6 +221,16 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             list(range(1, robustness.BREED_SEEDS + 1))
         until = cfg.get("until") or "converged"
         overrides.setdefault("maxTicks", 5000)
+    elif args.preset:
+        from sim_backend import arena_presets
+        name, make = arena_presets.PRESETS[args.preset]
+        if args.scenario is None and args.experiment is None:
+            base = scenario.load(name)
+        points = make()
+        seeds = _seeds(cfg["seeds"]) if "seeds" in cfg else \
+            list(range(1, arena_presets.SEEDS + 1))
+        until = cfg.get("until") or "delivered"
+        overrides.setdefault("maxTicks", arena_presets.MAX_TICKS)
     elif args.thesis:
         if args.grid:
             raise UsageError("--thesis runs its own grid; drop --grid")
@@ -308,6 +322,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         elif args.preset == "breeds":
             from sim_backend import robustness
             pngs = robustness.breed_plots(saved, out)
+        elif args.preset:
+            from sim_backend import arena_presets
+            pngs = arena_presets.plots(saved, out, args.preset)
         elif args.thesis:
             from sim_backend import thesis_figures
             pngs = plots.thesis_plots(saved, out) + thesis_figures.plots(saved, out)

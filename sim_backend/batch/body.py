@@ -178,7 +178,7 @@ class BatchBody:
     def probe(self, heading):
         r = self.run[self.i]
         p = kernel.probe(self.obj, self.occ, self.base[r], self.w[r], self.n[r],
-                         self.xs[self.i], self.ys[self.i], heading)
+                         self.xs[self.i], self.ys[self.i], heading, self.rules[r])
         if self.faulty[r] == 1:
             if p == kernel.OBJECT and self.flags[self.i] & faults.RANDOM:
                 p = kernel.ROBOT
@@ -191,7 +191,7 @@ class BatchBody:
     def field_ahead(self, heading):
         r = self.run[self.i]
         v = kernel.field_ahead(self.field, self.base[r], self.w[r], self.n[r],
-                               self.xs[self.i], self.ys[self.i], heading)
+                               self.xs[self.i], self.ys[self.i], heading, self.rules[r])
         if self.faulty[r] == 1:
             v = self._sensed_field(v)
         return v
@@ -207,7 +207,8 @@ class BatchBody:
     def uphill(self):
         r = self.run[self.i]
         u = kernel.uphill(self.field, self.base[r], self.w[r], self.n[r],
-                          self.xs[self.i], self.ys[self.i], self.ties[r], self.tie, self.i)
+                          self.xs[self.i], self.ys[self.i], self.ties[r], self.tie, self.i,
+                          self.rules[r])
         if self.faulty[r] == 1 and self.flags[self.i] & (faults.IGNORE_FIELD | faults.RANDOM):
             return -1
         return u
@@ -231,9 +232,8 @@ class BatchBody:
         if self.dead():
             return
         r = self.run[self.i]
-        self.claim_k[self.i] = kernel.cell(self.w[r], self.n[r],
-                                           kernel.ahead_x(self.xs[self.i], heading),
-                                           kernel.ahead_y(self.ys[self.i], heading))
+        self.claim_k[self.i] = kernel.ahead_cell(self.w[r], self.n[r], self.xs[self.i],
+                                                 self.ys[self.i], heading, self.rules[r])
 
     def carry(self, dx, dy):
         if self.dead():
@@ -361,7 +361,7 @@ def go_iteration(robots, body, r, tick):
             claimed = body.claim_k[i] >= 0
             kernel.apply_robot(body.obj, body.owner, body.occ, body.base[r], body.w[r],
                                body.n[r], body.xs, body.ys, lo, i, body.held, body.mv_on,
-                               body.mv_h, body.mv_step, body.claim_k)
+                               body.mv_h, body.mv_step, body.claim_k, body.rules[r])
             body.steps[r] += 1
             steps = kernel.turn_length(steps, k, claimed, was, robots[i].state, fs, fd)
             k += 1
