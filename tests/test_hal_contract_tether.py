@@ -174,3 +174,28 @@ class TestTetherDeadline:
         assert hal.end_tick() == 0                 # END never answered
         assert hal.lost == 1 and hal.resent == 2 and len(requests) == 3
         assert port.now <= 3 * (hal.reply_ms + port.byte_ms)
+
+
+def test_the_board_ends_a_run_with_stop_and_the_tether_records_it() -> None:
+    """board.run's last frame is ACTION STOP (the loop has ended): what a host
+    waits for before it takes the port back (the REPL), instead of silence."""
+    from firmware_logic import board
+    e = Engine(validate(SCENARIO), 1)
+    placed(e.world)
+    to_host: deque = deque()
+    to_board: deque = deque()
+    tether = TetherTransport(HostEnd(to_host, to_board), e, [NODE])
+    port = BoardEnd(to_host, to_board)
+    served: list[int] = []
+
+    def serve() -> None:
+        assert NODE not in tether.stopped, "the board went on after STOP"
+        tether.poll(0.0)
+        served.append(tether.applied_ticks)
+
+    port.serve = serve
+    hal = board.run(port, NODE, 1, 1, 45, 2, 100, 5, 2)
+    assert NODE not in tether.stopped             # written, not yet read by the host
+    tether.poll(0.0)
+    assert tether.stopped == {NODE: 5} and hal.tick == 5
+    assert tether.applied_ticks == 5 and hal.lost == 0
