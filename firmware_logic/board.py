@@ -16,13 +16,17 @@ Body protocol (node = this robot; all requests are retried until answered):
     ACTION(tick, index, action, a, b)   ->  (no reply; the intent of this tick)
     ACTION(tick, index, END, 0, 0)      ->  ACTION(tick, index, END, 0, 0) once the
                                             world has applied the tick
+    ACTION(tick, index, STOP, 0, 0)     ->  (no reply; the loop has ended, nothing
+                                            more comes from this run)
 
 `tick` is the robot's tick modulo 65536 and `index` a per-request counter
 modulo 256, so a late or repeated answer is recognised and ignored.
 
 The port is whatever the board offers, passed in by the board's main.py:
-an object with `read(timeout_ms)` -> a byte or -1 on timeout, and
-`write(buf, n)` (see bridge/serial/board_main.py).
+an object with `read(timeout_ms)` -> a byte or -1 on timeout,
+`write(buf, n)`, and `ms()` -> a millisecond counter that wraps at a
+multiple of 2**30 (MicroPython's `time.ticks_ms()`), which gives a
+request's answer a deadline (see bridge/serial/board_main.py).
 """
 
 from firmware_logic import framing
@@ -32,13 +36,16 @@ from firmware_logic.hal import Hal
 from firmware_logic.hal import WALL
 
 # SENSOR queries and ACTION codes: the HAL's (firmware_logic/hal.py); END
-# closes a tick's actions on the tether
+# closes a tick's actions on the tether; STOP is the board's last frame of a
+# run (its loop has ended), so a host knows when the port is free again
 A_END = 0
+A_STOP = 255
 
 SUBSET_SETUP = ("make_robot",)   # start-up: may allocate (docs/subset.md)
 
 INBOX = 8          # queued host messages between two FSM steps
 REPLY_MS = 200     # wait for one answer before asking again
+MS_MASK = 0x3FFFFFFF   # port.ms() wraps at a multiple of 2**30 (ticks_ms)
 RETRIES = 25       # then give up on this answer (link down for ~5 s)
 
 
@@ -93,28 +100,38 @@ class TetherHal(Hal):
         self.count += 1
 
     def _pump(self, timeout_ms, kind, index, code):
-        """Read frames for up to timeout_ms; return 1 when the answer
-        (kind, tick, index, code) arrives (its value in self.value)."""
+        """Read frames until the answer (kind, tick, index, code) arrives
+        (return 1, its value in self.value) or timeout_ms have passed on the
+        port's clock (return 0: ask again). A deadline, not a silence: other
+        traffic (HALT, ACK, noise) never holds a request back from its resend."""
         d = self.dec
+        port = self.port
+        start = port.ms()
+        left = timeout_ms
         while True:
-            b = self.port.read(timeout_ms)
+            b = port.read(left)
             if b < 0:
                 return 0
+            left = timeout_ms - ((port.ms() - start) & MS_MASK)
             if not d.feed(b):
+                if left <= 0:
+                    return 0
                 continue
             if d.node != self.node and d.node != msg.HOST:
                 self.ignored += 1
-                continue
-            k = d.kind
-            if k == msg.SENSOR or k == msg.ACTION:
-                f = d.fields
-                if (k == kind and f[0] == (self.tick & 0xFFFF) and f[1] == index
-                        and f[2] == code):
-                    self.value = f[4]
-                    return 1
-                self.ignored += 1
-                continue
-            self._keep()
+            else:
+                k = d.kind
+                if k == msg.SENSOR or k == msg.ACTION:
+                    f = d.fields
+                    if (k == kind and f[0] == (self.tick & 0xFFFF) and f[1] == index
+                            and f[2] == code):
+                        self.value = f[4]
+                        return 1
+                    self.ignored += 1
+                else:
+                    self._keep()
+            if left <= 0:
+                return 0
 
     def _ask(self, query, arg, default):
         self.index = (self.index + 1) & 0xFF
@@ -153,6 +170,15 @@ class TetherHal(Hal):
             self.lost += 1
         self.tick += 1
         return ok
+
+    def stop(self):
+        """The last frame of a run: the loop has ended and this board reads
+        nothing more. Sent after the loop, never answered; a host waits for
+        it (not for silence) before it takes the port for something else,
+        e.g. the REPL (a board still in its loop would swallow the REPL's
+        Ctrl-C / Ctrl-A as link bytes)."""
+        self.index = (self.index + 1) & 0xFF
+        self._write(msg.ACTION, self.tick & 0xFFFF, self.index, A_STOP, 0, 0, 0)
 
     # -- sensing ---------------------------------------------------------------
 
@@ -234,7 +260,8 @@ def make_robot(robot_class, spec, node, seed, model, span, defiance, power):
 def run(port, node, seed, model, span, defiance, power, max_ticks, linger,
         robot_class=None, spec=None, guard=None):
     """The robot's main loop: step the FSM, let the body apply the tick,
-    until `max_ticks` ticks (0: forever) or `linger` ticks after HALT.
+    until `max_ticks` ticks (0: forever) or `linger` ticks after HALT;
+    then one ACTION STOP frame says the loop has ended.
     Returns the HAL (its counters), with the robot as `hal.robot`.
     robot_class, spec: the behaviour's (default: the thesis's).
     guard: a heap check (bridge/serial/board_main.py HeapGuard): after
@@ -259,4 +286,5 @@ def run(port, node, seed, model, span, defiance, power, max_ticks, linger,
             after += 1
             if after > linger:
                 break
+    hal.stop()
     return hal

@@ -3,6 +3,8 @@ and real ports when given on the command line (--khepera-port, --gogo-port)."""
 
 from __future__ import annotations
 
+import os
+import select
 import shutil
 import sys
 import time
@@ -34,6 +36,23 @@ def micropython_device(tmp_path: Path):
     flash = tmp_path / "flash"
     flash.mkdir()
     with PtyRelay([exe], cwd=str(flash), path=str(tmp_path / "ttyMP0")) as relay:
-        time.sleep(0.1)
+        wait_for_prompt(relay.path)
         relay.flash = flash          # type: ignore[attr-defined]
         yield relay
+
+
+def wait_for_prompt(path: str, guard_s: float = 60.0) -> None:
+    """Wait until the unix port shows its REPL prompt on the port: before it,
+    the REPL is not reading yet and a Ctrl-A (mpremote's raw REPL) can be
+    lost. A condition, not a delay; guard_s is a hang guard only."""
+    fd = os.open(path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+    try:
+        seen = b""
+        end = time.monotonic() + guard_s
+        while b">>> " not in seen:
+            assert time.monotonic() < end, "micropython showed no prompt: %r" % seen[-200:]
+            r, _, _ = select.select([fd], [], [], 0.1)
+            if r:
+                seen += os.read(fd, 4096)
+    finally:
+        os.close(fd)

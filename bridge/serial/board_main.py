@@ -13,6 +13,7 @@ sys.stdin / sys.stdout in binary; nothing else may print on it.
 """
 
 import sys
+import time
 
 try:
     import select
@@ -22,7 +23,8 @@ except ImportError:
 
 class StdioPort:
     """The board's serial port as board.py wants it: read(timeout_ms) -> a
-    byte or -1, write(buf, n). Allocation-free in steady state, so a whole
+    byte or -1, write(buf, n), ms() -> time.ticks_ms() (the deadline
+    of a request's answer). Allocation-free in steady state, so a whole
     board tick can run under micropython.heap_lock(): ipoll() reuses its
     result tuple (poll() builds a list), readinto() fills a preallocated
     byte (read(1) makes a bytes object), and the slices of the frame buffer
@@ -38,6 +40,7 @@ class StdioPort:
         self.viewed = None
         # looked up once: a missing attribute raises, and raising allocates
         self.flush = getattr(self.out, "flush", None)
+        self.ms = time.ticks_ms    # a small int below 2**30: no allocation
 
     def read(self, timeout_ms):
         for _ in self.poller.ipoll(timeout_ms):

@@ -9,7 +9,9 @@ engine that are not tethered stand still (they are obstacles).
 A tick of a tethered robot ends when it sends ACTION END; the world then
 applies its intents with the engine's tick rule (claims, beacons, carried
 group, moves) and answers END. Requests repeated by the board (a lost
-answer) are answered again and never applied twice.
+answer) are answered again and never applied twice. A board's ACTION STOP (its loop
+has ended) is recorded in `stopped`; wait on that, not on silence, before
+using the port for anything else (the REPL).
 """
 
 from __future__ import annotations
@@ -38,6 +40,7 @@ class TetherTransport:
         self.last_end: dict[int, int] = {}        # node -> last applied robot tick
         self.answered = 0
         self.applied_ticks = 0
+        self.stopped: dict[int, int] = {}         # node -> robot tick its loop ended at
 
     def __enter__(self) -> "TetherTransport":
         return self
@@ -74,6 +77,12 @@ class TetherTransport:
                 return
             self.inner.send(node, msg.SENSOR, (tick, index, code, a, v))
             self.answered += 1
+            return
+        if code == board.A_STOP:
+            # the board's loop has ended (board.run): it reads no more
+            if node not in self.stopped:
+                log.info("node %d: its loop ended at tick %d", node, tick)
+            self.stopped[node] = tick
             return
         if code == board.A_END:
             if self.last_end.get(node) != tick:
