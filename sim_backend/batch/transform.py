@@ -81,6 +81,36 @@ class ClassLayout:
     instances: list[Any] = field(default_factory=list)
     fields: dict[str, Any] = field(default_factory=dict)   # attr -> kind descriptor
     # kind descriptors: ("int",), ("bool",), ("row", length), ("array",), ("inst", cls)
+    columns: dict[str, int] = field(default_factory=dict)  # int, bool, inst -> column
+    bases: list[np.ndarray] = field(default_factory=list)  # arrays the array fields view
+    views: dict[str, tuple[int, int]] = field(default_factory=dict)  # attr -> (base, row)
+
+    def finish(self) -> None:
+        """Where each field lives: ints, bools and object indices in one
+        int64[n, columns] table (one instance's fields side by side, as its
+        jitclass held them); an array field that is row k of a bigger array
+        as (that array, k), so a function takes the few base arrays, not
+        dozens of rows."""
+        self.columns.clear()
+        self.bases.clear()
+        self.views.clear()
+        for attr, f in self.fields.items():
+            if f[0] in ("int", "bool", "inst"):
+                self.columns[attr] = len(self.columns)
+            elif f[0] == "array":
+                v = getattr(self.instances[0], attr)
+                b = v.base
+                if (isinstance(b, np.ndarray) and b.ndim == v.ndim + 1
+                        and b.shape[1:] == v.shape and b.flags.c_contiguous
+                        and v.flags.c_contiguous):
+                    off = v.ctypes.data - b.ctypes.data
+                    k, rem = divmod(off, b.strides[0])
+                    if rem == 0 and 0 <= k < b.shape[0]:
+                        j = next((n for n, x in enumerate(self.bases) if x is b), None)
+                        if j is None:
+                            j = len(self.bases)
+                            self.bases.append(b)
+                        self.views[attr] = (j, k)
 
 
 class Layout:
@@ -143,6 +173,14 @@ class Layout:
 
 def array_name(cl: ClassLayout, attr: str) -> str:
     return f"{cl.name}__{attr}"
+
+
+def ints_name(cl: ClassLayout) -> str:
+    return f"{cl.name}__ints"
+
+
+def base_name(cl: ClassLayout, j: int) -> str:
+    return f"{cl.name}__base{j}"
 
 
 def count_name(cl: ClassLayout) -> str:
@@ -402,7 +440,7 @@ class FunctionTransform:
             elif kind != SCALAR:
                 raise _err(self.fn, st, f"an object stored in the int field "
                                         f"{bkind.cls.__name__}.{target.attr}")
-            return ast.Subscript(self.arr(cl, target.attr), base, ast.Store())
+            return self.column(cl, target.attr, base, ast.Store())
         if isinstance(target, ast.Subscript):
             base, bkind = self.expr(target.value)
             idx = self.scalar(target.slice)
@@ -423,6 +461,13 @@ class FunctionTransform:
 
     def arr(self, cl: ClassLayout, attr: str) -> ast.expr:
         return self.state(array_name(cl, attr))
+
+    def column(self, cl: ClassLayout, attr: str, index: ast.expr, ctx: ast.expr_context
+               ) -> ast.expr:
+        """An int, bool or object field of instance `index`: its cell of the table."""
+        return ast.Subscript(self.state(ints_name(cl)),
+                             ast.Tuple([index, ast.Constant(cl.columns[attr])], ast.Load()),
+                             ctx)
 
     def _row_arr(self, row: Row) -> ast.expr:
         return self.state(row.arr)
@@ -514,13 +559,18 @@ class FunctionTransform:
             if f is None:
                 raise _err(self.fn, e, f"the attribute {kind.cls.__name__}.{e.attr} (not a "
                                        "field of the live instances)")
-            if f[0] in ("int", "bool"):
-                return ast.Subscript(self.arr(cl, e.attr), base, ast.Load()), SCALAR
             if f[0] == "row":
                 return ast.Name("_", ast.Load()), Row(array_name(cl, e.attr), base)
             if f[0] == "array":
+                if e.attr in cl.views:
+                    j, k = cl.views[e.attr]
+                    return ast.Name("_", ast.Load()), Row(base_name(cl, j), ast.Constant(k))
                 return self.arr(cl, e.attr), SCALAR
-            return ast.Subscript(self.arr(cl, e.attr), base, ast.Load()), Inst(f[1])
+            cell = self.column(cl, e.attr, base, ast.Load())
+            return cell, (Inst(f[1]) if f[0] == "inst" else SCALAR)
+        if isinstance(kind, Row):
+            view = ast.Subscript(self._row_arr(kind), kind.index, ast.Load())
+            return ast.Attribute(view, e.attr, ast.Load()), SCALAR
         if kind == SCALAR:
             return ast.Attribute(base, e.attr, ast.Load()), SCALAR
         raise _err(self.fn, e, f"the attribute {e.attr!r} of a {kind}")
@@ -614,6 +664,8 @@ class FunctionTransform:
 
 def generate(layout: Layout, entries: dict[str, tuple[FunctionType, tuple]]) -> tuple[str, dict]:
     """The generated module's source and, per entry name, its function's name."""
+    for cl in layout.classes.values():
+        cl.finish()
     p = Program(layout)
     names = {key: p.entry(fn, kinds) for key, (fn, kinds) in entries.items()}
     rendered = p.render()
@@ -622,6 +674,12 @@ def generate(layout: Layout, entries: dict[str, tuple[FunctionType, tuple]]) -> 
              'do not edit."""',
              "from numba import njit",
              ""]
+    for cl in layout.classes.values():
+        cols = ", ".join(f"{a}={k}" for a, k in cl.columns.items())
+        lines.append(f"# {ints_name(cl)}[i, k] holds {cl.cls.__qualname__}.{{{cols}}}")
+        for attr, (j, k) in cl.views.items():
+            lines.append(f"# {cl.cls.__qualname__}.{attr} is {base_name(cl, j)}[{k}]")
+    lines.append("")
     for key, name in names.items():
         lines.append(f"{name}__STATE = {tuple(params[name])!r}   # its leading arguments")
     for g, lit in sorted(p.globals.items()):
@@ -633,42 +691,43 @@ def generate(layout: Layout, entries: dict[str, tuple[FunctionType, tuple]]) -> 
 
 
 def state_arrays(layout: Layout) -> dict[str, Any]:
-    """The arrays of every field, filled from the live instances (numpy array
-    fields are shared, not copied)."""
+    """The arrays of every class, filled from the live instances (the arrays
+    that array fields view are shared, not copied)."""
     out: dict[str, Any] = {}
     for cl in layout.classes.values():
         n = len(cl.instances)
         out[count_name(cl)] = n
+        ints = np.zeros((n, max(1, len(cl.columns))), dtype=np.int64)
+        out[ints_name(cl)] = ints
+        for j, b in enumerate(cl.bases):
+            out[base_name(cl, j)] = b
         for attr, f in cl.fields.items():
             vals = [getattr(o, attr) for o in cl.instances]
-            if f[0] == "int":
-                out[array_name(cl, attr)] = np.array(vals, dtype=np.int64)
-            elif f[0] == "bool":
-                out[array_name(cl, attr)] = np.array(vals, dtype=np.bool_)
+            if attr in cl.columns:
+                if f[0] == "inst":
+                    vals = [layout.index[id(v)][1] for v in vals]
+                ints[:, cl.columns[attr]] = vals
             elif f[0] == "row":
                 a = np.zeros((n, f[1]), dtype=np.int64)
                 if f[1]:
                     a[:] = vals
                 out[array_name(cl, attr)] = a
-            elif f[0] == "array":
+            elif attr not in cl.views:
                 out[array_name(cl, attr)] = vals[0]
-            else:
-                out[array_name(cl, attr)] = np.array([layout.index[id(v)][1] for v in vals],
-                                                     dtype=np.int64)
     return out
 
 
-def unpack(layout: Layout, arrays: Any, obj: Any) -> None:
+def unpack(layout: Layout, arrays: dict[str, Any], obj: Any) -> None:
     """Write an instance's fields (and its objects') back from the arrays."""
     cls, j = layout.index[id(obj)]
     cl = layout.classes[cls]
+    ints = arrays[ints_name(cl)]
     for attr, f in cl.fields.items():
-        a = arrays[array_name(cl, attr)]
         if f[0] == "int":
-            setattr(obj, attr, int(a[j]))
+            setattr(obj, attr, int(ints[j, cl.columns[attr]]))
         elif f[0] == "bool":
-            setattr(obj, attr, bool(a[j]))
+            setattr(obj, attr, bool(ints[j, cl.columns[attr]]))
         elif f[0] == "row":
-            getattr(obj, attr)[:] = a[j].tolist()
+            getattr(obj, attr)[:] = arrays[array_name(cl, attr)][j].tolist()
         elif f[0] == "inst":
             unpack(layout, arrays, getattr(obj, attr))
