@@ -43,7 +43,7 @@ import numpy as np
 
 from sim_backend.batch.compiler import CompileError
 
-STATE = "_soa"                      # the namedtuple parameter of every function
+STATE = "_soa"                      # the state placeholder of every function
 BUILTINS = {"range", "len", "abs", "min", "max", "int", "bool"}
 CONSTANT_TYPES = (bool, int, float, str, type(None))
 
