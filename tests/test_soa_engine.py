@@ -67,7 +67,7 @@ def test_an_attribute_outside_the_subset_is_named(tmp_path):
             "            pass\n", "a Try statement"),
     ("list", "        self.ticks += len([1, 2])\n", "a List expression"),
     ("new object", "        Robot(1, 1, 0, 0, 0, 0)\n", "constructing a Robot"),
-    ("unknown attribute", "        self.nowhere += 1\n", "Robot.nowhere"),
+    ("unknown attribute", "        self.nowhere += 1\n", "a new attribute Robot.nowhere"),
 ])
 def test_a_construct_outside_the_transform_is_named_with_its_line(tmp_path, construct, code,
                                                                    named):
@@ -83,7 +83,7 @@ WARM = """
 import json, sys
 from sim_backend.batch.soa import SoaEngine
 from sim_backend.scenario import validate
-e = SoaEngine([(validate({"maxTicks": 50}), 1)])
+e = SoaEngine([(validate({"behaviour": "aggregate", "maxTicks": 50}), 1)])
 e.step()
 s = e._tick_fn.stats
 print(json.dumps({"hits": sum(s.cache_hits.values()), "misses": sum(s.cache_misses.values()),
