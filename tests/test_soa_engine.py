@@ -104,3 +104,12 @@ def test_a_second_process_loads_the_compiled_step_from_the_disk_cache(tmp_path):
     assert warm["xs"] == cold["xs"]
     assert Path(cold["dir"]).parent == tmp_path / "soa"
     assert list(Path(cold["dir"]).glob("__pycache__/*.nbi"))
+
+
+def test_sweep_engine_soa_gives_the_reference_summaries():
+    from sim_backend import sweep
+    jobs = [({"maxTicks": 800}, {"fieldDefiance": 2}, seed) for seed in (1, 2)]
+    got = sweep.run_chunk(jobs, engine="soa")
+    assert "soa" in sweep.ENGINES
+    sc = validate({"maxTicks": 800, "fieldDefiance": 2})
+    assert got == [reference(sc, 1).summary(), reference(sc, 2).summary()]
