@@ -1,9 +1,11 @@
-"""Robot-ticks per second of the three engines, side by side, one core.
+"""Robot-ticks per second of the four engines, side by side, one core.
 
 Prints one JSON object. Each size runs the same scenario and seeds in the
 per-robot reference engine (the per-agent Python baseline, Mesa-style), the
-hand-vectorised numpy engine (thesis only) and the batch engine compiled
-from the behaviour's own source, for a fixed number of ticks (set-up and
+hand-vectorised numpy engine (thesis only), the batch engine compiled
+from the behaviour's own source (jitclasses) and the struct-of-arrays engine
+transformed from the same source (with its cold and warm start in fresh
+processes), for a fixed number of ticks (set-up and
 compilation excluded from the rates and reported apart; every engine
 includes the host coordinators), checks that all end with identical robot
 positions, and reports the ratios. "20x500" is 500 independent 20-robot
@@ -31,6 +33,7 @@ from sim_backend.scenario import validate  # noqa: E402
 from sim_backend.batch import body as B  # noqa: E402
 from sim_backend.batch.compiler import twins  # noqa: E402
 from sim_backend.batch.engine import BatchEngine  # noqa: E402
+from sim_backend.batch.soa import SoaEngine  # noqa: E402
 from sim_backend.vector_engine import VectorEngine  # noqa: E402
 
 # robots -> (worldSize, ticks for the reference, ticks for the vector engine, runs)
@@ -72,9 +75,9 @@ def time_vector(sc, seeds, ticks):
     return dt, out
 
 
-def time_batch(sc, seeds, ticks):
+def time_batch(sc, seeds, ticks, engine=BatchEngine):
     t0 = time.perf_counter()
-    be = BatchEngine([(sc, s) for s in seeds])
+    be = engine([(sc, s) for s in seeds])
     be.step()                      # the first tick compiles the step function
     setup = time.perf_counter() - t0
     t0 = time.perf_counter()
@@ -91,13 +94,40 @@ def time_batch(sc, seeds, ticks):
     return dt * ticks / (ticks - 1), out, setup
 
 
+SOA_START = """
+import json, time
+t0 = time.perf_counter()
+from sim_backend.batch.soa import SoaEngine
+from sim_backend.scenario import validate
+SoaEngine([(validate({"agents": 20, "worldSize": 18}), 1)]).step()
+print(json.dumps(round(time.perf_counter() - t0, 2)))
+"""
+
+
+def soa_starts():
+    """Seconds to the first SoA tick in a fresh process: with an empty disk
+    cache (cold), then again with the cache the first one wrote (warm)."""
+    import subprocess
+    import tempfile
+    root = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
+    with tempfile.TemporaryDirectory() as cache:
+        env = {**os.environ, "TOUCHSWARM_CACHE": cache, "PYTHONPATH": root}
+        out = [json.loads(subprocess.run([sys.executable, "-c", SOA_START], env=env,
+                                         check=True, capture_output=True,
+                                         text=True).stdout.strip().splitlines()[-1])
+               for _ in range(2)]
+    return out
+
+
 def main():
     quick = "--quick" in sys.argv
     res = {"cores": 1, "sizes": {}}
+    res["soa_cold_start_s"], res["soa_warm_start_s"] = soa_starts()
     t0 = time.perf_counter()
     BatchEngine([(scenario(20, 18), 1)]).step()
     res["batch_cold_start_s"] = round(time.perf_counter() - t0, 2)
     res["batch_compile_s"] = round(twins().compile_seconds, 2)
+    SoaEngine([(scenario(20, 18), 1)]).step()      # this process's SoA (cache as it is)
     for name, (world, rt, vt, runs) in SIZES.items():
         robots = int(name.split("x")[0])
         if quick:
@@ -110,8 +140,10 @@ def main():
         vec_dt_same, vec_pos = time_vector(sc, seeds, ticks)
         vec_dt, _ = time_vector(sc, seeds, vt) if vt != ticks else (vec_dt_same, None)
         bat_dt, bat_pos, bat_setup = time_batch(sc, seeds, vt)
+        soa_dt, soa_pos, soa_setup = time_batch(sc, seeds, vt, SoaEngine)
         if vt != ticks:
             _, bat_pos, _ = time_batch(sc, seeds, ticks)
+            _, soa_pos, _ = time_batch(sc, seeds, ticks, SoaEngine)
         n = robots * runs
         ref_rate = n * ticks / ref_dt
         vec_rate = n * vt / vec_dt
@@ -123,11 +155,17 @@ def main():
                        "robot_ticks_per_s": round(vec_rate)},
             "batch": {"ticks": vt, "seconds": round(bat_dt, 4), "setup_s": round(bat_setup, 3),
                       "robot_ticks_per_s": round(n * vt / bat_dt)},
+            "soa": {"ticks": vt, "seconds": round(soa_dt, 4), "setup_s": round(soa_setup, 3),
+                    "robot_ticks_per_s": round(n * vt / soa_dt)},
+            "ratio_soa_to_reference": round(n * vt / soa_dt / ref_rate, 2),
+            "ratio_soa_to_batch": round(bat_dt / soa_dt, 2),
+            "ratio_soa_to_vector": round(n * vt / soa_dt / vec_rate, 2),
             "ratio_vector_to_reference": round(vec_rate / ref_rate, 2),
             "ratio_batch_to_reference": round(n * vt / bat_dt / ref_rate, 2),
             "ratio_batch_to_vector": round(n * vt / bat_dt / vec_rate, 2),
             "identical_positions": all(v is None or v == r for r, v in zip(ref_pos, vec_pos))
-            and all(b is None or b == r for r, b in zip(ref_pos, bat_pos)),
+            and all(b is None or b == r for r, b in zip(ref_pos, bat_pos))
+            and all(b is None or b == r for r, b in zip(ref_pos, soa_pos)),
         }
     print(json.dumps(res, indent=2))
 

@@ -31,7 +31,7 @@ CONNECT_TIMEOUT_S = 5.0
 
 # auto: the hand-vectorised thesis engine for the thesis behaviour (faster at
 # sweep sizes, docs/performance.md), the compiled batch engine for any other
-ENGINES = ("auto", "batch", "vector", "reference")
+ENGINES = ("auto", "batch", "vector", "reference", "soa")
 MEASURES = ["ticks", "found_tick", "converged_tick", "home_tick", "n_touches", "power",
             "shape_iou", "leader", "delivered", "segments", "touches", "converged_moves"]
 # the drawn pieces (tables, not values) go in one text column, `pieces`
@@ -149,6 +149,10 @@ def run_chunk(jobs: Sequence[tuple[dict, dict, int]], engine: str = "auto",
     if engine == "batch":
         from sim_backend.batch.engine import run_batch as run_compiled
         return run_compiled(scs, seeds, until=until, progress=report)
+    if engine == "soa":     # the struct-of-arrays transform, cached on disk (opt-in)
+        from sim_backend.batch.engine import run_batch as run_compiled
+        from sim_backend.batch.soa import SoaEngine
+        return run_compiled(scs, seeds, until=until, progress=report, engine=SoaEngine)
     if engine != "reference":
         raise ValueError(f"engine: expected one of {ENGINES}, got {engine!r}")
     from sim_backend.engine import Engine, RunResult

@@ -16,17 +16,23 @@ import pytest
 from firmware_logic import registry
 from sim_backend import objects
 from sim_backend.batch.engine import BatchEngine, run_batch
+from sim_backend.batch.soa import SoaEngine
 from sim_backend.errors import EngineError
 from sim_backend.scenario import validate
 from tests.harness import arena_scenarios, assert_same, mixed_scenarios, reference, wrap_scenarios
 
 THESIS_DIR = Path(registry.load("thesis").folder)
 
+# the jitclass engine and the struct-of-arrays transform of the same source
+# (sim_backend/batch/soa.py): each must equal the reference bit for bit
+ENGINES = pytest.mark.parametrize("engine", [BatchEngine, SoaEngine], ids=["jitclass", "soa"])
+
 
 @pytest.mark.parametrize("behaviour", sorted(registry.names()))
 @pytest.mark.parametrize("model", ["firefly", "ant"])
 @pytest.mark.parametrize("activation", ["sync", "netlogo"])
-def test_every_behaviour_model_and_object_identical(behaviour, model, activation):
+@ENGINES
+def test_every_behaviour_model_and_object_identical(behaviour, model, activation, engine):
     scs, seeds = [], []
     for obj in sorted(objects.SHAPES):
         sc = validate({"behaviour": behaviour, "movementModel": model, "object": obj,
@@ -34,7 +40,7 @@ def test_every_behaviour_model_and_object_identical(behaviour, model, activation
         for seed in (1, 2):
             scs.append(sc)
             seeds.append(seed)
-    got = assert_same(scs, seeds)
+    got = assert_same(scs, seeds, engine=engine)
     assert any(r.delivered for r in got), "no run reached its goal: a weak comparison"
 
 
@@ -47,43 +53,48 @@ def test_every_behaviour_model_and_object_identical(behaviour, model, activation
                 {"count": 8, "movementModel": "ant", "antBlocked": "turn"},
                 {"count": 6, "movementModel": "moth", "mothNoise": 60}]},
 ], ids=lambda d: ",".join(f"{k}={v}" for k, v in d.items()))
-def test_the_issue12_models_and_options_identical(extra):
+@ENGINES
+def test_the_issue12_models_and_options_identical(extra, engine):
     """The thesis behaviour's extra movement models and antBlocked (issue 12)."""
     scs, seeds = [], []
     for obj in ("bar", "L"):
         for seed in (1, 2):
             scs.append(validate({**extra, "object": obj, "maxTicks": 1500}))
             seeds.append(seed)
-    got = assert_same(scs, seeds)
+    got = assert_same(scs, seeds, engine=engine)
     assert any(r.coordinator.converged_tick >= 0 for r in got), "nothing converged"
 
 
-def test_many_seeds_and_mixed_parameters_in_one_batch():
+@ENGINES
+def test_many_seeds_and_mixed_parameters_in_one_batch(engine):
     """Runs of one batch stop at different ticks (delivered or at maxTicks)
     while the others go on."""
     scs, seeds = mixed_scenarios()
-    got = assert_same(scs, seeds)
+    got = assert_same(scs, seeds, engine=engine)
     assert len({r.ticks for r in got}) > 5
 
 
-def test_obstacles_several_objects_and_the_dynamic_field_identical():
+@ENGINES
+def test_obstacles_several_objects_and_the_dynamic_field_identical(engine):
     scs, seeds = arena_scenarios()
-    got = assert_same(scs, seeds)
+    got = assert_same(scs, seeds, engine=engine)
     assert sum(r.delivered for r in got) >= len(got) // 2, "few deliveries: a weak comparison"
     moved = [r for r in got if r.delivered and r.scenario.field == "dynamic"]
     assert moved, "no dynamic-field run delivered"
 
 
-def test_a_wrapping_world_identical():
+@ENGINES
+def test_a_wrapping_world_identical(engine):
     """wrap = true: moves, probes, claims, uphill and the field on the torus."""
     scs, seeds = wrap_scenarios()
-    got = assert_same(scs, seeds)
+    got = assert_same(scs, seeds, engine=engine)
     assert sum(r.delivered for r in got) >= len(got) // 2, "few deliveries: a weak comparison"
 
 
-def test_until_converged_stops_where_the_reference_stops():
+@ENGINES
+def test_until_converged_stops_where_the_reference_stops(engine):
     sc = validate({"movementModel": "ant"})
-    got = assert_same([sc] * 4, [5, 6, 7, 8], until="converged")
+    got = assert_same([sc] * 4, [5, 6, 7, 8], until="converged", engine=engine)
     assert all(r.coordinator.converged_tick == r.ticks for r in got if r.ticks < sc.maxTicks)
 
 
@@ -103,7 +114,8 @@ def test_bad_batches_get_a_named_error():
         BatchEngine([(validate({}), 1), (validate({"behaviour": "aggregate"}), 1)])
 
 
-def test_one_rule_changed_in_the_source_changes_both_engines_identically(tmp_path):
+@ENGINES
+def test_one_rule_changed_in_the_source_changes_both_engines_identically(tmp_path, engine):
     """Single source: a copy of the thesis behaviour whose random heading is
     drawn from 0..179 instead of 0..359. Both engines must follow the copy."""
     mutant = tmp_path / "thesis_half_turns"
@@ -118,7 +130,7 @@ def test_one_rule_changed_in_the_source_changes_both_engines_identically(tmp_pat
     original = validate({"maxTicks": 400})
     changed = validate({"behaviour": str(mutant), "maxTicks": 400})
     seeds = [1, 2]
-    got = assert_same([changed] * 2, seeds)           # batch == reference on the copy
+    got = assert_same([changed] * 2, seeds, engine=engine)           # batch == reference on the copy
     for seed, b in zip(seeds, got):
         before = reference(original, seed)
         assert b.trajectories != before.trajectories[:len(b.trajectories)], seed

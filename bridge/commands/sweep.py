@@ -70,7 +70,9 @@ def register(sub) -> None:
                    help="auto (default): the hand-vectorised engine for the thesis behaviour, "
                         "the batch engine compiled from the behaviour's source for any other; "
                         "batch: always the compiled engine (compiles for ~15 s per process); "
-                        "vector: thesis only; reference: the per-robot engine")
+                        "vector: thesis only; reference: the per-robot engine; soa: the "
+                        "struct-of-arrays transform of the behaviour's source, compiled "
+                        "once and cached on disk (docs/performance.md)")
     p.add_argument("--executor", default=None, metavar="SPEC",
                    help="processes[:N] (default: one per core), inline, or dask://HOST:PORT "
                         "(a dask.distributed scheduler)")

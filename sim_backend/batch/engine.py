@@ -166,9 +166,25 @@ class BatchEngine:
         starts = arrays.starts
         rb = self.rb
 
+        self._compile(args)
+        beh = self.behaviour
+        self.coords = [beh.coordinator(sc, cells=list(w.object_cells))
+                       for (sc, _), w in zip(runs, self.worlds)]
+        self.busy = np.array([not _quiet(c) for c in self.coords], dtype=bool)
+        self.lo = starts[:-1].tolist()
+        self.run_of = rb[B.RUN].tolist()
+        self.max_ticks = np.array([sc.maxTicks for sc, _ in runs], dtype=np.int64)
+        self.conv_steps = [-1] * nr      # rt[STEPS] when the run converged
+        self.results: list[RunResult | None] = [None] * nr
+        self.frames: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        self._step_once_compiled = False
+
+    def _compile(self, args: tuple) -> None:
+        """The robots and the body as jitclasses, and the compiled step."""
         tw = twins()
         c0 = time.perf_counter()
         beh = self.behaviour
+        runs = self.runs
         sc0, seed0 = runs[0]
         Body = tw.jitclass_of(B.BatchBody(*args))
         Robot = tw.jitclass_of(beh.make_robot(1, seed0, sc0))
@@ -183,17 +199,16 @@ class BatchEngine:
             self.robots.append(robot)
         self._tick_all = tw.function(B.tick_all)
         self._states_of = tw.function(B.states_of)
-        self.coords = [beh.coordinator(sc, cells=list(w.object_cells))
-                       for (sc, _), w in zip(runs, self.worlds)]
-        self.busy = np.array([not _quiet(c) for c in self.coords], dtype=bool)
-        self.lo = starts[:-1].tolist()
-        self.run_of = rb[B.RUN].tolist()
-        self.max_ticks = np.array([sc.maxTicks for sc, _ in runs], dtype=np.int64)
-        self.conv_steps = [-1] * nr      # rt[STEPS] when the run converged
-        self.results: list[RunResult | None] = [None] * nr
-        self.frames: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
-        self._step_once_compiled = False
         tw.compile_seconds += time.perf_counter() - c0
+
+    def _tick(self, t: int) -> None:
+        self._tick_all(self.robots, self.body, t)
+
+    def _states(self, out: np.ndarray) -> None:
+        self._states_of(self.robots, out)
+
+    def _note_compile(self, seconds: float) -> None:
+        twins().compile_seconds += seconds
 
     # -- one tick ---------------------------------------------------------------------------
 
@@ -202,17 +217,17 @@ class BatchEngine:
         t = self.tick
         if not self._step_once_compiled:
             c0 = time.perf_counter()
-            self._tick_all(self.robots, self.body, t)
-            twins().compile_seconds += time.perf_counter() - c0
+            self._tick(t)
+            self._note_compile(time.perf_counter() - c0)
             self._step_once_compiled = True
         else:
-            self._tick_all(self.robots, self.body, t)
+            self._tick(t)
         if self.out_n[1]:
             raise EngineError(f"tick {t}: a robot sent more than {SENDS_PER_ROBOT} messages "
                               "in one tick (the batch engine's outbox is full)")
         if self.record:
-            st = np.zeros(len(self.robots), dtype=np.int64)
-            self._states_of(self.robots, st)
+            st = np.zeros(len(self.robot_objs), dtype=np.int64)
+            self._states(st)
             self.frames.append((self.rb[B.XS].copy(), self.rb[B.YS].copy(), st))
         called = self._exchange(t)
         self._finish(t, called)

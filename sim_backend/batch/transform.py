@@ -1,0 +1,733 @@
+"""Source transform of firmware-subset code into struct-of-arrays functions.
+
+The jitclass batch engine (compiler.py) runs every robot as a numba
+jitclass instance; numba reference-counts those instances on every method
+call and attribute read (most of a step's time) and cannot cache them on
+disk. This module rewrites the same unmodified source instead:
+
+- every class becomes one array per field over all its instances
+  (ints -> int64[n], bools -> bool[n], lists of ints -> int64[n, len],
+  instances of other classes -> int64[n] indices into that class's arrays,
+  numpy arrays of a class with one instance -> the array itself); the field
+  types are read off the live CPython instances, which the CPython
+  constructors build (so `__init__` is never transformed);
+- every method reached from the entry points becomes a plain function
+  `F_Cls_m(_soa, self, ...)`: `_soa` is one namedtuple holding every array,
+  `self` (and any parameter holding an object) is the instance's index;
+  `self.x` -> `_soa.Cls__x[self]`, `self.m(a)` -> `F_Cls_m(_soa, self, a)`;
+- calls resolve statically: the type of every object-valued expression is
+  known (a parameter's from its call sites, a field's from the instances),
+  so the HAL the robot is handed is the batch body, with no dispatch left;
+- module functions stay functions (with `_soa` first), module constants
+  become literals or globals of the generated module.
+
+Only what the entry points reach is transformed. A construct outside the
+transform (a nested def, try, with, a list display, an object returned or
+stored in a local that changes type, ...) is a CompileError naming it, its
+file and line, never a silent mis-compilation. sim_backend/batch/soa.py
+writes the generated source into a cache directory and compiles it with
+`njit(cache=True)`.
+"""
+
+from __future__ import annotations
+
+import ast
+import builtins
+import inspect
+import textwrap
+from dataclasses import dataclass, field
+from types import FunctionType, ModuleType
+from typing import Any
+
+import numpy as np
+
+from sim_backend.batch.compiler import CompileError
+
+STATE = "_soa"                      # the state placeholder of every function
+BUILTINS = {"range", "len", "abs", "min", "max", "int", "bool"}
+CONSTANT_TYPES = (bool, int, float, str, type(None))
+
+
+# -- kinds of values -------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Inst:
+    """An object of class `cls`; the expression holding it is its index."""
+    cls: type
+
+
+@dataclass(frozen=True)
+class ListOf:
+    """A list of every instance of `cls`, in index order (the robots)."""
+    cls: type
+
+
+@dataclass(frozen=True)
+class Row:
+    """A list-of-ints field of one instance: `arr` is the 2-D array's name."""
+    arr: str
+    index: ast.expr = field(compare=False, hash=False)
+
+
+SCALAR = "scalar"                    # anything the generated code passes through
+
+
+# -- the layout: classes and their fields ------------------------------------------
+
+@dataclass
+class ClassLayout:
+    cls: type
+    name: str                                      # short name in generated code
+    instances: list[Any] = field(default_factory=list)
+    fields: dict[str, Any] = field(default_factory=dict)   # attr -> kind descriptor
+    # kind descriptors: ("int",), ("bool",), ("row", length), ("array",), ("inst", cls)
+    columns: dict[str, int] = field(default_factory=dict)  # int, bool, inst -> column
+    bases: list[np.ndarray] = field(default_factory=list)  # arrays the array fields view
+    views: dict[str, tuple[int, int]] = field(default_factory=dict)  # attr -> (base, row)
+
+    def finish(self) -> None:
+        """Where each field lives: ints, bools and object indices in one
+        int64[n, columns] table (one instance's fields side by side, as its
+        jitclass held them); an array field that is row k of a bigger array
+        as (that array, k), so a function takes the few base arrays, not
+        dozens of rows."""
+        self.columns.clear()
+        self.bases.clear()
+        self.views.clear()
+        for attr, f in self.fields.items():
+            if f[0] in ("int", "bool", "inst"):
+                self.columns[attr] = len(self.columns)
+            elif f[0] == "array":
+                v = getattr(self.instances[0], attr)
+                b = v.base
+                if (isinstance(b, np.ndarray) and b.ndim == v.ndim + 1
+                        and b.shape[1:] == v.shape and b.flags.c_contiguous
+                        and v.flags.c_contiguous):
+                    off = v.ctypes.data - b.ctypes.data
+                    k, rem = divmod(off, b.strides[0])
+                    if rem == 0 and 0 <= k < b.shape[0]:
+                        j = next((n for n, x in enumerate(self.bases) if x is b), None)
+                        if j is None:
+                            j = len(self.bases)
+                            self.bases.append(b)
+                        self.views[attr] = (j, k)
+
+
+class Layout:
+    """Every instance reachable from the roots, numbered per class."""
+
+    def __init__(self) -> None:
+        self.classes: dict[type, ClassLayout] = {}
+        self.index: dict[int, tuple[type, int]] = {}   # id(obj) -> (class, index)
+
+    def add(self, obj: Any) -> int:
+        if id(obj) in self.index:
+            return self.index[id(obj)][1]
+        cls = type(obj)
+        cl = self.classes.get(cls)
+        if cl is None:
+            name = cls.__name__
+            taken = {c.name for c in self.classes.values()}
+            k = 2
+            while name in taken:
+                name = f"{cls.__name__}{k}"
+                k += 1
+            cl = self.classes[cls] = ClassLayout(cls, name)
+        j = len(cl.instances)
+        cl.instances.append(obj)
+        self.index[id(obj)] = (cls, j)
+        for attr, value in vars(obj).items():
+            kind = self._kind(cls, attr, value)
+            old = cl.fields.setdefault(attr, kind)
+            if old != kind:
+                raise CompileError(f"{cls.__name__}.{attr}: {old} in one instance, {kind} in "
+                                   "another (the batch engine needs one type per field)")
+        missing = set(cl.fields) - set(vars(obj))
+        if missing:
+            raise CompileError(f"{cls.__name__}.{sorted(missing)[0]}: set on some instances "
+                               "only")
+        return j
+
+    def _kind(self, cls: type, attr: str, value: Any) -> tuple:
+        if isinstance(value, bool):
+            return ("bool",)
+        if isinstance(value, int):
+            return ("int",)
+        if isinstance(value, list) and all(type(v) is int for v in value):
+            return ("row", len(value))
+        if isinstance(value, np.ndarray):
+            if len(self.classes[cls].instances) > 1:
+                raise CompileError(f"{cls.__name__}.{attr}: a numpy array field needs a "
+                                   "class of one instance")
+            return ("array",)
+        if type(value).__module__ in ("builtins", "numpy") or isinstance(value, type):
+            raise CompileError(f"{cls.__name__}.{attr}: a {type(value).__name__} is outside "
+                               "the subset the batch engine compiles (ints, lists of ints, "
+                               "objects of such classes)")
+        self.add(value)
+        return ("inst", type(value))
+
+    def count(self, cls: type) -> int:
+        return len(self.classes[cls].instances)
+
+
+def array_name(cl: ClassLayout, attr: str) -> str:
+    return f"{cl.name}__{attr}"
+
+
+def ints_name(cl: ClassLayout) -> str:
+    return f"{cl.name}__ints"
+
+
+def base_name(cl: ClassLayout, j: int) -> str:
+    return f"{cl.name}__base{j}"
+
+
+def count_name(cl: ClassLayout) -> str:
+    return f"{cl.name}__N"
+
+
+# -- the transform ----------------------------------------------------------------------
+
+def _err(fn: FunctionType, node: ast.AST | None, what: str) -> CompileError:
+    line = fn.__code__.co_firstlineno + getattr(node, "lineno", 1) - 1
+    return CompileError(f"{fn.__code__.co_filename}:{line}: {what} is outside what the "
+                        "struct-of-arrays transform compiles")
+
+
+def _modkey(name: str) -> str:
+    return name.replace(".", "_")
+
+
+@dataclass
+class Spec:
+    """One function specialised on the kinds of its object parameters."""
+    fn: FunctionType
+    owner: type | None
+    kinds: tuple
+    name: str
+
+
+class Program:
+    """The generated module: functions reached from the entry points."""
+
+    def __init__(self, layout: Layout) -> None:
+        self.layout = layout
+        self.specs: dict[tuple, Spec] = {}
+        self.done: dict[str, tuple[FunctionTransform, ast.FunctionDef]] = {}
+        self.globals: dict[str, str] = {}        # generated global name -> literal source
+        self.queue: list[Spec] = []
+        self.names_used: set[str] = set()
+
+    def entry(self, fn: FunctionType, kinds: tuple) -> str:
+        name = self.spec(fn, None, kinds)
+        self._drain()
+        return name
+
+    def spec(self, fn: FunctionType, owner: type | None, kinds: tuple) -> str:
+        key = (fn, owner, kinds)
+        if key in self.specs:
+            return self.specs[key].name
+        base = "F_" + (f"{self.layout.classes[owner].name}_{fn.__name__}" if owner is not None
+                       else f"{_modkey(fn.__module__)}__{fn.__name__}")
+        name = base
+        k = 2
+        while name in self.names_used:
+            name = f"{base}__{k}"
+            k += 1
+        self.names_used.add(name)
+        s = Spec(fn, owner, kinds, name)
+        self.specs[key] = s
+        self.queue.append(s)
+        return name
+
+    def _drain(self) -> None:
+        while self.queue:
+            s = self.queue.pop(0)
+            ft = FunctionTransform(self, s)
+            self.done[s.name] = (ft, ft.build())
+
+    def params(self) -> dict[str, list[str]]:
+        """Per function, the state it uses with every function it calls, sorted:
+        its leading parameters (a fixpoint over the call graph)."""
+        uses = {name: set(ft.uses) for name, (ft, _) in self.done.items()}
+        changed = True
+        while changed:
+            changed = False
+            for name, (ft, _) in self.done.items():
+                for callee in ft.calls:
+                    if not uses[callee] <= uses[name]:
+                        uses[name] |= uses[callee]
+                        changed = True
+        return {name: sorted(u) for name, u in uses.items()}
+
+    def render(self) -> list[tuple[str, str]]:
+        """(origin comment, source) of every function, the state made parameters."""
+        params = self.params()
+        out = []
+        for name, (ft, tree) in self.done.items():
+            tree = _Bind(params).visit(tree)
+            ast.fix_missing_locations(tree)
+            out.append((ft.origin(), ast.unparse(tree)))
+        return out
+
+    def global_name(self, module: str, name: str, value: Any) -> str:
+        g = f"G_{_modkey(module)}__{name}"
+        if g not in self.globals:
+            if isinstance(value, tuple) and all(isinstance(v, CONSTANT_TYPES) for v in value):
+                self.globals[g] = repr(value)
+            else:
+                raise CompileError(f"{module}.{name}: a {type(value).__name__} constant is "
+                                   "outside the subset (ints, strings, tuples of them)")
+        return g
+
+
+class _Bind(ast.NodeTransformer):
+    """`_soa.X` -> `X`; the `_soa` parameter and argument -> the used arrays."""
+
+    def __init__(self, params: dict[str, list[str]]) -> None:
+        self.params = params
+
+    def visit_FunctionDef(self, node: ast.FunctionDef) -> ast.FunctionDef:
+        self.generic_visit(node)
+        a = node.args.args
+        node.args.args = [ast.arg(p) for p in self.params[node.name]] + a[1:]
+        return node
+
+    def visit_Attribute(self, node: ast.Attribute) -> ast.expr:
+        if isinstance(node.value, ast.Name) and node.value.id == STATE:
+            return ast.Name(node.attr, ast.Load())
+        self.generic_visit(node)
+        return node
+
+    def visit_Call(self, node: ast.Call) -> ast.Call:
+        self.generic_visit(node)
+        if isinstance(node.func, ast.Name) and node.func.id in self.params:
+            node.args = [ast.Name(p, ast.Load()) for p in self.params[node.func.id]] \
+                + node.args[1:]
+        return node
+
+
+class FunctionTransform:
+    def __init__(self, program: Program, spec: Spec) -> None:
+        self.p = program
+        self.s = spec
+        self.fn = spec.fn
+        self.glob = spec.fn.__globals__
+        src = textwrap.dedent(inspect.getsource(spec.fn))
+        tree = ast.parse(src)
+        node = tree.body[0]
+        if not isinstance(node, ast.FunctionDef):
+            raise _err(self.fn, node, "a decorated or non-plain function")
+        self.node = node
+        self.locals: dict[str, Any] = {}
+        self.uses: set[str] = set()          # state arrays read or written here
+        self.calls: set[str] = set()         # generated functions called here
+
+    # -- output ------------------------------------------------------------------
+
+    def build(self) -> ast.FunctionDef:
+        node = self.node
+        a = node.args
+        if a.vararg or a.kwarg or a.kwonlyargs or a.posonlyargs:
+            raise _err(self.fn, node, "*args, **kwargs or keyword-only parameters")
+        if node.decorator_list:
+            raise _err(self.fn, node, "a decorator")
+        params = [STATE]
+        for arg, kind in zip(a.args, self.s.kinds):
+            self.locals[arg.arg] = kind
+            if not isinstance(kind, ListOf):
+                params.append(arg.arg)
+        defaults = []
+        for d in a.defaults:
+            if not isinstance(d, ast.Constant):
+                raise _err(self.fn, d, "a default that is not a literal")
+            defaults.append(d)
+        # every local assigned anywhere is a local (Python's rule)
+        for sub in ast.walk(node):
+            if isinstance(sub, ast.Name) and isinstance(sub.ctx, ast.Store):
+                self.locals.setdefault(sub.id, None)
+        body = [self.stmt(st) for st in node.body]
+        args = ast.arguments(posonlyargs=[], args=[ast.arg(p) for p in params],
+                             kwonlyargs=[], kw_defaults=[], defaults=defaults)
+        out = ast.FunctionDef(name=self.s.name, args=args,
+                              body=[b for b in body if b is not None] or [ast.Pass()],
+                              decorator_list=[], returns=None)
+        return out
+
+    def origin(self) -> str:
+        return f"# {self.fn.__module__}.{self.fn.__qualname__}"
+
+    # -- statements ----------------------------------------------------------------
+
+    def stmt(self, st: ast.stmt) -> ast.stmt | None:
+        if isinstance(st, ast.Expr):
+            if isinstance(st.value, ast.Constant):
+                return None                       # a docstring
+            return ast.Expr(self.scalar(st.value))
+        if isinstance(st, ast.Assign):
+            if len(st.targets) != 1:
+                raise _err(self.fn, st, "a chained assignment")
+            return self.assign(st.targets[0], st.value, st)
+        if isinstance(st, ast.AugAssign):
+            target = self.store(st.target, SCALAR, st)
+            return ast.AugAssign(target=target, op=st.op, value=self.scalar(st.value))
+        if isinstance(st, ast.If):
+            return ast.If(test=self.scalar(st.test), body=self.block(st.body),
+                          orelse=self.block(st.orelse))
+        if isinstance(st, ast.While):
+            if st.orelse:
+                raise _err(self.fn, st, "while ... else")
+            return ast.While(test=self.scalar(st.test), body=self.block(st.body), orelse=[])
+        if isinstance(st, ast.For):
+            if st.orelse:
+                raise _err(self.fn, st, "for ... else")
+            it, kind = self.expr(st.iter)
+            if kind != SCALAR:
+                raise _err(self.fn, st, "a for loop over objects")
+            target = self.store(st.target, SCALAR, st)
+            return ast.For(target=target, iter=it, body=self.block(st.body), orelse=[])
+        if isinstance(st, ast.Return):
+            if st.value is None:
+                return st
+            return ast.Return(self.scalar(st.value, "returning an object"))
+        if isinstance(st, (ast.Pass, ast.Break, ast.Continue)):
+            return st
+        raise _err(self.fn, st, f"a {type(st).__name__} statement")
+
+    def block(self, stmts: list[ast.stmt]) -> list[ast.stmt]:
+        out = [b for b in (self.stmt(s) for s in stmts) if b is not None]
+        return out or ([ast.Pass()] if stmts else [])
+
+    def assign(self, target: ast.expr, value: ast.expr, st: ast.stmt) -> ast.stmt:
+        if isinstance(target, ast.Tuple):
+            if not isinstance(value, ast.Tuple) or len(value.elts) != len(target.elts):
+                raise _err(self.fn, st, "unpacking anything but a tuple display")
+            vals = [self.scalar(v) for v in value.elts]
+            tgts = [self.store(t, SCALAR, st) for t in target.elts]
+            return ast.Assign(targets=[ast.Tuple(tgts, ast.Store())],
+                              value=ast.Tuple(vals, ast.Load()))
+        v, kind = self.expr(value)
+        if isinstance(kind, Row):             # a local view of the row
+            v, kind = ast.Subscript(self._row_arr(kind), kind.index, ast.Load()), SCALAR
+        if isinstance(kind, ListOf):
+            raise _err(self.fn, st, "a list of objects stored in a variable")
+        return ast.Assign(targets=[self.store(target, kind, st)], value=v)
+
+    def store(self, target: ast.expr, kind: Any, st: ast.AST) -> ast.expr:
+        if isinstance(target, ast.Name):
+            old = self.locals.get(target.id)
+            if target.id in self.locals and old is not None and old != kind:
+                raise _err(self.fn, st, f"variable {target.id!r} holding values of two types")
+            self.locals[target.id] = kind
+            return ast.Name(target.id, ast.Store())
+        if isinstance(target, ast.Attribute):
+            base, bkind = self.expr(target.value)
+            if not isinstance(bkind, Inst):
+                raise _err(self.fn, st, f"assigning the attribute {target.attr!r} of a "
+                                        "non-object")
+            cl = self.p.layout.classes[bkind.cls]
+            f = cl.fields.get(target.attr)
+            if f is None:
+                raise _err(self.fn, st, f"a new attribute {bkind.cls.__name__}.{target.attr}")
+            if f[0] == "inst":
+                if kind != Inst(f[1]):
+                    raise _err(self.fn, st, f"{bkind.cls.__name__}.{target.attr} assigned "
+                                            "something other than its object")
+            elif f[0] in ("row", "array"):
+                raise _err(self.fn, st, f"rebinding the list or array "
+                                        f"{bkind.cls.__name__}.{target.attr}")
+            elif kind != SCALAR:
+                raise _err(self.fn, st, f"an object stored in the int field "
+                                        f"{bkind.cls.__name__}.{target.attr}")
+            return self.column(cl, target.attr, base, ast.Store())
+        if isinstance(target, ast.Subscript):
+            base, bkind = self.expr(target.value)
+            idx = self.scalar(target.slice)
+            if isinstance(bkind, Row):
+                return ast.Subscript(self._row_arr(bkind),
+                                     ast.Tuple([bkind.index, idx], ast.Load()), ast.Store())
+            if bkind != SCALAR:
+                raise _err(self.fn, st, "assigning an item of a list of objects")
+            return ast.Subscript(base, idx, ast.Store())
+        raise _err(self.fn, st, f"assigning to a {type(target).__name__}")
+
+    # -- expressions -------------------------------------------------------------------
+
+    def state(self, name: str) -> ast.expr:
+        """A state array (or count): a parameter of the function once rendered."""
+        self.uses.add(name)
+        return ast.Attribute(ast.Name(STATE, ast.Load()), name, ast.Load())
+
+    def arr(self, cl: ClassLayout, attr: str) -> ast.expr:
+        return self.state(array_name(cl, attr))
+
+    def column(self, cl: ClassLayout, attr: str, index: ast.expr, ctx: ast.expr_context
+               ) -> ast.expr:
+        """An int, bool or object field of instance `index`: its cell of the table."""
+        return ast.Subscript(self.state(ints_name(cl)),
+                             ast.Tuple([index, ast.Constant(cl.columns[attr])], ast.Load()),
+                             ctx)
+
+    def _row_arr(self, row: Row) -> ast.expr:
+        return self.state(row.arr)
+
+    def scalar(self, e: ast.expr, what: str = "an object used as a value") -> ast.expr:
+        v, kind = self.expr(e)
+        if isinstance(kind, Row):
+            return ast.Subscript(self._row_arr(kind), kind.index, ast.Load())
+        if kind != SCALAR:
+            raise _err(self.fn, e, what)
+        return v
+
+    def expr(self, e: ast.expr) -> tuple[ast.expr, Any]:
+        if isinstance(e, ast.Constant):
+            return e, SCALAR
+        if isinstance(e, ast.Name):
+            return self.name(e)
+        if isinstance(e, ast.Attribute):
+            return self.attribute(e)
+        if isinstance(e, ast.Subscript):
+            base, kind = self.expr(e.value)
+            if isinstance(kind, Row):
+                return ast.Subscript(self._row_arr(kind),
+                                     ast.Tuple([kind.index, self.scalar(e.slice)], ast.Load()),
+                                     ast.Load()), SCALAR
+            if isinstance(kind, ListOf):
+                return self.scalar(e.slice), Inst(kind.cls)
+            if kind != SCALAR:
+                raise _err(self.fn, e, "indexing an object")
+            return ast.Subscript(base, self.scalar(e.slice), ast.Load()), SCALAR
+        if isinstance(e, ast.Call):
+            return self.call(e)
+        if isinstance(e, ast.BinOp):
+            return ast.BinOp(self.scalar(e.left), e.op, self.scalar(e.right)), SCALAR
+        if isinstance(e, ast.UnaryOp):
+            return ast.UnaryOp(e.op, self.scalar(e.operand)), SCALAR
+        if isinstance(e, ast.BoolOp):
+            return ast.BoolOp(e.op, [self.scalar(v) for v in e.values]), SCALAR
+        if isinstance(e, ast.Compare):
+            if any(isinstance(o, (ast.Is, ast.IsNot, ast.In, ast.NotIn)) for o in e.ops):
+                raise _err(self.fn, e, "`is` / `in`")
+            return ast.Compare(self.scalar(e.left), e.ops,
+                               [self.scalar(c) for c in e.comparators]), SCALAR
+        if isinstance(e, ast.IfExp):
+            return ast.IfExp(self.scalar(e.test), self.scalar(e.body),
+                             self.scalar(e.orelse)), SCALAR
+        if isinstance(e, ast.Tuple) and isinstance(e.ctx, ast.Load):
+            return ast.Tuple([self.scalar(v) for v in e.elts], ast.Load()), SCALAR
+        if isinstance(e, ast.Slice):
+            parts = [None if p is None else self.scalar(p) for p in (e.lower, e.upper, e.step)]
+            return ast.Slice(*parts), SCALAR
+        raise _err(self.fn, e, f"a {type(e).__name__} expression")
+
+    def name(self, e: ast.Name) -> tuple[ast.expr, Any]:
+        if e.id in self.locals:
+            kind = self.locals[e.id]
+            if kind is None:
+                kind = SCALAR
+            return ast.Name(e.id, ast.Load()), kind
+        if e.id in self.glob:
+            return self.resolved(self.glob[e.id], self.fn.__module__, e.id, e)
+        if e.id in BUILTINS:
+            return ast.Name(e.id, ast.Load()), SCALAR
+        raise _err(self.fn, e, f"the name {e.id!r}")
+
+    def resolved(self, value: Any, module: str, name: str, e: ast.AST) -> tuple[ast.expr, Any]:
+        if isinstance(value, ModuleType):
+            return ast.Name(name, ast.Load()), ("module", value)
+        if isinstance(value, CONSTANT_TYPES):
+            return ast.Constant(value), SCALAR
+        if isinstance(value, FunctionType):
+            return ast.Name(name, ast.Load()), ("function", value)
+        if isinstance(value, type):
+            return ast.Name(name, ast.Load()), ("class", value)
+        if isinstance(value, tuple):
+            return ast.Name(self.p.global_name(module, name, value), ast.Load()), SCALAR
+        raise _err(self.fn, e, f"the global {name!r} (a {type(value).__name__})")
+
+    def attribute(self, e: ast.Attribute) -> tuple[ast.expr, Any]:
+        base, kind = self.expr(e.value)
+        if isinstance(kind, tuple) and kind[0] == "module":
+            mod = kind[1]
+            if not hasattr(mod, e.attr):
+                raise _err(self.fn, e, f"{mod.__name__}.{e.attr} (no such name)")
+            return self.resolved(getattr(mod, e.attr), mod.__name__, e.attr, e)
+        if isinstance(kind, Inst):
+            cl = self.p.layout.classes.get(kind.cls)
+            f = cl.fields.get(e.attr) if cl is not None else None
+            if f is None:
+                raise _err(self.fn, e, f"the attribute {kind.cls.__name__}.{e.attr} (not a "
+                                       "field of the live instances)")
+            if f[0] == "row":
+                return ast.Name("_", ast.Load()), Row(array_name(cl, e.attr), base)
+            if f[0] == "array":
+                if e.attr in cl.views:
+                    j, k = cl.views[e.attr]
+                    return ast.Name("_", ast.Load()), Row(base_name(cl, j), ast.Constant(k))
+                return self.arr(cl, e.attr), SCALAR
+            cell = self.column(cl, e.attr, base, ast.Load())
+            return cell, (Inst(f[1]) if f[0] == "inst" else SCALAR)
+        if isinstance(kind, Row):
+            view = ast.Subscript(self._row_arr(kind), kind.index, ast.Load())
+            return ast.Attribute(view, e.attr, ast.Load()), SCALAR
+        if kind == SCALAR:
+            return ast.Attribute(base, e.attr, ast.Load()), SCALAR
+        raise _err(self.fn, e, f"the attribute {e.attr!r} of a {kind}")
+
+    def call(self, e: ast.Call) -> tuple[ast.expr, Any]:
+        if any(isinstance(a, ast.Starred) for a in e.args) or any(k.arg is None
+                                                                  for k in e.keywords):
+            raise _err(self.fn, e, "a call with * or ** arguments")
+        f = e.func
+        # a method of an object
+        if isinstance(f, ast.Attribute):
+            base, kind = self.expr(f.value)
+            if isinstance(kind, Inst):
+                meth = inspect.getattr_static(kind.cls, f.attr, None)
+                if not isinstance(meth, FunctionType):
+                    raise _err(self.fn, e, f"{kind.cls.__name__}.{f.attr} (not a plain method)")
+                return self.invoke(meth, kind.cls, [(base, kind)], e), SCALAR
+            if isinstance(kind, tuple) and kind[0] == "module":
+                v, k2 = self.attribute(f)
+                return self.call_resolved(v, k2, e)
+            if kind == SCALAR:
+                return ast.Call(ast.Attribute(base, f.attr, ast.Load()),
+                                [self.scalar(a) for a in e.args],
+                                [ast.keyword(k.arg, self.scalar(k.value)) for k in e.keywords]
+                                ), SCALAR
+            raise _err(self.fn, e, f"calling {f.attr!r} of a {kind}")
+        if isinstance(f, ast.Name):
+            if f.id == "len" and f.id not in self.locals and f.id not in self.glob \
+                    and len(e.args) == 1:
+                v, kind = self.expr(e.args[0])
+                if isinstance(kind, ListOf):
+                    cl = self.p.layout.classes[kind.cls]
+                    return self.state(count_name(cl)), SCALAR
+                if isinstance(kind, Row):
+                    cl_len = ast.Attribute(self._row_arr(kind), "shape", ast.Load())
+                    return ast.Subscript(cl_len, ast.Constant(1), ast.Load()), SCALAR
+            v, kind = self.name(f)
+            return self.call_resolved(v, kind, e)
+        raise _err(self.fn, e, "calling a computed function")
+
+    def call_resolved(self, v: ast.expr, kind: Any, e: ast.Call) -> tuple[ast.expr, Any]:
+        if isinstance(kind, tuple) and kind[0] == "function":
+            return self.invoke(kind[1], None, [], e), SCALAR
+        if isinstance(kind, tuple) and kind[0] == "class":
+            raise _err(self.fn, e, f"constructing a {kind[1].__name__} (an allocation)")
+        if kind == SCALAR and isinstance(v, ast.Name) and v.id in BUILTINS:
+            return ast.Call(v, [self.scalar(a) for a in e.args],
+                            [ast.keyword(k.arg, self.scalar(k.value)) for k in e.keywords]
+                            ), SCALAR
+        raise _err(self.fn, e, "calling a value that is not a function")
+
+    def invoke(self, fn: FunctionType, owner: type | None, bound: list, e: ast.Call) -> ast.expr:
+        """A call of a transformed function: objects pass as their indices."""
+        sig = inspect.signature(fn)
+        names = list(sig.parameters)
+        given: dict[str, tuple[ast.expr, Any]] = {}
+        for name, pair in zip(names, bound):
+            given[name] = pair
+        rest = names[len(bound):]
+        if len(e.args) > len(rest):
+            raise _err(self.fn, e, f"too many arguments to {fn.__qualname__}")
+        for name, a in zip(rest, e.args):
+            given[name] = self.expr(a)
+        for k in e.keywords:
+            if k.arg not in names or k.arg in given:
+                raise _err(self.fn, e, f"the keyword {k.arg!r} of {fn.__qualname__}")
+            given[k.arg] = self.expr(k.value)
+        args: list[ast.expr] = [ast.Name(STATE, ast.Load())]
+        kinds = []
+        for name in names:
+            if name in given:
+                v, kind = given[name]
+                if isinstance(kind, Row):
+                    v, kind = ast.Subscript(self._row_arr(kind), kind.index, ast.Load()), SCALAR
+                if isinstance(kind, tuple):
+                    raise _err(self.fn, e, f"passing a {kind[0]} to {fn.__qualname__}")
+            else:
+                d = sig.parameters[name].default
+                if d is inspect.Parameter.empty:
+                    raise _err(self.fn, e, f"a missing argument {name!r} of {fn.__qualname__}")
+                if not isinstance(d, CONSTANT_TYPES):
+                    raise _err(self.fn, e, f"the default of {name!r} of {fn.__qualname__}")
+                v, kind = ast.Constant(d), SCALAR
+            kinds.append(kind)
+            if not isinstance(kind, ListOf):
+                args.append(v)
+        target = self.p.spec(fn, owner, tuple(kinds))
+        self.calls.add(target)
+        return ast.Call(ast.Name(target, ast.Load()), args, [])
+
+
+def generate(layout: Layout, entries: dict[str, tuple[FunctionType, tuple]]) -> tuple[str, dict]:
+    """The generated module's source and, per entry name, its function's name."""
+    for cl in layout.classes.values():
+        cl.finish()
+    p = Program(layout)
+    names = {key: p.entry(fn, kinds) for key, (fn, kinds) in entries.items()}
+    rendered = p.render()
+    params = p.params()
+    lines = ['"""Generated by sim_backend/batch/transform.py from the firmware source; '
+             'do not edit."""',
+             "from numba import njit",
+             ""]
+    for cl in layout.classes.values():
+        cols = ", ".join(f"{a}={k}" for a, k in cl.columns.items())
+        lines.append(f"# {ints_name(cl)}[i, k] holds {cl.cls.__qualname__}.{{{cols}}}")
+        for attr, (j, k) in cl.views.items():
+            lines.append(f"# {cl.cls.__qualname__}.{attr} is {base_name(cl, j)}[{k}]")
+    lines.append("")
+    for key, name in names.items():
+        lines.append(f"{name}__STATE = {tuple(params[name])!r}   # its leading arguments")
+    for g, lit in sorted(p.globals.items()):
+        lines.append(f"{g} = {lit}")
+    lines.append("")
+    for origin, src in rendered:
+        lines += ["", origin, "@njit(cache=True)", src, ""]
+    return "\n".join(lines) + "\n", names
+
+
+def state_arrays(layout: Layout) -> dict[str, Any]:
+    """The arrays of every class, filled from the live instances (the arrays
+    that array fields view are shared, not copied)."""
+    out: dict[str, Any] = {}
+    for cl in layout.classes.values():
+        n = len(cl.instances)
+        out[count_name(cl)] = n
+        ints = np.zeros((n, max(1, len(cl.columns))), dtype=np.int64)
+        out[ints_name(cl)] = ints
+        for j, b in enumerate(cl.bases):
+            out[base_name(cl, j)] = b
+        for attr, f in cl.fields.items():
+            vals = [getattr(o, attr) for o in cl.instances]
+            if attr in cl.columns:
+                if f[0] == "inst":
+                    vals = [layout.index[id(v)][1] for v in vals]
+                ints[:, cl.columns[attr]] = vals
+            elif f[0] == "row":
+                a = np.zeros((n, f[1]), dtype=np.int64)
+                if f[1]:
+                    a[:] = vals
+                out[array_name(cl, attr)] = a
+            elif attr not in cl.views:
+                out[array_name(cl, attr)] = vals[0]
+    return out
+
+
+def unpack(layout: Layout, arrays: dict[str, Any], obj: Any) -> None:
+    """Write an instance's fields (and its objects') back from the arrays."""
+    cls, j = layout.index[id(obj)]
+    cl = layout.classes[cls]
+    ints = arrays[ints_name(cl)]
+    for attr, f in cl.fields.items():
+        if f[0] == "int":
+            setattr(obj, attr, int(ints[j, cl.columns[attr]]))
+        elif f[0] == "bool":
+            setattr(obj, attr, bool(ints[j, cl.columns[attr]]))
+        elif f[0] == "row":
+            getattr(obj, attr)[:] = arrays[array_name(cl, attr)][j].tolist()
+        elif f[0] == "inst":
+            unpack(layout, arrays, getattr(obj, attr))

@@ -1,0 +1,115 @@
+"""The struct-of-arrays batch engine (sim_backend/batch/soa.py) runs the
+behaviour's own source through the transform (sim_backend/batch/transform.py).
+tests/test_batch_engine.py holds it to the differential harness with the
+jitclass engine (every behaviour, model, object, mixed batches, the
+single-source test); here: faults, the robots written back, named errors
+for constructs outside the transform, and a warm start from the on-disk
+cache in a second process.
+"""
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from firmware_logic import registry
+from sim_backend.batch.compiler import CompileError
+from sim_backend.batch.soa import SoaEngine
+from sim_backend.scenario import validate
+from tests.harness import assert_same, reference
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def test_faults_identical():
+    sc = validate({"maxTicks": 1500, "deathRate": 0.2, "deadlockRate": 0.1,
+                   "ignoreFieldRate": 0.1, "ignoreHostRate": 0.1, "randomRate": 0.1,
+                   "probeMiss": 0.1, "probeGhost": 0.02, "fieldNoise": 2})
+    assert_same([sc] * 3, [1, 2, 3], engine=SoaEngine)
+
+
+def test_final_robots_are_the_reference_robots():
+    """At a run's end the arrays are written back into the CPython robots."""
+    sc = validate({"maxTicks": 600})
+    got = assert_same([sc], [4], engine=SoaEngine)[0]
+    ref = reference(sc, 4)
+    for a, b in zip(ref.robots, got.robots):
+        va, vb = dict(vars(a)), dict(vars(b))
+        assert vars(va.pop("rng")) == vars(vb.pop("rng"))
+        assert va == vb
+
+
+def _mutated_aggregate(tmp_path, name, anchor, insert):
+    agg = registry.load("aggregate")
+    copy = tmp_path / name
+    shutil.copytree(agg.folder, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    robot = copy / "robot.py"
+    src = robot.read_text()
+    assert src.count(anchor) == 1, "the anchor of this test has moved; update the test"
+    robot.write_text(src.replace(anchor, anchor + insert))
+    return validate({"behaviour": str(copy)}), robot
+
+
+def test_an_attribute_outside_the_subset_is_named(tmp_path):
+    sc, _ = _mutated_aggregate(tmp_path, "aggregate_float",
+                               "        self.rxbuf = [0, 0, 0, 0, 0, 0]\n",
+                               "        self.gain = 0.5\n")
+    with pytest.raises(CompileError, match=r"Robot\.gain: a float"):
+        SoaEngine([(sc, 1)])
+
+
+@pytest.mark.parametrize("construct,code,named", [
+    ("try", "        try:\n            self.ticks += 0\n        except ValueError:\n"
+            "            pass\n", "a Try statement"),
+    ("list", "        self.ticks += len([1, 2])\n", "a List expression"),
+    ("new object", "        Robot(1, 1, 0, 0, 0, 0)\n", "constructing a Robot"),
+    ("unknown attribute", "        self.nowhere += 1\n", "a new attribute Robot.nowhere"),
+])
+def test_a_construct_outside_the_transform_is_named_with_its_line(tmp_path, construct, code,
+                                                                   named):
+    anchor = "    def step(self, hal):\n"
+    sc, robot = _mutated_aggregate(tmp_path, "aggregate_" + construct.replace(" ", "_"),
+                                   anchor, code)
+    line = robot.read_text().split("\n").index(code.split("\n")[0]) + 1
+    with pytest.raises(CompileError, match=f"robot.py:{line}: {named}"):
+        SoaEngine([(sc, 1)])
+
+
+WARM = """
+import json, sys
+from sim_backend.batch.soa import SoaEngine
+from sim_backend.scenario import validate
+e = SoaEngine([(validate({"behaviour": "aggregate", "maxTicks": 50}), 1)])
+e.step()
+s = e._tick_fn.stats
+print(json.dumps({"hits": sum(s.cache_hits.values()), "misses": sum(s.cache_misses.values()),
+                  "xs": e.rb[0].tolist(), "dir": str(e.compiled.path.parent)}))
+"""
+
+
+def test_a_second_process_loads_the_compiled_step_from_the_disk_cache(tmp_path):
+    env = {**os.environ, "TOUCHSWARM_CACHE": str(tmp_path), "PYTHONPATH": str(ROOT)}
+    runs = []
+    for _ in range(2):
+        out = subprocess.run([sys.executable, "-c", WARM], env=env, capture_output=True,
+                             text=True, check=True, cwd=ROOT)
+        runs.append(json.loads(out.stdout.strip().splitlines()[-1]))
+    cold, warm = runs
+    assert cold["misses"] >= 1 and cold["hits"] == 0
+    assert warm["hits"] >= 1 and warm["misses"] == 0
+    assert warm["xs"] == cold["xs"]
+    assert Path(cold["dir"]).parent == tmp_path / "soa"
+    assert list(Path(cold["dir"]).glob("__pycache__/*.nbi"))
+
+
+def test_sweep_engine_soa_gives_the_reference_summaries():
+    from sim_backend import sweep
+    jobs = [({"maxTicks": 800}, {"fieldDefiance": 2}, seed) for seed in (1, 2)]
+    got = sweep.run_chunk(jobs, engine="soa")
+    assert "soa" in sweep.ENGINES
+    sc = validate({"maxTicks": 800, "fieldDefiance": 2})
+    assert got == [reference(sc, 1).summary(), reference(sc, 2).summary()]
