@@ -33,6 +33,7 @@ def cmd_scenarios(args: argparse.Namespace) -> int:
             "obstacles": "[[obstacles]] tables (docs/scenarios.md)",
             "field": "static | dynamic",
             "crowd": "block | yield",
+            "recognise": "true | false (confidence: the posterior it needs)",
         }.get(key, "text")
         print(f"  {key:16s} {value!s:10s} {allowed}")
     from sim_backend import objects

@@ -116,6 +116,9 @@ class HostProcess:
             journal.bind(str(behaviour or "thesis"))    # JournalError: another behaviour's
         self.coord = self.behaviour.coordinator(sc, journal=self._journal_report, cells=cells,
                                                 on_reject=self._rejected)
+        if getattr(sc, "recognise", False):
+            from bridge.perception.decide import equip
+            equip(self.coord, sc)           # recognition decides (issue 13 §2)
         self.tick = 0
         self.halts_sent = 0
         self.resumed = 0
