@@ -1,12 +1,16 @@
 """The host's decision by recognition (issue 13 §2, docs/perception.md "The
 decision"): every built-in shape as the target beside the diagonal decoy of
 the built-in `decoy` scenario, `recognise = true`, seeds 1..N, reference
-engine. Every question the coordinator asks its decider is logged with the
-cluster's number of touches, the answer and the truth (does the cluster
-touch the target?), so accuracy can be drawn against touches.
+engine. Accuracy against touches: whenever the host accepts a touch on an
+object before the transport, the bench asks the run's decider about that
+object's first k touches (every touch on it so far, released ones too, with
+the free cells the host had seen by then) and logs the verdict beside the
+truth. (The coordinator's own questions are not used for this: it stops
+asking about a cluster once decided, so its late questions are about the
+hard cases only.)
 
 Writes DIR/recognition_runs.csv (one row per run: the summary's decision
-fields), DIR/recognition_verdicts.csv (one row per question), the figure
+fields), DIR/recognition_verdicts.csv (one row per object and touch), the figure
 DIR/recognition.png; prints JSON (per shape: runs, delivered, wrong
 transports, decoy releases, median target tick and confidence; accuracy by
 touches) and the wall time.
@@ -28,6 +32,7 @@ from pathlib import Path
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
+from firmware_logic import messages as msg  # noqa: E402
 from sim_backend import objects, scenario  # noqa: E402
 from sim_backend.engine import Engine  # noqa: E402
 
@@ -49,20 +54,26 @@ def one(job: tuple[str, int]) -> tuple[dict, list[dict]]:
     shape, seed = job
     sc = scenario_for(shape)
     e = Engine(sc, seed)
-    target = set(sc.pieces()[0].placed(*sc.pieces()[0].at))
-    decide = e.coordinator.decider
+    c = e.coordinator
+    truth = {cell: ("target" if j == 0 else "decoy")
+             for j, p in enumerate(sc.pieces()) for cell in p.placed(*p.at)}
     conf = round(sc.confidence * 1000)
     log: list[dict] = []
+    seen: dict[str, list] = {"target": [], "decoy": []}
 
-    def logged(cells, free):
-        p = decide(cells, free)
-        truth = any(c in target for c in cells)
+    def journal(node, kind, f, tick):
+        if kind != msg.TOUCH or c.converged_tick >= 0:
+            return
+        obj = truth.get((f[3], f[4]))
+        if obj is None:
+            return
+        cells = seen[obj]
+        cells.append((f[3], f[4]))
+        p = c.decider(list(cells), dict(c.free_seen))
         verdict = "target" if p >= conf else "decoy" if 1000 - p >= conf else "undecided"
-        log.append({"shape": shape, "seed": seed, "tick": e.tick + 1, "k": len(cells),
-                    "truth": "target" if truth else "decoy", "permille": p,
-                    "verdict": verdict})
-        return p
-    e.coordinator.decider = logged
+        log.append({"shape": shape, "seed": seed, "tick": tick, "k": len(cells),
+                    "truth": obj, "permille": p, "verdict": verdict})
+    c.journal = journal
     s = e.run().summary()
     run = {"shape": shape, "seed": seed, "ticks": s["ticks"], "delivered": s["delivered"],
            "target_tick": s["target_tick"], "target_permille": s["target_permille"],
@@ -104,7 +115,7 @@ def figure(table: dict, out: Path) -> Path:
     import matplotlib.pyplot as plt
 
     from sim_backend.plots import _save
-    fig, axes = plt.subplots(1, 3, figsize=(14, 4.2))
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.4))
     for ax, truth, title in ((axes[0], "target", "target clusters: recognised as the target"),
                              (axes[1], "decoy", "decoy clusters: recognised as a decoy")):
         for shape, row in table.items():
@@ -113,21 +124,26 @@ def figure(table: dict, out: Path) -> Path:
             ax.plot(ks, [acc[k]["right"] for k in ks], marker="o", label=shape)
             bad = [k for k in ks if acc[k]["wrong"] > 0]
             ax.plot(bad, [acc[k]["wrong"] for k in bad], "x", color="red")
-        ax.set_xlabel("touches on the cluster when the host asked")
+        ax.set_xlabel("touches on the object (k-th touch)")
         ax.set_ylabel("share of verdicts right (red x: wrong)")
         ax.set_ylim(-0.02, 1.02)
         ax.set_title(title, fontsize=10)
     axes[0].legend(fontsize=8)
     names = list(table)
-    axes[2].bar(names, [table[n]["wrong_transports"] for n in names], color="red",
-                label="wrong transports")
-    axes[2].bar(names, [table[n]["runs"] - table[n]["delivered"] for n in names],
-                bottom=[table[n]["wrong_transports"] for n in names], color="grey",
+    runs = [table[n]["runs"] for n in names]
+    wrong = [table[n]["wrong_transports"] for n in names]
+    right = [table[n]["delivered"] - w for n, w in zip(names, wrong)]
+    lost = [r - d - w for r, d, w in zip(runs, right, wrong)]
+    axes[2].bar(names, right, color="tab:green", label="target delivered")
+    axes[2].bar(names, wrong, bottom=right, color="red", label="wrong transport (a decoy)")
+    axes[2].bar(names, lost, bottom=[a + b for a, b in zip(right, wrong)], color="grey",
                 label="not delivered")
-    axes[2].set_ylim(0, max(table[n]["runs"] for n in names))
+    for i, n in enumerate(names):
+        axes[2].text(i, runs[i] + 0.2, f"{wrong[i]} wrong", ha="center", fontsize=8)
+    axes[2].set_ylim(0, max(runs) * 1.2)
     axes[2].set_ylabel("runs")
-    axes[2].set_title("target shape beside the diagonal decoy", fontsize=10)
-    axes[2].legend(fontsize=8)
+    axes[2].set_title("each shape as the target beside the diagonal decoy", fontsize=10)
+    axes[2].legend(fontsize=8, loc="lower right")
     fig.tight_layout()
     return _save(fig, out / "recognition.png")
 

@@ -153,6 +153,21 @@ def test_other_clusters_are_released_when_the_target_converges():
     assert sorted(m[0] for m in _kinds(out, msg.TRANSPORT)) == [2, 3]
 
 
+def test_a_touch_off_the_carried_object_during_the_transport_is_released():
+    c, _ = _coordinator({(5, 5): 990})
+    for n in (1, 2, 3, 4):
+        hello(c, n)
+    touch(c, 1, 1, (5, 5), 2)
+    touch(c, 2, 1, (6, 5), 2)
+    c.tick(2)
+    assert c.converged_tick == 2
+    touch(c, 3, 1, (7, 6), 3)              # on the carried object: a carrier too
+    touch(c, 4, 1, (-10, -10), 3)          # another object
+    out = c.tick(3)
+    assert [m[0] for m in _kinds(out, spec.RELEASE)] == [4]
+    assert sorted(t.node for t in c.touches) == [1, 2, 3] and c.power == 300
+
+
 def test_a_holder_that_missed_its_release_gets_it_again():
     c, _ = _coordinator({(-10, 8): 20})
     hello(c, 1)
@@ -304,3 +319,30 @@ def test_a_resumed_host_replays_the_release_from_its_journal(tmp_path):
     assert spec.RELEASE in kinds
     assert fresh.power == 100 and [t.node for t in fresh.touches] == [2]
     assert fresh.released == {1: c.released[1]} and fresh.leader == 2
+
+
+def test_over_virtual_can_recorded_and_replayed(tmp_path, capsys):
+    import json
+
+    from bridge.cli import main
+    f = tmp_path / "r.log"
+    assert main(["run", "--scenario", "decoy", "--set", "recognise=true", "--link", "can",
+                 "--record", str(f), "--json"]) == 0
+    s = json.loads(capsys.readouterr().out)
+    assert s["delivered"] and s["releases"] >= 1 and s["wrong_transport"] is False
+    # the RELEASE frame (kind 8: identifiers 0x400-0x47F) is on the recording
+    ids = [int(line.split()[2].split("#")[0], 16) for line in f.read_text().splitlines()]
+    assert any(msg.split_id(i)[0] == spec.RELEASE for i in ids)
+    assert main(["replay", str(f)]) == 0
+    assert "0 divergences" in capsys.readouterr().out
+
+
+def test_touches_on_one_object_of_the_map_are_one_cluster():
+    c, asked = _coordinator({})
+    c.objects = [frozenset((x, 5) for x in range(0, 10))]
+    hello(c, 1)
+    hello(c, 2)
+    touch(c, 1, 1, (0, 5), 2)
+    touch(c, 2, 1, (9, 5), 2)              # 9 apart, but one object on the map
+    c.tick(2)
+    assert asked == [[(0, 5), (9, 5)]]

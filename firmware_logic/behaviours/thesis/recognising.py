@@ -3,8 +3,9 @@
 
 A mixin of the thesis Coordinator, off unless `recognition()` is called.
 When on, the coordinator is not told the target's cells: it accepts every
-plausible touch, groups the touched segments into clusters (segments within
-GAP patches of each other, transitively: one object each), and asks a
+plausible touch, groups the touched segments into clusters (segments on
+one object of the host's map, when it has one, or within GAP patches of
+each other, transitively: one object each), and asks a
 `decider` the host injects (a callable(cells, free) -> the permille
 confidence that the cluster is the target; bridge/perception/decide.py backs
 it with the Bayesian recogniser) about each cluster whose touches changed,
@@ -91,6 +92,8 @@ class Recognising:
         """A touch accepted during the transport off the carried cluster is
         another object's: released at once."""
         if self.recognise and self.converged_tick >= 0:
+            if self.body is not None and (t.sx, t.sy) in self.body:
+                return                 # the carried object, as the map has it
             g = [t]
             if not self._near(g, self.touches, t):
                 self._release_group(g, tick)
@@ -187,12 +190,27 @@ class Recognising:
         return out
 
     def _near(self, g, pool, t):
-        """Whether touch t's segment lies within GAP of any segment in pool
-        (in the object's frame: the carried cluster's touches stay together)."""
+        """Whether touch t's segment lies within GAP of any segment in pool,
+        or on the same object of the host's map (in the object's frame: the
+        carried cluster's touches stay together)."""
+        a = self._on_map(t)
         for u in pool:
-            if u is not t and abs(u.sx - t.sx) <= GAP and abs(u.sy - t.sy) <= GAP:
-                return True
+            if u is not t:
+                if abs(u.sx - t.sx) <= GAP and abs(u.sy - t.sy) <= GAP:
+                    return True
+                if a >= 0 and self._on_map(u) == a:
+                    return True
         return False
+
+    def _on_map(self, t):
+        """The index of the map's object under t's segment, -1 if none."""
+        if self.objects is not None:
+            j = 0
+            while j < len(self.objects):
+                if (t.sx, t.sy) in self.objects[j]:
+                    return j
+                j += 1
+        return -1
 
     def _evidence(self, g):
         """Cluster g's touched cells, with the released touches near them:
