@@ -37,7 +37,8 @@ from sim_backend import objects, scenario  # noqa: E402
 from sim_backend.engine import Engine  # noqa: E402
 
 MAX_TICKS = 5000
-MAX_K = 10          # touches on a cluster drawn in the accuracy figure
+MAX_K = 10          # touches on an object counted in the accuracy table
+MIN_N = 3           # verdicts a point of the accuracy figure needs
 
 
 def scenario_for(shape: str) -> scenario.Scenario:
@@ -116,16 +117,16 @@ def figure(table: dict, out: Path) -> Path:
 
     from sim_backend.plots import _save
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.4))
-    for ax, truth, title in ((axes[0], "target", "target clusters: recognised as the target"),
-                             (axes[1], "decoy", "decoy clusters: recognised as a decoy")):
+    for ax, truth, title in ((axes[0], "target", "the target: called the target"),
+                             (axes[1], "decoy", "the decoy: called a decoy")):
         for shape, row in table.items():
-            acc = row["accuracy"][truth]
+            acc = {int(k): v for k, v in row["accuracy"][truth].items() if v["n"] >= MIN_N}
             ks = sorted(acc)
             ax.plot(ks, [acc[k]["right"] for k in ks], marker="o", label=shape)
             bad = [k for k in ks if acc[k]["wrong"] > 0]
             ax.plot(bad, [acc[k]["wrong"] for k in bad], "x", color="red")
         ax.set_xlabel("touches on the object (k-th touch)")
-        ax.set_ylabel("share of verdicts right (red x: wrong)")
+        ax.set_ylabel(f"share of runs right (red x: wrong; >= {MIN_N} runs)")
         ax.set_ylim(-0.02, 1.02)
         ax.set_title(title, fontsize=10)
     axes[0].legend(fontsize=8)
