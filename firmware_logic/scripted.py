@@ -24,7 +24,8 @@ Answers are plausible, not physical:
                  tenth of the horizon, and at the latest two ticks before it;
                  the thesis's RELEASE 1..3 ticks after half the TOUCHes of
                  the second half, twice at most (a box of 7 x 7 patches
-                 round the robot, 50 ticks), so the FSM still goes on to carry.
+                 beside the robot, which it may wander into), so the FSM
+                 still goes on to carry.
 Position is tracked from forward/carry in Q8 inside a 35 x 35 arena.
 
 Ticks are counted by recv: the FSM calls recv until it answers 0 at the start
@@ -307,13 +308,13 @@ class ScriptHal(Hal):
             self.q_release = 0
             x = fx.patch(self.px)
             y = fx.patch(self.py)
-            buf[0] = x - 3
-            buf[1] = y - 3
-            buf[2] = x + 3
-            buf[3] = y + 3
-            buf[4] = 50
+            buf[0] = x + 2
+            buf[1] = y + 2
+            buf[2] = x + 8
+            buf[3] = y + 8
+            buf[4] = 0
             buf[5] = 0
-            self._rec7(OP_RECV, RELEASE, x - 3, y - 3, x + 3, y + 3, 50, 0)
+            self._rec7(OP_RECV, RELEASE, x + 2, y + 2, x + 8, y + 8, 0, 0)
             return RELEASE
         self.fresh = 1
         self._rec7(OP_RECV, 0, 0, 0, 0, 0, 0, 0)

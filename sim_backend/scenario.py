@@ -324,6 +324,9 @@ def validate(raw: dict[str, Any], source: str = "scenario") -> Scenario:
         elif key == "breeds":
             values[key] = _breeds(value, source)
         elif key == "recognise":
+            # sweep.csv cells read back (plots, thesis figures) say True/False
+            value = {"True": True, "False": False}.get(value, value) \
+                if isinstance(value, str) else value
             if not isinstance(value, bool):
                 raise ScenarioError(f"recognise: expected true or false, got {value!r}")
             values[key] = value

@@ -14,7 +14,7 @@ evidence grew. Then:
 
 - a cluster recognised as not the target (1000 - p >= confidence): its
   holders get RELEASE (let go, search on, claim nothing in the cluster's box
-  for HOLDOFF ticks); their touches leave the power total; the release is
+  for HOLDOFF = spec.RELEASE_TICKS ticks); their touches leave the power total; the release is
   journalled, so a resumed host replays it;
 - a cluster recognised as the target (p >= confidence) whose holders' power
   reaches the weight: the transport begins, and every other cluster is
@@ -37,7 +37,7 @@ SUBSET_SETUP = ("Recognising",)   # host side: may allocate
 
 GAP = 3            # touched segments this close (Chebyshev) are one object
 MARGIN = 2         # patches a RELEASE box reaches beyond a cluster's touches
-HOLDOFF = 300      # ticks a released robot leaves that box alone
+HOLDOFF = spec.RELEASE_TICKS   # ticks a released robot leaves that box alone
 DECIDE_EVERY = 32  # ticks between two questions about one undecided cluster
 BYTE = 127         # a RELEASE box travels in signed bytes
 
@@ -248,7 +248,7 @@ class Recognising:
             y0 = min(y0, y - MARGIN)
             x1 = max(x1, x + MARGIN)
             y1 = max(y1, y + MARGIN)
-        f = (max(x0, -BYTE), max(y0, -BYTE), min(x1, BYTE), min(y1, BYTE), HOLDOFF)
+        f = (max(x0, -BYTE), max(y0, -BYTE), min(x1, BYTE), min(y1, BYTE))
         nodes = []
         for t in g:
             nodes.append(t.node)

@@ -19,7 +19,7 @@ from firmware_logic.rng import Rng
 
 from firmware_logic.behaviours.thesis.spec import (ANT, CARRY, FIELD, FIREFLY,  # noqa: F401
                                                    FROG, GRASP, HALT, HOLD, LEVY, MOTH,
-                                                   RELEASE, SEARCH, STATES)
+                                                   RELEASE, RELEASE_TICKS, SEARCH, STATES)
 from firmware_logic.hal import (BEACON_LEADER, BEACON_ON, CLAIMED, NOTHING,  # noqa: F401
                                OBJECT, ROBOT, WALL)
 
@@ -341,7 +341,7 @@ class Robot:
                 self.ay0 = b[1]
                 self.ax1 = b[2]
                 self.ay1 = b[3]
-                self.avoid_ticks = b[4]
+                self.avoid_ticks = RELEASE_TICKS
 
     def _send_touch(self, hal):
         hal.send(msg.TOUCH, self.seq, self.rx, self.ry, self.sx, self.sy, self.power)

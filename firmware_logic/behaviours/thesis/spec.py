@@ -35,16 +35,18 @@ MODELS = ((FIREFLY, "firefly"), (ANT, "ant"), (LEVY, "levy"), (MOTH, "moth"), (F
 # The thesis's TOUCH and TRANSPORT kinds are link messages too, since the
 # host process understands them. Its own (messages.declare adds them; the
 # codec, the DBC, recordings, replay and the journal derive from this row):
+# A command is at most 4 bytes, so a SecOC-sealed frame (bridge/links/secoc.py)
+# keeps room for its MAC and freshness.
 RELEASE = 8  # host -> holder: a decoy (issue 13 §2, scenario recognise = true)
+RELEASE_TICKS = 300   # ticks a released robot claims nothing in the RELEASE box
 MESSAGES = (
     (RELEASE, "RELEASE", DOWN,
      "host -> holder: the object is not the target; let go, search on and claim no "
-     "segment in x0..x1, y0..y1 for `ticks` ticks",
+     "segment in x0..x1, y0..y1 for RELEASE_TICKS (300) ticks",
      (("x0", 1, 1, 1, "patch", None, None, ""),
       ("y0", 1, 1, 1, "patch", None, None, ""),
       ("x1", 1, 1, 1, "patch", None, None, ""),
-      ("y1", 1, 1, 1, "patch", None, None, ""),
-      ("ticks", 2, 0, 1, "tick", 1, None, ""))),
+      ("y1", 1, 1, 1, "patch", None, None, ""))),
 )
 
 # -- parameters: thesis name, default, low, high, meaning ---------------------
