@@ -21,7 +21,11 @@ Answers are plausible, not physical:
                  some ticks after a HELLO; once a TOUCH was seen, TRANSPORT
                  one tick in 6 with increasing step numbers (a quarter of
                  them repeat the previous step); HALT at random in the last
-                 tenth of the horizon, and at the latest two ticks before it.
+                 tenth of the horizon, and at the latest two ticks before it;
+                 the thesis's RELEASE 1..3 ticks after half the TOUCHes of
+                 the second half, twice at most (a box of 7 x 7 patches
+                 beside the robot, which it may wander into), so the FSM
+                 still goes on to carry.
 Position is tracked from forward/carry in Q8 inside a 35 x 35 arena.
 
 Ticks are counted by recv: the FSM calls recv until it answers 0 at the start
@@ -34,6 +38,7 @@ from firmware_logic import messages as msg
 from firmware_logic.hal import Hal
 from firmware_logic.rng import Rng
 from firmware_logic.hal import CLAIMED, NOTHING, OBJECT, ROBOT, WALL
+from firmware_logic.behaviours.thesis.spec import RELEASE
 
 # trace record: op, tick, then ARITY[op] ints
 OP_X = 1
@@ -87,6 +92,9 @@ class ScriptHal(Hal):
         self.q_transport = 0
         self.q_ack = 0
         self.q_hello = 0
+        self.q_release = 0
+        self.releases = 2          # RELEASEs left to send
+        self.release_due = 0
         # script state
         self.touched = 0
         self.halted = 0
@@ -232,6 +240,10 @@ class ScriptHal(Hal):
         self._rec7(OP_SEND, kind, a0, a1, a2, a3, a4, a5)
         if kind == msg.TOUCH:
             self.touched = 1
+            if self.releases and self.tick >= self.contest_until and self.release_due == 0 \
+                    and self.rng.below(2) == 0:
+                self.releases -= 1
+                self.release_due = self.tick + 1 + self.rng.below(3)
             # a quarter of the reports go unanswered: the FSM retransmits
             if self.ack_due == 0 and self.rng.below(4) != 0:
                 self.ack_due = self.tick + 1 + self.rng.below(6)
@@ -257,6 +269,9 @@ class ScriptHal(Hal):
                 self.tdx = self.rng.below(3) - 1
                 self.tdy = self.rng.below(3) - 1
                 self.q_transport = 1
+        if self.release_due and t >= self.release_due:
+            self.release_due = 0
+            self.q_release = 1
         if not self.halted and t >= self.halt_from:
             if self.rng.below(16) == 0 or t >= self.horizon - 2:
                 self.halted = 1
@@ -289,6 +304,18 @@ class ScriptHal(Hal):
         if self.q_hello:
             self.q_hello = 0
             return self._deliver(buf, msg.ACK, 0, 0, 0)
+        if self.q_release:
+            self.q_release = 0
+            x = fx.patch(self.px)
+            y = fx.patch(self.py)
+            buf[0] = x + 2
+            buf[1] = y + 2
+            buf[2] = x + 8
+            buf[3] = y + 8
+            buf[4] = 0
+            buf[5] = 0
+            self._rec7(OP_RECV, RELEASE, x + 2, y + 2, x + 8, y + 8, 0, 0)
+            return RELEASE
         self.fresh = 1
         self._rec7(OP_RECV, 0, 0, 0, 0, 0, 0, 0)
         return 0

@@ -152,8 +152,18 @@ class RunResult:
             **({"touch_breeds": [self.scenario.breed_name(t.node)
                                   for t in getattr(c, "touches", ())]}
                if self.scenario.breeds else {}),
+            **({"wrong_transport": self.wrong_transport()} if self.scenario.recognise else {}),
             **{k: v for inst in self.instruments for k, v in inst.summary().items()},
         }
+
+    def wrong_transport(self) -> bool:
+        """recognise: whether the transport began on a cluster with no touch
+        on the target (the truth the host was not told)."""
+        c = self.coordinator
+        if c.converged_tick < 0:
+            return False
+        target = set(self.scenario.pieces()[0].placed(self.world.obj_x, self.world.obj_y))
+        return not any((t.sx, t.sy) in target for t in c.touches)
 
 
 class Engine:
@@ -171,6 +181,10 @@ class Engine:
         self.robots = [self.behaviour.make_robot(n, seed, sc) for n in nodes]
         self.bodies = [SimBody(self.world, i, n, self.link) for i, n in enumerate(nodes)]
         self.coordinator = self.behaviour.coordinator(sc, cells=list(self.world.object_cells))
+        if sc.recognise:
+            # the host's recogniser decides which touches are the target's
+            from bridge.perception.decide import equip
+            equip(self.coordinator, sc)
         self.tick = 0
         self.record = record_trajectories
         self.trajectories: list[tuple[list[int], list[int]]] = []

@@ -326,6 +326,8 @@ def apply_tick(obj, owner, field, occ, stamp, base, w, n, tdx, tdy, tv, t0, t1,
     for i in range(lo, hi):
         if mv_on[i] == 0:
             continue
+        if held[i] >= 0:
+            let_go(obj, owner, base, held, i)
         nx = fold_q8(w, n, xs[i] + fx.dx(mv_h[i], mv_step[i]), rules)
         ny = fold_q8(w, n, ys[i] + fx.dy(mv_h[i], mv_step[i]), rules)
         px = fx.patch(nx)
@@ -340,6 +342,17 @@ def apply_tick(obj, owner, field, occ, stamp, base, w, n, tdx, tdy, tv, t0, t1,
         xs[i] = nx
         ys[i] = ny
     recount(occ, base, w, n, xs, ys, lo, hi)
+
+
+def let_go(obj, owner, base, held, i):
+    """A robot that walks on (a forward intent, whether or not the move
+    succeeds) lets go of the segment it held: it is free to claim again. The
+    thesis's robots never walk while holding; a released holder does
+    (RELEASE, issue 13 §2)."""
+    k = base + held[i]
+    held[i] = -1
+    obj[k] = YELLOW
+    owner[k] = 0
 
 
 def _carried(w, n, cx, cy, c0, c1, k):
@@ -528,6 +541,8 @@ def apply_robot(obj, owner, occ, base, w, n, xs, ys, lo, i, held, mv_on, mv_h, m
     if mv_on[i] == 0:
         return
     mv_on[i] = 0
+    if held[i] >= 0:
+        let_go(obj, owner, base, held, i)
     nx = fold_q8(w, n, xs[i] + fx.dx(mv_h[i], mv_step[i]), rules)
     ny = fold_q8(w, n, ys[i] + fx.dy(mv_h[i], mv_step[i]), rules)
     px = fx.patch(nx)

@@ -155,6 +155,10 @@ class Scenario:
     # several breeds ([[breeds]] tables): each ((key, value), ...) with its count;
     # nodes are numbered breed by breed; empty: one breed, the keys above
     breeds: tuple = ()
+    # issue 13 §2: the host recognises the target from the touches (no truth)
+    # and transports only it; holders of a recognised decoy are released
+    recognise: bool = False      # off: the simulator tells the host the target's cells
+    confidence: float = 0.9      # posterior needed to call a cluster the target (or not)
 
     @property
     def model(self) -> int:
@@ -240,6 +244,7 @@ EXT_RANGES.update({
     "fieldNoise": (int, 0, 10), "faultWindow": (int, 1, 10_000_000),
     "lostAfter": (int, 0, 1_000_000),
     "linkLoss": (float, 0.0, 0.9), "linkDup": (float, 0.0, 0.9), "linkReorder": (int, 1, 64)})
+EXT_RANGES["confidence"] = (float, 0.5, 0.999)   # > 0.5: target and decoy never both hold
 LINK_FAULT_KEYS = ("linkLoss", "linkDup", "linkReorder")
 
 
@@ -268,6 +273,8 @@ def extensions(sc: "Scenario") -> list[str]:
         out.append("lostAfter")
     if sc.breeds:
         out.append("breeds")
+    if sc.recognise:
+        out.append("recognise")
     return out
 
 
@@ -326,6 +333,13 @@ def validate(raw: dict[str, Any], source: str = "scenario") -> Scenario:
             values[key] = _behaviour_name(value)
         elif key == "breeds":
             values[key] = _breeds(value, source)
+        elif key == "recognise":
+            # sweep.csv cells read back (plots, thesis figures) say True/False
+            value = {"True": True, "False": False}.get(value, value) \
+                if isinstance(value, str) else value
+            if not isinstance(value, bool):
+                raise ScenarioError(f"recognise: expected true or false, got {value!r}")
+            values[key] = value
         elif key in CHOICES_ALL:
             if value not in CHOICES_ALL[key]:
                 raise ScenarioError(f"{key}: expected one of {', '.join(CHOICES_ALL[key])}, "
@@ -367,6 +381,12 @@ def validate(raw: dict[str, Any], source: str = "scenario") -> Scenario:
         raise ScenarioError(f"wrap: sigRadius {sc.sigRadius} exceeds worldSize "
                             f"{sc.worldSize}; on the torus a field must not reach round "
                             "to itself: lower sigRadius or enlarge worldSize")
+    if sc.recognise and sc.lostAfter:
+        # both change which holders' power counts; their interplay is not built
+        raise ScenarioError("recognise: not built together with lostAfter; set one of them")
+    if sc.recognise and sc.behaviour != "thesis":
+        raise ScenarioError(f"recognise: behaviour {sc.behaviour!r} has no object to "
+                            "recognise (the thesis behaviour has); drop recognise")
     if sc.objects or sc.obstacles:
         arena.check(sc)
     else:

@@ -112,11 +112,11 @@ def test_a_behaviours_own_message_is_in_its_dbc_with_units():
 
 def test_declared_messages_are_checked():
     bad = [((1, "X", msg.UP, "", (("a", 1, 0, 1, "", None, None, ""),)), "taken by the link"),
-           ((8, "X", msg.UP, "", (("a", 4, 0, 1, "", None, None, ""),)), "1 or 2"),
-           ((8, "X", msg.CAPTURE, "", ()), "direction"),
-           ((8, "X", msg.UP, "", tuple(("a%d" % i, 2, 0, 1, "", None, None, "")
+           ((9, "X", msg.UP, "", (("a", 4, 0, 1, "", None, None, ""),)), "1 or 2"),
+           ((9, "X", msg.CAPTURE, "", ()), "direction"),
+           ((9, "X", msg.UP, "", tuple(("a%d" % i, 2, 0, 1, "", None, None, "")
                                        for i in range(5))), "8 bytes")]
     for row, words in bad:
         with pytest.raises(msg.SchemaError, match=words):
             msg.declare([row])
-    assert 8 not in msg.SCHEMA
+    assert 9 not in msg.SCHEMA

@@ -272,6 +272,16 @@ def _perception_lines(s: dict) -> list[str]:
             f"  recognised       {rec}"]
 
 
+def _decision_lines(s: dict) -> list[str]:
+    """What the host decided by recognition (scenario recognise = true)."""
+    if "releases" not in s:
+        return []
+    when = ("never" if s["target_tick"] is None else
+            f"tick {s['target_tick']}, p {s['target_permille'] / 1000:.3f}")
+    wrong = "WRONG transport (a decoy)" if s.get("wrong_transport") else "no wrong transport"
+    return [f"  target           recognised {when}; {s['releases']} decoy releases; {wrong}"]
+
+
 def format_summary(s: dict, converged_power: float | None = None) -> str:
     def t(v):
         return "never" if v is None else f"tick {v}"
@@ -292,6 +302,7 @@ def format_summary(s: dict, converged_power: float | None = None) -> str:
         f"{s['power']:g}",
         f"  shape IoU        {s['shape_iou']:.3f}",
         *_perception_lines(s),
+        *_decision_lines(s),
         f"  result           {'DELIVERED' if s['delivered'] else 'NOT delivered'}"
         f" after {s['ticks']} ticks"
         + ("" if s["delivered"] or not s.get("outcome") else f" ({s['outcome']})"),

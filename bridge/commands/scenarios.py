@@ -34,6 +34,7 @@ def cmd_scenarios(args: argparse.Namespace) -> int:
             "field": "static | dynamic",
             "crowd": "block | yield",
             "wrap": "false | true",
+            "recognise": "true | false (confidence: the posterior it needs)",
         }.get(key, "text")
         print(f"  {key:16s} {value!s:10s} {allowed}")
     from sim_backend import objects

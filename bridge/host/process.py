@@ -116,6 +116,9 @@ class HostProcess:
             journal.bind(str(behaviour or "thesis"))    # JournalError: another behaviour's
         self.coord = self.behaviour.coordinator(sc, journal=self._journal_report, cells=cells,
                                                 on_reject=self._rejected)
+        if getattr(sc, "recognise", False):
+            from bridge.perception.decide import equip
+            equip(self.coord, sc)           # recognition decides (issue 13 §2)
         self.tick = 0
         self.halts_sent = 0
         self.resumed = 0
@@ -169,7 +172,8 @@ class HostProcess:
         if self.journal is not None:
             self.journal.add_report(node, kind, fields, self.tick)
         name, layout = msg.SCHEMA[kind]
-        self._event(f"tick {self.tick}: {name} from robot {node} journalled ("
+        way = "to" if msg.spec(kind)[2] == msg.DOWN else "from"    # a RELEASE is the host's
+        self._event(f"tick {self.tick}: {name} {way} robot {node} journalled ("
                     + ", ".join(f"{f[0]} {v}" for f, v in zip(layout, fields)) + ")")
 
     def _rejected(self, reason: str, node: int, fields: tuple) -> None:

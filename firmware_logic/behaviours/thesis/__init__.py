@@ -15,7 +15,7 @@ def robot_args(node, seed, sc):
             sc.levy_q, sc.mothNoise, sc.frogPause, sc.frogJump)
 
 
-def make_coordinator(sc, journal=None, cells=None, on_reject=None):
+def make_coordinator(sc, journal=None, cells=None, on_reject=None, decider=None):
     """The host coordinator of a mission in scenario `sc`.
 
     cells: the object's cells where it starts, when the host knows them (a
@@ -29,11 +29,27 @@ def make_coordinator(sc, journal=None, cells=None, on_reject=None):
     # the host's map: obstacles and the other objects, all placed at fixed
     # anchors (docs/scenarios.md); None in an open arena of one object
     closed = None
+    recognise = getattr(sc, "recognise", False)
     if getattr(sc, "obstacles", ()) or len(getattr(sc, "objects", ())) > 1:
         closed = []
-        for p in tuple(sc.obstacles) + tuple(sc.pieces()[1:]):
-            closed += p.placed(p.at[0], p.at[1])
-    return Coordinator(sc.weight_centi, sc.homeX, sc.homeY, journal=journal,
-                       home_radius=1 if netlogo else 4, by_carrier=netlogo,
-                       world_size=sc.worldSize, cells=cells, on_reject=on_reject,
-                       blocked=closed, lost_after=getattr(sc, "lostAfter", 0))
+        # recognising, the map holds every object (the target too, until
+        # the transport picks it); else the truth: the target is not in it
+        first = 0 if recognise else 1
+        for p in tuple(sc.obstacles) + tuple(sc.pieces()[first:]):
+            if p.at is not None:     # a target placed at random is not on the map
+                closed += p.placed(p.at[0], p.at[1])
+    c = Coordinator(sc.weight_centi, sc.homeX, sc.homeY, journal=journal,
+                    home_radius=1 if netlogo else 4, by_carrier=netlogo,
+                    world_size=sc.worldSize, cells=None if recognise else cells,
+                    on_reject=on_reject, blocked=closed,
+                    lost_after=getattr(sc, "lostAfter", 0))
+    if recognise:
+        objects = None
+        if closed is not None:
+            objects = []
+            for p in sc.pieces():
+                if p.at is not None:
+                    objects.append(frozenset(p.placed(p.at[0], p.at[1])))
+        c.recognition(int(round(sc.confidence * 1000)), objects)
+        c.decider = decider
+    return c

@@ -18,6 +18,7 @@ reason, passed to `on_reject` (the host process logs it) and not ACKed.
 from firmware_logic import messages as msg
 from firmware_logic.roster import BAD_HELLO, CHANGED_HELLO, Roster  # noqa: F401 (re-exported)
 from firmware_logic.behaviours.thesis import spec
+from firmware_logic.behaviours.thesis.recognising import Recognising
 
 RESEND_AFTER = 4   # ticks without progress before a command is sent again
 STALL_TICKS = 2000  # transport ticks without the object moving before the run stops
@@ -149,9 +150,10 @@ class Touch:
 
 
 
-class Coordinator(Roster):
+class Coordinator(Recognising, Roster):
     NOT_SNAPSHOT = Roster.NOT_SNAPSHOT + ("home_x", "home_y", "home_r2", "by_carrier",
-                                          "closed", "stall_ticks")
+                                          "closed", "stall_ticks") \
+        + Recognising.RECOGNITION_NOT_SNAPSHOT
     VOLATILE = ("step_sent_tick",)     # a resend of the same TRANSPORT
 
     def __init__(self, weight, home_x=-15, home_y=-15, home_radius=4, journal=None,
@@ -231,6 +233,7 @@ class Coordinator(Roster):
         # displacements a transport step was blocked at (x, y pairs, flat):
         # the plan goes round them (dead robots stand still; see _bump)
         self.bumps = ()
+        self.setup_recognition()     # off; recognition() turns it on (issue 13 §2)
 
     # -- input -------------------------------------------------------------
 
@@ -245,6 +248,7 @@ class Coordinator(Roster):
             if node not in self.nodes:
                 self._reject(UNANNOUNCED_HEARTBEAT, node, f)
                 return
+            self._seen(node, f)
             if node == self.leader and self.step > 0:
                 x = (f[1] + 128) >> 8
                 y = (f[2] + 128) >> 8
@@ -287,6 +291,7 @@ class Coordinator(Roster):
         self._record(node, msg.TOUCH, f, tick)
         self._adopt(t)
         self._ack(node, f[0])
+        self._stray(t, tick)
 
     def _invalid_touch(self, node, f, mx, my):
         """Why the TOUCH fields f (world frame, the object displaced by
@@ -359,14 +364,18 @@ class Coordinator(Roster):
         return self.delivered_tick >= 0 or self.stopped_tick >= 0
 
     def measures(self):
-        """Why the run ended or where it stands (RunResult.summary's `outcome`)."""
+        """Why the run ended or where it stands (RunResult.summary's `outcome`),
+        and what recognition decided when it is on."""
+        out = self.recognition_measures()
         if self.delivered_tick >= 0:
-            return {"outcome": "delivered"}
-        if self.stopped_tick >= 0:
-            return {"outcome": STOP_REASONS[self.stop_code]}
-        if self.converged_tick >= 0:
-            return {"outcome": "transporting"}
-        return {"outcome": "collecting touches"}
+            out["outcome"] = "delivered"
+        elif self.stopped_tick >= 0:
+            out["outcome"] = STOP_REASONS[self.stop_code]
+        elif self.converged_tick >= 0:
+            out["outcome"] = "transporting"
+        else:
+            out["outcome"] = "collecting touches"
+        return out
 
     def status(self):
         if self.stopped_tick >= 0:
@@ -394,6 +403,8 @@ class Coordinator(Roster):
             return self.halted == 1
         if self.lost_after and self.touches:
             return False             # a holder's silence is counted every tick
+        if self.recognise and self.converged_tick < 0 and self.touches:
+            return False             # a verdict may come with no new message
         return self.converged_tick < 0 and not (self.touches and self.power >= self.weight)
 
     def tick(self, tick):
@@ -406,7 +417,7 @@ class Coordinator(Roster):
                 self.halted = 1
                 self._send(msg.HOST, msg.HALT, (0,))
         elif self.converged_tick < 0:
-            if self.touches and self.power >= self.weight:
+            if self._ready(tick):
                 self.converged_tick = tick
                 self._plan_step(tick)
         else:
@@ -496,9 +507,10 @@ class Coordinator(Roster):
     def _footprint(self):
         """The object's cells (its true ones when known, else the touched
         segments) and its carriers, where they are now."""
-        if self.cells is not None:
+        cells = self.cells if self.cells is not None else self.body
+        if cells is not None:
             pts = []
-            for x, y in self.cells:
+            for x, y in cells:
                 pts.append((x + self.moved_x, y + self.moved_y))
         else:
             pts = self.segments_now()

@@ -19,7 +19,7 @@ from firmware_logic.rng import Rng
 
 from firmware_logic.behaviours.thesis.spec import (ANT, CARRY, FIELD, FIREFLY,  # noqa: F401
                                                    FROG, GRASP, HALT, HOLD, LEVY, MOTH,
-                                                   SEARCH, STATES)
+                                                   RELEASE, RELEASE_TICKS, SEARCH, STATES)
 from firmware_logic.hal import (BEACON_LEADER, BEACON_ON, CLAIMED, NOTHING,  # noqa: F401
                                OBJECT, ROBOT, WALL)
 
@@ -83,16 +83,34 @@ class Robot:
         self.cdx = 0
         self.cdy = 0
         self.carry_due = 0
+        # RELEASE (a decoy, issue 13 §2): walk off the segment on the next
+        # tick, then claim nothing in the box ax0..ax1, ay0..ay1 for
+        # avoid_ticks ticks
+        self.leave = 0
+        self.avoid_ticks = 0
+        self.ax0 = 0
+        self.ay0 = 0
+        self.ax1 = 0
+        self.ay1 = 0
         self.rxbuf = [0, 0, 0, 0, 0, 0]
 
     # -- the tick ---------------------------------------------------------
 
     def step(self, hal):
         self.ticks += 1
+        if self.avoid_ticks > 0:
+            self.avoid_ticks -= 1     # the tick of the RELEASE counts as its first
         k = hal.recv(self.rxbuf)
         while k:
             self._on_message(hal, k)
             k = hal.recv(self.rxbuf)
+        if self.leave:
+            # let go: one step straight off the segment (a forward intent
+            # frees the grip, kernel.let_go); the search resumes next tick
+            self.leave = 0
+            hal.forward((self.claim_heading + 180) % 360, self.step_len)
+            self._housekeeping(hal)
+            return
         s = self.state
         if s == SEARCH:
             self._search(hal)
@@ -192,6 +210,8 @@ class Robot:
     def _look_for_object(self, hal, h):
         if hal.probe(h) != OBJECT:
             return 0
+        if self.avoid_ticks > 0 and self._avoided(hal, h):
+            return 0
         hal.claim(h)
         self.heading = h
         self.claim_heading = h
@@ -201,6 +221,12 @@ class Robot:
         self.first = 1 if self.state == SEARCH else 0
         self.state = GRASP
         return 1
+
+    def _avoided(self, hal, h):
+        # the segment ahead lies in the box of a released decoy
+        px = fx.patch(hal.x() + fx.dx(h, fx.ONE))
+        py = fx.patch(hal.y() + fx.dy(h, fx.ONE))
+        return self.ax0 <= px <= self.ax1 and self.ay0 <= py <= self.ay1
 
     def _turn(self):
         if self.rng.below(100) % 2 == 0:
@@ -300,6 +326,22 @@ class Robot:
             if self.state != HALT:
                 self.state = HALT
                 hal.beacon(0)
+        elif kind == RELEASE:
+            # the host recognised the held object as a decoy: beacon off,
+            # let go (next tick), search on and leave that object alone for
+            # a while; a RELEASE in any other state is stale and ignored
+            if self.state == HOLD:
+                hal.beacon(0)
+                self.state = SEARCH
+                self.phase = 0
+                self.pending = 0
+                self.first = 0
+                self.leave = 1
+                self.ax0 = b[0]
+                self.ay0 = b[1]
+                self.ax1 = b[2]
+                self.ay1 = b[3]
+                self.avoid_ticks = RELEASE_TICKS
 
     def _send_touch(self, hal):
         hal.send(msg.TOUCH, self.seq, self.rx, self.ry, self.sx, self.sy, self.power)

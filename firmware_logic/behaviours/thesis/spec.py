@@ -8,6 +8,8 @@ It is firmware subset (plain ints, strings and tuples) so a board can
 import it; nothing here runs in the step path.
 """
 
+from firmware_logic.messages import DOWN
+
 NAME = "thesis"
 TITLE = "Incremental perception (thesis Appendix A): search, touch, claim, field, transport"
 
@@ -31,7 +33,21 @@ MODELS = ((FIREFLY, "firefly"), (ANT, "ant"), (LEVY, "levy"), (MOTH, "moth"), (F
 # -- messages: the link's own (firmware_logic/messages.py MESSAGES); this
 # behaviour fills HELLO.model with MODELS and HEARTBEAT.state with STATES.
 # The thesis's TOUCH and TRANSPORT kinds are link messages too, since the
-# host process understands them.
+# host process understands them. Its own (messages.declare adds them; the
+# codec, the DBC, recordings, replay and the journal derive from this row):
+# A command is at most 4 bytes, so a SecOC-sealed frame (bridge/links/secoc.py)
+# keeps room for its MAC and freshness.
+RELEASE = 8  # host -> holder: a decoy (issue 13 §2, scenario recognise = true)
+RELEASE_TICKS = 300   # ticks a released robot claims nothing in the RELEASE box
+MESSAGES = (
+    (RELEASE, "RELEASE", DOWN,
+     "host -> holder: the object is not the target; let go, search on and claim no "
+     "segment in x0..x1, y0..y1 for RELEASE_TICKS (300) ticks",
+     (("x0", 1, 1, 1, "patch", None, None, ""),
+      ("y0", 1, 1, 1, "patch", None, None, ""),
+      ("x1", 1, 1, 1, "patch", None, None, ""),
+      ("y1", 1, 1, 1, "patch", None, None, ""))),
+)
 
 # -- parameters: thesis name, default, low, high, meaning ---------------------
 # (scenario keys; the world's own keys are in sim_backend/scenario.py)
@@ -59,6 +75,10 @@ MEASURES = (
     ("leader", "node of the first finder"),
     ("delivered", "the object is home"),
     ("outcome", "delivered, no path home, stalled, transporting or collecting touches"),
+    ("target_tick", "recognise: tick a cluster of touches was first recognised as the target"),
+    ("target_permille", "recognise: the posterior it had then, per mille"),
+    ("releases", "recognise: RELEASE commands sent to holders of decoys"),
+    ("wrong_transport", "recognise: the transport began on an object that is not the target"),
 )
 
 # -- reporters: values the coordinator gives at every tick (the per-tick trace,

@@ -1,0 +1,91 @@
+"""The host's decider for scenario `recognise = true` (issue 13 §2): is a
+cluster of touches the target, and how sure is the host?
+
+The thesis coordinator (firmware_logic/behaviours/thesis/recognising.py) is
+subset code and imports nothing from here; the host injects a `Decider` as
+`coordinator.decider`. Called with a cluster's touched cells and the cells
+robots reported standing on (HEARTBEAT poses), it builds that cluster's
+evidence, runs the Bayesian recogniser (recognise.py) over the library and
+answers the posterior of the target's shape, in per mille.
+
+The library is the built-in shapes plus every object the scenario draws
+(the shapes the host knows of, each under its name); the target is known by
+its shape (the mission says what to fetch), never by its place. Library
+entries with the target's shape (in any of its 8 orientations) all count
+for it, so a decoy drawn in the same shape as the target cannot be told
+apart, and the posterior says so.
+
+The prior. The recogniser's prior is uniform over the library's shapes, so
+the target's shape starts at 1/8 or so, and a few collinear touches on an
+arm of the X make the shorter diagonal decoy far likelier by the size
+principle: the X's holders were released as decoys again and again. But
+the host knows more than the library: the world holds one target among
+the objects it mapped. So the decider moves the target's prior odds to
+1 : (n - 1) for n objects (n at least 2: the host never assumes a lone
+object must be the target), i.e. it multiplies the posterior odds by
+(1 / (n - 1)) / (prior share / (1 - prior share)). A cluster is then
+called a decoy only when its touches rule the target out more firmly.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Any, Iterable
+
+from bridge.perception.evidence import Evidence
+from bridge.perception.recognise import recognise
+from bridge.perception.shapes import Library, orientations
+
+log = logging.getLogger(__name__)
+
+Cell = tuple[int, int]
+
+
+def library_for(sc: Any) -> tuple[Library, list[str]]:
+    """The scenario's library and the names of the entries that are the target's shape."""
+    pieces = sc.pieces()
+    known = {}
+    for p in pieces:
+        known[p.name] = list(p.cells)
+    lib = Library.builtin(known)
+    target = set(orientations(pieces[0].cells))
+    names = [n for n in lib.names
+             if set(tuple(p.cells) for p in lib.poses[n]) == target]
+    return lib, names
+
+
+class Decider:
+    """decider(cells, free) -> permille that the cluster is the target."""
+
+    def __init__(self, sc: Any) -> None:
+        self.w = sc.worldSize
+        self.library, self.target = library_for(sc)
+        self.calls = 0
+        n = max(2, len(sc.pieces()))
+        share = len(self.target) / len(self.library.names)
+        # prior odds of the target: the scenario's 1 : (n - 1) over the library's
+        self.odds = (1 / (n - 1)) / (share / (1 - share))
+
+    def __call__(self, cells: Iterable[Cell], free: Iterable[Cell] = ()) -> int:
+        ev = Evidence(self.w)
+        for x, y in cells:
+            ev.touch(x, y)
+        for c in free:
+            ev.free(*c)
+        rec = recognise(ev, self.library)
+        self.calls += 1
+        p = sum(rec.posterior[n] for n in self.target)
+        if p >= 1.0:
+            return 1000
+        odds = p / (1 - p) * self.odds
+        q = odds / (1 + odds)
+        log.debug("cluster %s: target p %.3f, with the scenario's prior %.3f (best %s %.3f)",
+                  sorted(ev.touched), p, q, rec.best, rec.p)
+        return int(q * 1000)
+
+
+def equip(coordinator: Any, sc: Any) -> Any:
+    """Give a recognising coordinator its decider (a no-op otherwise)."""
+    if getattr(coordinator, "recognise", 0) and getattr(coordinator, "decider", 0) is None:
+        coordinator.decider = Decider(sc)
+    return coordinator
