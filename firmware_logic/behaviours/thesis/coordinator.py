@@ -678,7 +678,7 @@ class Coordinator(Recognising, Roster):
         return power, leader
 
     def replay(self, node, kind, f, tick):
-        Roster.replay(self, node, kind, f, tick)
+        Recognising.replay(self, node, kind, f, tick)    # a RELEASE, else the roster's
         # a journalled report says nothing of who is alive now: a resumed
         # host counts every holder's silence from its own first tick
         self.heard = {}
