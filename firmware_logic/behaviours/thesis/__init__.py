@@ -15,7 +15,7 @@ def robot_args(node, seed, sc):
             sc.levy_q, sc.mothNoise, sc.frogPause, sc.frogJump)
 
 
-def make_coordinator(sc, journal=None, cells=None, on_reject=None, decider=None):
+def make_coordinator(sc, journal=None, cells=None, on_reject=None):
     """The host coordinator of a mission in scenario `sc`.
 
     cells: the object's cells where it starts, when the host knows them (a
@@ -50,6 +50,6 @@ def make_coordinator(sc, journal=None, cells=None, on_reject=None, decider=None)
             for p in sc.pieces():
                 if p.at is not None:
                     objects.append(frozenset(p.placed(p.at[0], p.at[1])))
+        # the decider is host code (numpy): bridge/perception/decide.equip gives it
         c.recognition(int(round(sc.confidence * 1000)), objects)
-        c.decider = decider
     return c
