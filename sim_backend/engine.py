@@ -180,11 +180,8 @@ class Engine:
         self.behaviour = registry.load(sc.behaviour)
         self.robots = [self.behaviour.make_robot(n, seed, sc) for n in nodes]
         self.bodies = [SimBody(self.world, i, n, self.link) for i, n in enumerate(nodes)]
-        self.coordinator = self.behaviour.coordinator(sc, cells=list(self.world.object_cells))
-        if sc.recognise:
-            # the host's recogniser decides which touches are the target's
-            from bridge.perception.decide import equip
-            equip(self.coordinator, sc)
+        from bridge.perception import host_coordinator
+        self.coordinator = host_coordinator(self.behaviour, sc, cells=list(self.world.object_cells))
         self.tick = 0
         self.record = record_trajectories
         self.trajectories: list[tuple[list[int], list[int]]] = []

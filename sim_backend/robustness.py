@@ -28,12 +28,6 @@ PRESET_FAULT_WINDOW = 200
 # the host drops a holder silent this long (a waiting holder reports every
 # 64 ticks, a carrying one every tick; docs/extensions.md)
 PRESET_LOST_AFTER = 100
-# the goal was measured with robots blocking the carried object (the rule of
-# the runs before `crowd = "yield"` became the default): under yield the world
-# pushes dead robots aside, which the host's plan (a lost holder's cell is an
-# obstacle) does not know, and 3 of 40 goal-mix runs end "no path home"
-# (seeds 14, 35, 38; docs/extensions.md)
-PRESET_CROWD = "block"
 
 
 def fault_points() -> list[Point]:
@@ -247,7 +241,7 @@ def trajectories_plot(path: Path, seed: int = 3, ticks: int = 150) -> Path:
 # why a run of a fault scenario did not deliver (diagnose)
 NO_PATH = "no path home"           # the thesis coordinator's stop reason
 WHY_ORDER = ("delivered", "infeasible", "no path home", "never converged", "leader dead", "power lost",
-             "blocked by dead robots", "stuck")
+             "defiant holder", "blocked by dead robots", "stuck")
 
 
 def diagnose(r: Any) -> str:
@@ -256,7 +250,8 @@ def diagnose(r: Any) -> str:
     home (the host found none round the obstacles it knows), never
     converged, leader dead (the leader died after convergence and the
     transport waits for its pose), power lost (the live holders' power is
-    below the weight), blocked by dead robots (a dead robot stands next to
+    below the weight), defiant holder (a live holder ignores the host's
+    TRANSPORT, so the object it grips never moves), blocked by dead robots (a dead robot stands next to
     the object or a carrier when it stopped moving) or stuck (anything
     else that kept it from moving: walls, live robots, no path)."""
     from firmware_logic.fixedpoint import patch
@@ -278,6 +273,9 @@ def diagnose(r: Any) -> str:
     live = sum(t.power for t in c.touches if t.node not in dead)
     if live < sc.weight_centi:
         return "power lost"
+    flags = faults.plan(sc, r.seed)[3]
+    if any(flags[t.node - 1] & faults.IGNORE_HOST for t in c.touches if t.node not in dead):
+        return "defiant holder"
     near = set()
     for x, y in list(w.object_cells) + c._carriers_now():
         for a in (-1, 0, 1):
@@ -315,19 +313,21 @@ def main(argv: list[str]) -> int:
             print(exp, pts)
         print(fault_plots(rows, Path(argv[2])))
         return 0
-    if argv[:1] == ["why"] and len(argv) in (2, 3):
+    if argv[:1] == ["why"] and len(argv) in (2, 3, 4):
         # the goal mix, preset settings, seeds 1..N: why each run ended
-        # (lostAfter: the preset's, or 0 for the thesis's host)
+        # (lostAfter: the preset's, or 0 for the thesis's host; crowd: the
+        # scenario default, or the rule named)
         raw = {**dict(GOAL), "maxTicks": PRESET_MAX_TICKS, "faultWindow": PRESET_FAULT_WINDOW,
-               "lostAfter": int(argv[2]) if len(argv) == 3 else PRESET_LOST_AFTER,
-               "crowd": PRESET_CROWD}
+               "lostAfter": int(argv[2]) if len(argv) >= 3 else PRESET_LOST_AFTER}
+        if len(argv) == 4:
+            raw["crowd"] = argv[3]
         got = why_table(raw, range(1, int(argv[1]) + 1))
         for why in WHY_ORDER:
             if why in got:
                 print(f"{why:24s} {len(got[why]):3d}  seeds {got[why]}")
         return 0
     print("usage: python -m sim_backend.robustness models CSV FACTOR OUT.png | "
-          "trajectories OUT.png | faults CSV OUTDIR | why SEEDS [LOST_AFTER]", file=sys.stderr)
+          "trajectories OUT.png | faults CSV OUTDIR | why SEEDS [LOST_AFTER [CROWD]]", file=sys.stderr)
     return 2
 
 

@@ -152,6 +152,7 @@ class Scenario:
     linkLoss: float = 0.0        # chance a frame is lost, each way
     linkDup: float = 0.0         # chance a frame is sent twice
     linkReorder: int = 1         # frames shuffled within windows of this many (1: in order)
+    linkDelay: int = 0           # each frame held back 0..linkDelay ticks, drawn per frame
     # several breeds ([[breeds]] tables): each ((key, value), ...) with its count;
     # nodes are numbered breed by breed; empty: one breed, the keys above
     breeds: tuple = ()
@@ -243,9 +244,10 @@ EXT_RANGES.update({
     "probeMiss": (float, 0.0, 1.0), "probeGhost": (float, 0.0, 1.0),
     "fieldNoise": (int, 0, 10), "faultWindow": (int, 1, 10_000_000),
     "lostAfter": (int, 0, 1_000_000),
-    "linkLoss": (float, 0.0, 0.9), "linkDup": (float, 0.0, 0.9), "linkReorder": (int, 1, 64)})
+    "linkLoss": (float, 0.0, 0.9), "linkDup": (float, 0.0, 0.9), "linkReorder": (int, 1, 64),
+    "linkDelay": (int, 0, 64)})
 EXT_RANGES["confidence"] = (float, 0.5, 0.999)   # > 0.5: target and decoy never both hold
-LINK_FAULT_KEYS = ("linkLoss", "linkDup", "linkReorder")
+LINK_FAULT_KEYS = ("linkLoss", "linkDup", "linkReorder", "linkDelay")
 
 
 def link_faults(sc: "Scenario") -> list[str]:

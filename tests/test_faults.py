@@ -145,10 +145,14 @@ def test_link_faults_over_can_are_seeded_and_change_the_run():
 
     def over_can(raw, seed):
         sc = validate({"maxTicks": 1500, **raw})
-        link = CanLink(list(range(1, sc.agents + 1)), *faults_of(sc, seed))
+        up, down = faults_of(sc, seed)
+        link = CanLink(list(range(1, sc.agents + 1)), faults_up=up, faults_down=down)
         try:
             res = Engine(sc, seed, link=link).run()
-            dropped = link.gateway.faults.dropped if link.gateway.faults else 0
+            # both ways: frames up (robots -> host) and down are lost
+            assert (up is None) == (link.gateway.faults is None) and \
+                (down is None) == (link.faults_down is None)
+            dropped = (up.dropped, down.dropped) if up else (0, 0)
             return res.summary(), dropped
         finally:
             link.close()
@@ -156,14 +160,61 @@ def test_link_faults_over_can_are_seeded_and_change_the_run():
     a, dropped = over_can(lossy, 3)
     b, _ = over_can(lossy, 3)
     clean, none = over_can({}, 3)
-    assert a == b and dropped > 0 and none == 0
+    assert a == b and min(dropped) > 0 and none == (0, 0)
     assert a["delivered"], "retransmission carries the mission through 30 % loss"
     assert (a["converged_tick"], a["home_tick"]) != (clean["converged_tick"], clean["home_tick"])
     assert faults_of(validate({}), 3) == (None, None)
 
 
+def test_link_delay_holds_frames_back_and_loses_none():
+    """linkDelay: every frame arrives, each 0..delay ticks late, and late
+    frames overtake each other; delay 0 is the injector as it was."""
+    from bridge.links.canlink import Faults
+    f = Faults(7, delay=3)
+    got = []
+    for now in range(20):
+        sent = [(now, k) for k in range(5)] if now < 10 else []
+        for frame in f.apply(sent, now):
+            got.append((now, frame))
+    assert sorted(fr for _, fr in got) == [(t, k) for t in range(10) for k in range(5)]
+    lags = [now - fr[0] for now, fr in got]
+    assert min(lags) == 0 and max(lags) == 3 and f.delayed > 0 and not f.held
+    assert [fr for _, fr in got] != sorted(fr for _, fr in got), "late frames are overtaken"
+    plain, zero = Faults(7, loss=0.2, window=3), Faults(7, loss=0.2, window=3, delay=0)
+    frames = list(range(40))
+    assert plain.apply(frames) == zero.apply(frames, 0)
+
+
+def test_link_delay_over_can_is_seeded_and_still_delivers():
+    from bridge.links.canlink import CanLink, faults_of
+    sc = validate({"maxTicks": 1500, "linkDelay": 4})
+
+    def once():
+        up, down = faults_of(sc, 5)
+        link = CanLink(list(range(1, sc.agents + 1)), faults_up=up, faults_down=down)
+        try:
+            return Engine(sc, 5, link=link).run().summary(), (up.delayed, down.delayed)
+        finally:
+            link.close()
+    a, late = once()
+    b, _ = once()
+    clean = Engine(validate({"maxTicks": 1500}), 5).run().summary()
+    assert a == b and min(late) > 0 and a["delivered"]
+    assert (a["converged_tick"], a["home_tick"]) != (clean["converged_tick"], clean["home_tick"])
+
+
+def test_link_injectors_are_keyword_only():
+    """Passed by position the injectors once landed in `channel`, and
+    `run --link can` ran with the down injector as the up one."""
+    from bridge.links.canlink import CanLink, Faults
+    with pytest.raises(TypeError):
+        CanLink([1], Faults(1), Faults(2))
+
+
 @pytest.mark.parametrize("argv, needle", [
     (["run", "--set", "linkLoss=0.2"], "linkLoss: a link fault needs a link; add --link can"),
+    (["run", "--set", "linkDelay=2"], "linkDelay: a link fault needs a link; add --link can"),
+    (["run", "--link", "can", "--set", "linkDelay=65"], "linkDelay"),
     (["run", "--link", "can", "--set", "linkReorder=0"], "linkReorder"),
     (["sweep", "--grid", "linkDup=0.1,0.2", "--seeds", "1"], "sweeps run in process"),
     (["sweep", "--preset", "faults", "--grid", "deathRate=0.1"], "--preset faults runs its own"),

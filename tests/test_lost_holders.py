@@ -240,9 +240,9 @@ def test_without_faults_nobody_is_lost_and_only_blocked_steps_are_planned_differ
 def test_why_a_run_failed_is_diagnosed_and_a_pinned_object_is_not_feasible():
     from sim_backend.robustness import fault_table, why_table
     assert why_table({**GOAL, "lostAfter": 0}, [1]) == {"leader dead": [1]}
-    # seed 35: two dead holders pin the object (a bar with carriers at both
-    # ends) against them; no way home exists for anyone
-    assert why_table({**GOAL, "lostAfter": 100}, [1, 35]) == \
+    # seed 35 under crowd "block": two dead holders pin the object (a bar
+    # with carriers at both ends) against them; no way home exists for anyone
+    assert why_table({**GOAL, "lostAfter": 100, "crowd": "block"}, [1, 35]) == \
         {"delivered": [1], "no path home": [35]}
     row = {"experiment": "goal", "seed": 35, "deathRate": 0.25, "ignoreFieldRate": 0.1,
            "randomRate": 0.1, "delivered": False, "home_tick": None}
@@ -250,3 +250,18 @@ def test_why_a_run_failed_is_diagnosed_and_a_pinned_object_is_not_feasible():
     stalled = fault_table([{**row, "outcome": "stalled"}])
     assert pinned["goal"] == [(-1.0, 0, 0, None)]
     assert stalled["goal"] == [(-1.0, 1, 0, None)]
+
+
+def test_under_yield_a_lost_holders_cell_is_not_planned_round():
+    """Under crowd "yield" (the default) the world pushes a dead robot aside
+    like any bystander, so the host does not plan round a lost holder's
+    cell: seeds 14, 35 and 38 of the goal mix, which ended "no path home"
+    when it did, deliver; under "block" it still plans round them."""
+    from sim_backend.robustness import why_table
+    assert why_table({**GOAL, "lostAfter": 100}, [14, 35, 38]) == {"delivered": [14, 35, 38]}
+    y = Engine(validate({**GOAL, "lostAfter": 100}), 35).run().coordinator
+    b = Engine(validate({**GOAL, "lostAfter": 100, "crowd": "block"}), 35).run().coordinator
+    assert y.crowd_yields and not b.crowd_yields
+    assert y.lost_cells and y._closed_now() == y.closed
+    cells = set(zip(b.lost_cells[::2], b.lost_cells[1::2]))
+    assert cells and cells <= set(b._closed_now())

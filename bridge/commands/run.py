@@ -178,7 +178,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     link = None
     if args.link == "can":
         from bridge.links.canlink import CanLink, faults_of
-        link = CanLink(nodes, *faults_of(sc, args.seed))
+        up, down = faults_of(sc, args.seed)
+        link = CanLink(nodes, faults_up=up, faults_down=down)
     recorder = None
     try:
         if args.record:

@@ -216,7 +216,6 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         overrides.setdefault("maxTicks", robustness.PRESET_MAX_TICKS)
         overrides.setdefault("faultWindow", robustness.PRESET_FAULT_WINDOW)
         overrides.setdefault("lostAfter", robustness.PRESET_LOST_AFTER)
-        overrides.setdefault("crowd", robustness.PRESET_CROWD)
     elif args.preset == "breeds":
         from sim_backend import robustness
         points = robustness.breed_points()

@@ -114,11 +114,9 @@ class HostProcess:
         self.behaviour = host_behaviour(behaviour, sc)
         if journal is not None:
             journal.bind(str(behaviour or "thesis"))    # JournalError: another behaviour's
-        self.coord = self.behaviour.coordinator(sc, journal=self._journal_report, cells=cells,
-                                                on_reject=self._rejected)
-        if getattr(sc, "recognise", False):
-            from bridge.perception.decide import equip
-            equip(self.coord, sc)           # recognition decides (issue 13 §2)
+        from bridge.perception import host_coordinator
+        self.coord = host_coordinator(self.behaviour, sc, journal=self._journal_report,
+                                      cells=cells, on_reject=self._rejected)
         self.tick = 0
         self.halts_sent = 0
         self.resumed = 0

@@ -40,20 +40,36 @@ def private_channel(prefix: str = "touchswarm") -> str:
 
 
 class Faults:
-    """Frame loss, duplication and reordering within a window, seeded."""
+    """Frame loss, duplication, delay and reordering within a window, seeded.
+
+    delay: each frame that is not lost is held back 0..delay ticks (drawn
+    per frame, so delayed frames also overtake each other); `apply` is
+    called once per tick, `now` the tick (None: count the calls)."""
 
     def __init__(self, seed: int = 0, loss: float = 0.0, dup: float = 0.0,
-                 window: int = 1) -> None:
-        if not (0 <= loss < 1 and 0 <= dup < 1 and window >= 1):
-            raise ValueError("expected 0 <= loss < 1, 0 <= dup < 1, window >= 1")
+                 window: int = 1, delay: int = 0) -> None:
+        if not (0 <= loss < 1 and 0 <= dup < 1 and window >= 1 and delay >= 0):
+            raise ValueError("expected 0 <= loss < 1, 0 <= dup < 1, window >= 1, delay >= 0")
         self.rng = random.Random(seed)
         self.loss = loss
         self.dup = dup
         self.window = window
+        self.delay = delay
         self.dropped = 0
         self.duplicated = 0
+        self.delayed = 0
+        self.held: list[tuple[int, int, Any]] = []   # (due tick, order, frame)
+        self.calls = 0
+        self._order = 0
 
-    def apply(self, frames: list[Any]) -> list[Any]:
+    def due(self, now: int) -> bool:
+        """Is a held frame due at tick `now`?"""
+        return any(h[0] <= now for h in self.held)
+
+    def apply(self, frames: list[Any], now: int | None = None) -> list[Any]:
+        if now is None:
+            now = self.calls
+        self.calls += 1
         out = []
         for f in frames:
             if self.rng.random() < self.loss:
@@ -63,6 +79,18 @@ class Faults:
             if self.rng.random() < self.dup:
                 self.duplicated += 1
                 out.append(f)
+        if self.delay > 0:
+            for f in out:
+                d = self.rng.randrange(self.delay + 1)
+                self.delayed += d > 0
+                self.held.append((now + d, self._order, f))
+                self._order += 1
+            self.held.sort(key=lambda h: (h[0], h[1]))
+            k = 0
+            while k < len(self.held) and self.held[k][0] <= now:
+                k += 1
+            out = [h[2] for h in self.held[:k]]
+            del self.held[:k]
         if self.window > 1:
             for i in range(0, len(out), self.window):
                 chunk = out[i:i + self.window]
@@ -72,13 +100,14 @@ class Faults:
 
 
 def faults_of(sc: Any, seed: int) -> tuple[Faults | None, Faults | None]:
-    """The scenario's link faults (linkLoss, linkDup, linkReorder) as the
-    injectors up (robots -> host) and down, seeded from the run seed; (None,
-    None) when all are off, so such a link is the plain one."""
-    if not (sc.linkLoss or sc.linkDup or sc.linkReorder > 1):
+    """The scenario's link faults (linkLoss, linkDup, linkReorder,
+    linkDelay) as the injectors up (robots -> host) and down, seeded from
+    the run seed; (None, None) when all are off, so such a link is the plain
+    one."""
+    if not (sc.linkLoss or sc.linkDup or sc.linkReorder > 1 or sc.linkDelay):
         return None, None
-    return (Faults(seed * 2 + 1, sc.linkLoss, sc.linkDup, sc.linkReorder),
-            Faults(seed * 2 + 2, sc.linkLoss, sc.linkDup, sc.linkReorder))
+    return (Faults(seed * 2 + 1, sc.linkLoss, sc.linkDup, sc.linkReorder, sc.linkDelay),
+            Faults(seed * 2 + 2, sc.linkLoss, sc.linkDup, sc.linkReorder, sc.linkDelay))
 
 
 class Gateway:
@@ -166,8 +195,12 @@ class Gateway:
 class CanLink:
     """An engine Link over a python-can bus (default: a private virtual channel)."""
 
-    def __init__(self, nodes: list[int], channel: str | None = None,
+    def __init__(self, nodes: list[int], channel: str | None = None, *,
                  faults_up: Faults | None = None, faults_down: Faults | None = None) -> None:
+        # the injectors are keyword-only: passed by position they once landed
+        # in `channel`, and the link ran with the down injector as the up one
+        if channel is not None and not isinstance(channel, str):
+            raise TypeError(f"CanLink channel: expected a str, got {type(channel).__name__}")
         from bridge.links import open_bus
         self.channel = channel or private_channel()
         self._closed = False
@@ -183,20 +216,21 @@ class CanLink:
         self.down: list[can.Message] = []
         self.frames_up = 0
         self.frames_down = 0
+        self.tick = 0          # host_recv calls: the link's clock for delayed frames
 
     # robots' side
     def robot_send(self, node: int, kind: int, fields: tuple) -> None:
         self.gateway.robot_send(node, kind, fields)
 
     def robot_recv(self, node: int) -> tuple[int, tuple] | None:
-        if self.down:
+        if self.down or (self.faults_down is not None and self.faults_down.due(self.tick)):
             self._flush_down()
         return self.gateway.robot_recv(node)
 
     def _flush_down(self) -> None:
         frames, self.down = self.down, []
         if self.faults_down is not None:
-            frames = self.faults_down.apply(frames)
+            frames = self.faults_down.apply(frames, self.tick)
         with converted("host send"):
             for f in frames:
                 self.host_bus.send(f)
@@ -205,6 +239,7 @@ class CanLink:
 
     # host's side
     def host_recv(self) -> list[Message]:
+        self.tick += 1
         n = self.gateway.flush()
         self.frames_up += n
         out: list[Message] = []

@@ -284,10 +284,8 @@ def replay(path: Path, realtime: bool = False, limit: int = 50) -> dict:
     stopped: set[int] = set()
     # the recorded run was a simulation: the host may check touches against
     # the object's true cells
-    coord = beh.coordinator(sc, cells=World(sc, seed).object_cells)
-    if sc.recognise:
-        from bridge.perception.decide import equip
-        equip(coord, sc)                 # the host recognised as it did in the run
+    from bridge.perception import host_coordinator
+    coord = host_coordinator(beh, sc, cells=World(sc, seed).object_cells)
     coord_ok = True
     divergences: list[str] = []
     counts = {"sensor_readings": 0, "actions": 0, "robot_messages": 0, "host_commands": 0}

@@ -168,13 +168,9 @@ class BatchEngine:
 
         self._compile(args)
         beh = self.behaviour
-        self.coords = [beh.coordinator(sc, cells=list(w.object_cells))
+        from bridge.perception import host_coordinator
+        self.coords = [host_coordinator(beh, sc, cells=list(w.object_cells))
                        for (sc, _), w in zip(runs, self.worlds)]
-        if any(sc.recognise for sc, _ in runs):
-            # the host's recogniser decides which touches are the target's
-            from bridge.perception.decide import equip
-            for c, (sc, _) in zip(self.coords, runs):
-                equip(c, sc)
         self.busy = np.array([not _quiet(c) for c in self.coords], dtype=bool)
         self.lo = starts[:-1].tolist()
         self.run_of = rb[B.RUN].tolist()

@@ -42,7 +42,10 @@ def make_coordinator(sc, journal=None, cells=None, on_reject=None):
                     home_radius=1 if netlogo else 4, by_carrier=netlogo,
                     world_size=sc.worldSize, cells=None if recognise else cells,
                     on_reject=on_reject, blocked=closed,
-                    lost_after=getattr(sc, "lostAfter", 0))
+                    lost_after=getattr(sc, "lostAfter", 0),
+                    # a host that is not told the world's crowd rule (the
+                    # host process) plans round lost holders, as under block
+                    crowd_yields=getattr(sc, "crowd", "block") == "yield")
     if recognise:
         objects = None
         if closed is not None:
@@ -50,6 +53,6 @@ def make_coordinator(sc, journal=None, cells=None, on_reject=None):
             for p in sc.pieces():
                 if p.at is not None:
                     objects.append(frozenset(p.placed(p.at[0], p.at[1])))
-        # the decider is host code (numpy): bridge/perception/decide.equip gives it
+        # the decider is host code (numpy): bridge.perception.host_coordinator gives it
         c.recognition(int(round(sc.confidence * 1000)), objects)
     return c

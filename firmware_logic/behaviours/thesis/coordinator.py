@@ -158,7 +158,7 @@ class Coordinator(Recognising, Roster):
 
     def __init__(self, weight, home_x=-15, home_y=-15, home_radius=4, journal=None,
                  world_size=None, cells=None, on_reject=None, by_carrier=False,
-                 blocked=None, stall_ticks=STALL_TICKS, lost_after=0):
+                 blocked=None, stall_ticks=STALL_TICKS, lost_after=0, crowd_yields=False):
         """weight: the object's weight in hundredths (objectWeight * 100).
 
         journal: optional callable(node, kind, fields, tick) called for every
@@ -178,6 +178,9 @@ class Coordinator(Recognising, Roster):
         run stops as stalled.
         lost_after: ticks of silence after which a holder is lost (0: never,
         the thesis's host); see `_liveness` and docs/extensions.md.
+        crowd_yields: the world's crowd rule is "yield" (bystanders, the dead
+        among them, step aside for the carried object), so a lost holder's
+        cell is not an obstacle to plan round; False: "block".
         """
         Roster.__init__(self, MODELS, journal, on_reject)
         self.closed = None if blocked is None else frozenset(blocked)
@@ -227,6 +230,7 @@ class Coordinator(Recognising, Roster):
         # stood (x, y pairs, flat), an obstacle from then on; both journalled
         # with the decision that dropped it, so a resumed host agrees
         self.lost_after = lost_after
+        self.crowd_yields = crowd_yields
         self.lost = ()
         self.lost_cells = ()
         self.heard = {}          # node -> (tick, moved_x, moved_y) when last heard
@@ -696,8 +700,10 @@ class Coordinator(Recognising, Roster):
         return unknown
 
     def _closed_now(self):
-        """The cells the object may not enter: the map's and the lost holders'."""
-        if not self.lost_cells:
+        """The cells the object may not enter: the map's and the lost holders'
+        (a dead holder let go and stands still; under crowd "yield" the world
+        pushes it aside like any bystander, so only the map's)."""
+        if not self.lost_cells or self.crowd_yields:
             return self.closed
         out = set(self.closed or ())
         c = self.lost_cells
