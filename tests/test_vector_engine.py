@@ -10,7 +10,7 @@ from sim_backend.engine import Engine
 from sim_backend.errors import EngineError
 from sim_backend.scenario import validate
 from sim_backend.vector_engine import VectorEngine, run_batch, run_batch_results
-from tests.harness import assert_same, mixed_scenarios
+from tests.harness import assert_same, count_pushes, mixed_scenarios
 
 
 def same(scs, seeds, until="delivered"):
@@ -75,15 +75,7 @@ def test_a_push_along_the_crowd_identical(monkeypatch):
     pushed along it (kernel._chain), and the vector engine, which hands
     make_way only the robots within CHAIN_DEPTH of the way, moves them as the
     reference does."""
-    from sim_backend import kernel
-    pushes = []
-    chain = kernel._chain
-
-    def counted(*a):
-        k = chain(*a)
-        pushes.append(k)
-        return k
-    monkeypatch.setattr(kernel, "_chain", counted)
+    pushes = count_pushes(monkeypatch)
     sc = validate({"agents": 300, "maxTicks": 400})
     got = same([sc, sc], [5, 6])
     assert all(r.delivered for r in got)
