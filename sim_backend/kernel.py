@@ -48,6 +48,9 @@ WRAP = 4            # wrap: the search phase is toroidal as NetLogo's default
                     # world (moves, probes, uphill and the field wrap at the
                     # edges); the carried object stays inside the arena
 
+# crowd "yield": how many patches a push along a crowd may reach (make_way)
+CHAIN_DEPTH = 4
+
 # the per-robot tie-break stream of uphill (a 31-bit LCG, so numba's int64
 # and Python's ints agree without overflow)
 TIE_MUL = 1103515245
@@ -646,6 +649,9 @@ def make_way(obj, occ, stamp, base, w, n, xs, ys, lo, hi, held, cx, cy, c0, c1,
         if held[i] < 0:                  # a holder of another object cannot yield
             k = _aside(obj, occ, stamp, base, w, n, xs, ys, lo, hi, held, cx, cy, c0, c1,
                        ddx, ddy, tick, px, py)
+            if k < 0:                    # hemmed in: push along the crowd
+                k = _chain(obj, occ, stamp, base, w, n, xs, ys, lo, hi, held, cx, cy, c0,
+                           c1, ddx, ddy, tick, px, py, i, 0)
         if k < 0:
             ok = 0
             break
@@ -666,7 +672,116 @@ def make_way(obj, occ, stamp, base, w, n, xs, ys, lo, hi, held, cx, cy, c0, c1,
             continue
         k = _aside(obj, occ, stamp, base, w, n, xs, ys, lo, hi, held, cx, cy, c0, c1,
                    ddx, ddy, tick, px, py)
+        if k < 0:
+            _chain(obj, occ, stamp, base, w, n, xs, ys, lo, hi, held, cx, cy, c0, c1,
+                   ddx, ddy, tick, px, py, i, 1)
+            continue
         xs[i] += ((k - base) % n - w - px) * fx.ONE
         ys[i] += ((k - base) // n - w - py) * fx.ONE
         stamp[k] = tick
     return 1
+
+
+def _robot_at(xs, ys, lo, hi, held, px, py):
+    """The first robot standing on (px, py), -1 if none or if it holds a
+    segment (a holder never yields)."""
+    for i in range(lo, hi):
+        if fx.patch(xs[i]) == px and fx.patch(ys[i]) == py:
+            if held[i] >= 0:
+                return -1
+            return i
+    return -1
+
+
+def _chain(obj, occ, stamp, base, w, n, xs, ys, lo, hi, held, cx, cy, c0, c1, ddx, ddy,
+           tick, px, py, mover, move):
+    """crowd "yield" for robot `mover` on (px, py) when every neighbour off
+    the group's way is taken (a crowd two or more deep): the shortest push
+    along the crowd, breadth first and at most CHAIN_DEPTH patches long. Each
+    patch of the chain lies off the way and holds one robot that holds
+    nothing; every robot on it steps one patch on, the last into a free
+    patch (as `_aside` would take it). move 0 reserves the chain's patches,
+    move 1 makes the moves and stamps them entered; either way the free
+    patch's cell is returned, -1 if there is no such chain.
+
+    The search marks its patches in `stamp` (values below the reserved
+    -tick - 2: level * 8 + the UPHILL index of the step that reached it)
+    and clears them before it returns."""
+    end = -1
+    end_d = 0
+    level = 1
+    while level <= CHAIN_DEPTH and end < 0:
+        grew = 0
+        for qy in range(py - level, py + level + 1):
+            if end >= 0:
+                break
+            for qx in range(px - level, px + level + 1):
+                if not inside(w, qx, qy):
+                    continue
+                k = base + cell(w, n, qx, qy)
+                if stamp[k] == tick or stamp[k] <= -tick - 2 or obj[k] != FREE or \
+                        (qx == px and qy == py):
+                    continue
+                d = _chain_parent(stamp, base, w, n, tick, px, py, qx, qy, level)
+                if d < 0 or _in_way(w, n, xs, ys, lo, hi, held, cx, cy, c0, c1, ddx, ddy,
+                                    qx, qy):
+                    continue
+                if occ[k] == 0:
+                    end = k
+                    end_d = d
+                    break
+                if occ[k] == 1 and level < CHAIN_DEPTH and \
+                        _robot_at(xs, ys, lo, hi, held, qx, qy) >= 0:
+                    stamp[k] = -tick - 3 - (level * 8 + d)
+                    grew = 1
+        if grew == 0:
+            break
+        level += 1
+    if end >= 0:
+        # back from the free patch to (px, py): each robot steps into its child
+        k = end
+        qx = (end - base) % n - w
+        qy = (end - base) // n - w
+        d = end_d
+        while True:
+            sx = qx - UPHILL_DX[d]
+            sy = qy - UPHILL_DY[d]
+            if move == 1:
+                i = mover
+                if sx != px or sy != py:
+                    i = _robot_at(xs, ys, lo, hi, held, sx, sy)
+                xs[i] += (qx - sx) * fx.ONE
+                ys[i] += (qy - sy) * fx.ONE
+                stamp[k] = tick
+            else:
+                stamp[k] = -tick - 2
+            if sx == px and sy == py:
+                break
+            k = base + cell(w, n, sx, sy)
+            d = (-tick - 3 - stamp[k]) % 8
+            qx = sx
+            qy = sy
+    for qy in range(py - CHAIN_DEPTH, py + CHAIN_DEPTH + 1):
+        for qx in range(px - CHAIN_DEPTH, px + CHAIN_DEPTH + 1):
+            if inside(w, qx, qy) and stamp[base + cell(w, n, qx, qy)] < -tick - 2:
+                stamp[base + cell(w, n, qx, qy)] = -1
+    return end
+
+
+def _chain_parent(stamp, base, w, n, tick, px, py, qx, qy, level):
+    """The UPHILL index of the step into (qx, qy) from a neighbour the chain
+    search reached at level - 1 ((px, py) itself at level 1), the first in
+    N, NE, E, ... order; -1 if none."""
+    for d in range(8):
+        sx = qx - UPHILL_DX[d]
+        sy = qy - UPHILL_DY[d]
+        if level == 1:
+            if sx == px and sy == py:
+                return d
+            continue
+        if not inside(w, sx, sy):
+            continue
+        v = stamp[base + cell(w, n, sx, sy)]
+        if v < -tick - 2 and (-tick - 3 - v) // 8 == level - 1:
+            return d
+    return -1

@@ -589,18 +589,28 @@ class VectorEngine:
     def _make_way(self, r: int, lo: int, hi: int, hold: np.ndarray, ddx: int, ddy: int,
                   entered: list[int]) -> bool:
         """crowd "yield": kernel.make_way for run r, on the robots it reads
-        (the carriers and the robots standing on the group's way, in node
-        order; no other robot moves or is read, so the result is the
-        kernel's); the patches they step to join `entered`."""
+        (the carriers and the robots within kernel.CHAIN_DEPTH patches of the
+        group's way, in node order; no other robot moves or is read, so the
+        result is the kernel's); the patches they step to join `entered`."""
         sc = self.runs[r][0]
         w, nn = sc.worldSize, self.nn
         base = int(self.run_slot[r]) * self.stride
         way = {(x + ddx, y + ddy) for x, y in self.cells[r]}
         way |= {(x + ddx, y + ddy) for x, y in zip(self.opx[hold].tolist(),
                                                    self.opy[hold].tolist())}
-        px = self.opx[lo:hi].tolist()
-        py = self.opy[lo:hi].tolist()
-        sub = [lo + j for j in range(hi - lo) if (px[j], py[j]) in way or self.held[lo + j] >= 0]
+        # and every robot a push along the crowd may reach (kernel.CHAIN_DEPTH)
+        wx = np.array([p[0] for p in way], dtype=np.int64)
+        wy = np.array([p[1] for p in way], dtype=np.int64)
+        px = self.opx[lo:hi]
+        py = self.opy[lo:hi]
+        d = kernel.CHAIN_DEPTH
+        near = np.flatnonzero((px >= wx.min() - d) & (px <= wx.max() + d)
+                              & (py >= wy.min() - d) & (py <= wy.max() + d))
+        cheb = np.maximum(np.abs(px[near, None] - wx[None, :]),
+                          np.abs(py[near, None] - wy[None, :])).min(axis=1)
+        mask = self.held[lo:hi] >= 0
+        mask[near[cheb <= d]] = True
+        sub = (lo + np.flatnonzero(mask)).tolist()
         xs = self.x[sub].tolist()
         ys = self.y[sub].tolist()
         held = [int(k) - base if k >= 0 else -1 for k in self.held[sub].tolist()]

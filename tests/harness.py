@@ -104,3 +104,19 @@ def wrap_scenarios():
                       "objectY": 0, "homeX": -9, "homeY": -9, "sigRadius": 7,
                       "field": "dynamic", "crowd": "yield", "maxTicks": 1200})
     return scs + [nl, nl, small, small], seeds + [1, 2, 1, 2]
+
+
+def count_pushes(monkeypatch) -> list[int]:
+    """Record every push along the crowd (kernel._chain, crowd "yield") the
+    Python kernel makes from now on: the free cell it ended at, -1 none.
+    The compiled engines read the real kernel: patch only around Python runs."""
+    from sim_backend import kernel
+    pushes: list[int] = []
+    chain = kernel._chain
+
+    def counted(*a):
+        k = chain(*a)
+        pushes.append(k)
+        return k
+    monkeypatch.setattr(kernel, "_chain", counted)
+    return pushes

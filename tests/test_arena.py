@@ -203,16 +203,18 @@ def test_scenario_dict_round_trips_through_validate():
         assert validate(sc.to_dict()) == sc
 
 
-def _carry_scene(crowd, blocker_at, third_at=(10, 10), field="static"):
+def _carry_scene(crowd, blocker_at, third_at=(10, 10), field="static", more=()):
     """Robot 1 holds the bar's cell (1, 0) from (0, 0); robot 2 stands at
-    blocker_at; robot 1 asks to carry the bar one patch south."""
+    blocker_at, robot 3 at third_at, robots 4... at `more`; robot 1 asks to
+    carry the bar one patch south."""
     from firmware_logic import fixedpoint as fx
     from sim_backend.kernel import BLUE
-    sc = validate({"objectX": 0, "objectY": 0, "agents": 3, "crowd": crowd,
+    at = ((0, 0), blocker_at, third_at) + tuple(more)
+    sc = validate({"objectX": 0, "objectY": 0, "agents": len(at), "crowd": crowd,
                    "objectWeight": 1.0, "field": field})
     w = World(sc, 1)
-    w.xs[:] = [0, blocker_at[0] * fx.ONE, third_at[0] * fx.ONE]
-    w.ys[:] = [0, blocker_at[1] * fx.ONE, third_at[1] * fx.ONE]
+    w.xs[:] = [x * fx.ONE for x, _ in at]
+    w.ys[:] = [y * fx.ONE for _, y in at]
     k = w.idx(1, 0)
     w.obj[k] = BLUE
     w.owner[k] = 1
@@ -239,6 +241,21 @@ def test_a_crowd_that_yields_steps_aside_for_the_carried_object():
     w = _carry_scene("yield", (4, -1), (4, -2))
     assert (fx.patch(w.xs[1]), fx.patch(w.ys[1])) == (5, -2)
     assert (fx.patch(w.xs[2]), fx.patch(w.ys[2])) == (4, -2)
+
+
+def test_a_robot_hemmed_in_by_the_crowd_is_pushed_along_it():
+    """Robot 2 on (4, -1) stands in the carried bar's way (cells (1..8, 0..1),
+    south) with every neighbour off the way taken by robots 3-5 (a crowd
+    two deep). The nearest push along the crowd (kernel._chain): robot 3 on
+    (3, -2) steps on to the free (2, -3), robot 2 into (3, -2); without it
+    the step was blocked for good (the 10,000-robot stalls)."""
+    from firmware_logic import fixedpoint as fx
+    w = _carry_scene("yield", (4, -1), (3, -2), more=((4, -2), (5, -2)))
+    assert (1, -1) in w.object_cells and (1, 1) not in w.object_cells
+    got = [(fx.patch(x), fx.patch(y)) for x, y in zip(w.xs, w.ys)]
+    assert got == [(0, -1), (3, -2), (2, -3), (4, -2), (5, -2)]
+    assert all(w.stamp[w.idx(x, y)] == 1 for x, y in ((3, -2), (2, -3)))   # entered
+    assert min(w.stamp) >= -1                   # the search left no mark behind
 
 
 def test_the_dynamic_field_moves_with_its_carrier():

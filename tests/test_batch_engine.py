@@ -19,7 +19,8 @@ from sim_backend.batch.engine import BatchEngine, run_batch
 from sim_backend.batch.soa import SoaEngine
 from sim_backend.errors import EngineError
 from sim_backend.scenario import validate
-from tests.harness import arena_scenarios, assert_same, mixed_scenarios, reference, wrap_scenarios
+from tests.harness import (arena_scenarios, assert_same, count_pushes, mixed_scenarios,
+                           reference, wrap_scenarios)
 
 THESIS_DIR = Path(registry.load("thesis").folder)
 
@@ -151,3 +152,18 @@ def test_a_behaviour_outside_the_compiled_subset_is_named(tmp_path):
     sc = validate({"behaviour": str(copy)})
     with pytest.raises(CompileError, match=r"Robot\.gain: a float"):
         BatchEngine([(sc, 1)])
+
+
+@ENGINES
+def test_a_push_along_the_crowd_identical(engine, monkeypatch):
+    """300 robots in the default arena: robots in the carried object's way
+    with no free neighbour are pushed along the crowd (kernel._chain, crowd
+    "yield"); the compiled engines push them as the reference does."""
+    from sim_backend.engine import Engine
+    sc = validate({"agents": 300, "maxTicks": 400})
+    with monkeypatch.context() as m:             # the compilers read the real kernel
+        pushes = count_pushes(m)
+        Engine(sc, 5).run()
+    assert any(k >= 0 for k in pushes)             # the reference pushed
+    got = assert_same([sc, sc], [5, 6], engine=engine)
+    assert all(r.delivered for r in got)

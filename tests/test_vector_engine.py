@@ -10,7 +10,7 @@ from sim_backend.engine import Engine
 from sim_backend.errors import EngineError
 from sim_backend.scenario import validate
 from sim_backend.vector_engine import VectorEngine, run_batch, run_batch_results
-from tests.harness import assert_same, mixed_scenarios
+from tests.harness import assert_same, count_pushes, mixed_scenarios
 
 
 def same(scs, seeds, until="delivered"):
@@ -68,3 +68,15 @@ def test_both_crowd_rules_identical_in_a_dense_swarm(crowd):
     got = same([sc, sc.replace(movementModel="ant")], [1, 2])
     if crowd == "yield":
         assert all(r.delivered for r in got)
+
+
+def test_a_push_along_the_crowd_identical(monkeypatch):
+    """300 robots in the default arena: robots hemmed in by the crowd are
+    pushed along it (kernel._chain), and the vector engine, which hands
+    make_way only the robots within CHAIN_DEPTH of the way, moves them as the
+    reference does."""
+    pushes = count_pushes(monkeypatch)
+    sc = validate({"agents": 300, "maxTicks": 400})
+    got = same([sc, sc], [5, 6])
+    assert all(r.delivered for r in got)
+    assert any(k >= 0 for k in pushes)
