@@ -11,6 +11,12 @@ includes the host coordinators), checks that all end with identical robot
 positions, and reports the ratios. "20x500" is 500 independent 20-robot
 runs stepped as one batch, the way sweeps use it.
 
+Rates are robot-ticks per second of this process's CPU time
+(`time.process_time`; every engine runs on one pinned core, numba and
+numpy single-threaded), so a busy neighbour on the shared machine stretches
+the wall time but not the figures; each size also reports the wall seconds
+of the same steps (`wall_s`) to show how loaded the machine was.
+
     .venv/bin/python bench/engine_speed.py [--quick]
 """
 
@@ -49,22 +55,37 @@ def scenario(robots, world):
     return validate({"agents": robots, "worldSize": world, "maxTicks": 10_000_000})
 
 
+WALL = {}      # (engine, size) -> wall seconds of the timed steps
+
+
+def timed():
+    """(CPU, wall) clocks now."""
+    return time.process_time(), time.perf_counter()
+
+
+def since(t, key):
+    """CPU seconds since `t` (from timed()); the wall seconds go to WALL[key]."""
+    c, w = timed()
+    WALL[key] = round(w - t[1], 4)
+    return c - t[0]
+
+
 def time_reference(sc, seeds, ticks):
     engines = [Engine(sc, s) for s in seeds]
-    t0 = time.perf_counter()
+    t0 = timed()
     for e in engines:
         for _ in range(ticks):
             e.step()
-    dt = time.perf_counter() - t0
+    dt = since(t0, ("reference", sc.agents, len(seeds)))
     return dt, [(list(e.world.xs), list(e.world.ys)) for e in engines]
 
 
 def time_vector(sc, seeds, ticks):
     ve = VectorEngine([(sc, s) for s in seeds])
-    t0 = time.perf_counter()
+    t0 = timed()
     for _ in range(ticks):
         ve.step()
-    dt = time.perf_counter() - t0
+    dt = since(t0, ("vector", sc.agents, len(seeds)))
     out = []
     for r in range(len(seeds)):
         if not ve.alive[r]:          # delivered early: the reference steps on, we stop
@@ -80,10 +101,10 @@ def time_batch(sc, seeds, ticks, engine=BatchEngine):
     be = engine([(sc, s) for s in seeds])
     be.step()                      # the first tick compiles the step function
     setup = time.perf_counter() - t0
-    t0 = time.perf_counter()
+    t0 = timed()
     for _ in range(ticks - 1):
         be.step()
-    dt = time.perf_counter() - t0
+    dt = since(t0, (engine.__name__, sc.agents, len(seeds)))
     out = []
     for r in range(len(seeds)):
         if not be.rt[B.LIVE, r]:   # delivered early, the reference steps on
@@ -121,7 +142,7 @@ def soa_starts():
 
 def main():
     quick = "--quick" in sys.argv
-    res = {"cores": 1, "sizes": {}}
+    res = {"cores": 1, "clock": "process CPU seconds (wall_s: wall seconds)", "sizes": {}}
     res["soa_cold_start_s"], res["soa_warm_start_s"] = soa_starts()
     t0 = time.perf_counter()
     BatchEngine([(scenario(20, 18), 1)]).step()
@@ -141,6 +162,8 @@ def main():
         vec_dt, _ = time_vector(sc, seeds, vt) if vt != ticks else (vec_dt_same, None)
         bat_dt, bat_pos, bat_setup = time_batch(sc, seeds, vt)
         soa_dt, soa_pos, soa_setup = time_batch(sc, seeds, vt, SoaEngine)
+        # the timed runs' wall seconds (the identity re-runs below overwrite them)
+        wall = {k[0]: v for k, v in WALL.items() if k[1:] == (robots, runs)}
         if vt != ticks:
             _, bat_pos, _ = time_batch(sc, seeds, ticks)
             _, soa_pos, _ = time_batch(sc, seeds, ticks, SoaEngine)
@@ -163,6 +186,7 @@ def main():
             "ratio_vector_to_reference": round(vec_rate / ref_rate, 2),
             "ratio_batch_to_reference": round(n * vt / bat_dt / ref_rate, 2),
             "ratio_batch_to_vector": round(n * vt / bat_dt / vec_rate, 2),
+            "wall_s": wall,
             "identical_positions": all(v is None or v == r for r, v in zip(ref_pos, vec_pos))
             and all(b is None or b == r for r, b in zip(ref_pos, bat_pos))
             and all(b is None or b == r for r, b in zip(ref_pos, soa_pos)),
