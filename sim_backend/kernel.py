@@ -635,7 +635,42 @@ def make_way(obj, occ, stamp, base, w, n, xs, ys, lo, hi, held, cx, cy, c0, c1,
     """crowd "yield": every robot that does not carry the object and stands
     where the group goes steps aside (`_aside`), in node order. First every
     such robot reserves its patch; if one cannot, the reservations go and 0
-    is returned (the step is blocked); else they all move, and 1."""
+    is returned (the step is blocked); else they all move, and 1.
+
+    `_in_way` walks every robot, so a robot is first tested against the box
+    round the group's way (its cells and carriers one step on): outside it
+    no robot is in the way, and the walk stays O(robots), not O(robots^2)
+    (10,000 robots: 1e4 instead of 1e8 tests per step). Reservations lie
+    within CHAIN_DEPTH of a robot in the box, so only that margin is cleared."""
+    bx0 = w + 1
+    bx1 = -w - 1
+    by0 = w + 1
+    by1 = -w - 1
+    for j in range(c0, c1):
+        if cx[j] < bx0:
+            bx0 = cx[j]
+        if cx[j] > bx1:
+            bx1 = cx[j]
+        if cy[j] < by0:
+            by0 = cy[j]
+        if cy[j] > by1:
+            by1 = cy[j]
+    for i in range(lo, hi):
+        if held[i] >= 0 and _carried(w, n, cx, cy, c0, c1, held[i]):
+            px = fx.patch(xs[i])
+            py = fx.patch(ys[i])
+            if px < bx0:
+                bx0 = px
+            if px > bx1:
+                bx1 = px
+            if py < by0:
+                by0 = py
+            if py > by1:
+                by1 = py
+    bx0 += ddx
+    bx1 += ddx
+    by0 += ddy
+    by1 += ddy
     ok = 1
     reserved = 0
     for i in range(lo, hi):
@@ -643,6 +678,8 @@ def make_way(obj, occ, stamp, base, w, n, xs, ys, lo, hi, held, cx, cy, c0, c1,
             continue
         px = fx.patch(xs[i])
         py = fx.patch(ys[i])
+        if px < bx0 or px > bx1 or py < by0 or py > by1:
+            continue
         if not _in_way(w, n, xs, ys, lo, hi, held, cx, cy, c0, c1, ddx, ddy, px, py):
             continue
         k = -1
@@ -658,9 +695,10 @@ def make_way(obj, occ, stamp, base, w, n, xs, ys, lo, hi, held, cx, cy, c0, c1,
         stamp[k] = -tick - 2             # reserved
         reserved += 1
     if reserved > 0:
-        for k in range(base, base + n * n):
-            if stamp[k] == -tick - 2:
-                stamp[k] = -1
+        for qy in range(by0 - CHAIN_DEPTH - 1, by1 + CHAIN_DEPTH + 2):
+            for qx in range(bx0 - CHAIN_DEPTH - 1, bx1 + CHAIN_DEPTH + 2):
+                if inside(w, qx, qy) and stamp[base + cell(w, n, qx, qy)] == -tick - 2:
+                    stamp[base + cell(w, n, qx, qy)] = -1
     if ok == 0:
         return 0
     for i in range(lo, hi):
@@ -668,6 +706,8 @@ def make_way(obj, occ, stamp, base, w, n, xs, ys, lo, hi, held, cx, cy, c0, c1,
             continue
         px = fx.patch(xs[i])
         py = fx.patch(ys[i])
+        if px < bx0 or px > bx1 or py < by0 or py > by1:
+            continue
         if not _in_way(w, n, xs, ys, lo, hi, held, cx, cy, c0, c1, ddx, ddy, px, py):
             continue
         k = _aside(obj, occ, stamp, base, w, n, xs, ys, lo, hi, held, cx, cy, c0, c1,
