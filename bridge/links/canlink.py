@@ -17,6 +17,7 @@ reorders frames within a window, from its own seeded RNG.
 
 from __future__ import annotations
 
+import heapq
 import itertools
 import os
 import random
@@ -58,13 +59,13 @@ class Faults:
         self.dropped = 0
         self.duplicated = 0
         self.delayed = 0
-        self.held: list[tuple[int, int, Any]] = []   # (due tick, order, frame)
+        self.held: list[tuple[int, int, Any]] = []   # heap of (due tick, order, frame)
         self.calls = 0
         self._order = 0
 
     def due(self, now: int) -> bool:
-        """Is a held frame due at tick `now`?"""
-        return any(h[0] <= now for h in self.held)
+        """Is a held frame due at tick `now`? (`held` is a heap: the earliest first)"""
+        return bool(self.held) and self.held[0][0] <= now
 
     def apply(self, frames: list[Any], now: int | None = None) -> list[Any]:
         if now is None:
@@ -83,14 +84,11 @@ class Faults:
             for f in out:
                 d = self.rng.randrange(self.delay + 1)
                 self.delayed += d > 0
-                self.held.append((now + d, self._order, f))
+                heapq.heappush(self.held, (now + d, self._order, f))
                 self._order += 1
-            self.held.sort(key=lambda h: (h[0], h[1]))
-            k = 0
-            while k < len(self.held) and self.held[k][0] <= now:
-                k += 1
-            out = [h[2] for h in self.held[:k]]
-            del self.held[:k]
+            out = []
+            while self.due(now):
+                out.append(heapq.heappop(self.held)[2])
         if self.window > 1:
             for i in range(0, len(out), self.window):
                 chunk = out[i:i + self.window]
