@@ -92,7 +92,9 @@ print(json.dumps({"hits": sum(s.cache_hits.values()), "misses": sum(s.cache_miss
 
 
 def test_a_second_process_loads_the_compiled_step_from_the_disk_cache(tmp_path):
-    env = {**os.environ, "TOUCHSWARM_CACHE": str(tmp_path), "PYTHONPATH": str(ROOT)}
+    # not inlined: the cache works the same, and the cold compile takes half as long
+    env = {**os.environ, "TOUCHSWARM_CACHE": str(tmp_path), "PYTHONPATH": str(ROOT),
+           "TOUCHSWARM_SOA_INLINE": "0"}
     runs = []
     for _ in range(2):
         out = subprocess.run([sys.executable, "-c", WARM], env=env, capture_output=True,
@@ -113,3 +115,59 @@ def test_sweep_engine_soa_gives_the_reference_summaries():
     assert "soa" in sweep.ENGINES
     sc = validate({"maxTicks": 800, "fieldDefiance": 2})
     assert got == [reference(sc, 1).summary(), reference(sc, 2).summary()]
+
+
+def test_a_borrowed_array_is_the_same_memory_and_other_values_pass_through():
+    import numpy as np
+    from numba import njit
+
+    from sim_backend.batch.borrow import borrow
+
+    @njit
+    def poke(a, k):
+        b = borrow(a)
+        b[1] = 7
+        return b.sum() + borrow(k)
+
+    a = np.zeros(4, dtype=np.int32)
+    assert poke(a, 3) == 10
+    assert a.tolist() == [0, 7, 0, 0]
+
+
+def test_the_robot_loop_is_inlined_and_its_entry_borrows_every_array(monkeypatch):
+    """The two rules behind the soa engine's speed (docs/performance.md), read
+    off the generated module (nothing is compiled): everything a robot's step
+    reaches is inlined into the loop, the world's per-run functions are not,
+    and the entry Python calls borrows every argument."""
+    import ast
+
+    monkeypatch.delenv("TOUCHSWARM_SOA_INLINE", raising=False)
+    e = SoaEngine([(validate({"maxTicks": 50}), 1)])
+    tree = ast.parse(e.compiled.path.read_text())
+    inline = {}
+    for f in tree.body:
+        if isinstance(f, ast.FunctionDef):
+            kw = {k.arg: k.value.value for k in f.decorator_list[0].keywords}
+            inline[f.name] = kw.get("forceinline", False)
+    for name in ("F_Robot_step", "F_Robot__search", "F_BatchBody_probe",
+                 "F_sim_backend_kernel__probe", "F_Rng_below",
+                 "F_sim_backend_batch_body__tick_all"):
+        assert inline[name], name
+    for name in ("F_sim_backend_kernel__apply_tick", "F_sim_backend_kernel__make_way"):
+        assert not inline[name], name
+    entry = next(f for f in tree.body if isinstance(f, ast.FunctionDef)
+                 and f.name == e.compiled.names["tick_all"])
+    call = entry.body[0].value
+    assert [a.func.id for a in call.args] == ["borrow"] * len(entry.args.args)
+    assert [a.args[0].id for a in call.args] == [a.arg for a in entry.args.args]
+
+
+def test_inlining_can_be_turned_off_for_a_faster_cold_compile(monkeypatch):
+    """TOUCHSWARM_SOA_INLINE=0 generates a different module (another cache
+    entry) with nothing inlined."""
+    monkeypatch.setenv("TOUCHSWARM_SOA_INLINE", "0")
+    e = SoaEngine([(validate({"maxTicks": 50}), 1)])
+    text = e.compiled.path.read_text()
+    assert "forceinline" not in text and "borrow(" in text
+    monkeypatch.delenv("TOUCHSWARM_SOA_INLINE")
+    assert SoaEngine([(validate({"maxTicks": 50}), 1)]).compiled.digest != e.compiled.digest

@@ -34,6 +34,7 @@ from __future__ import annotations
 import ast
 import builtins
 import inspect
+import os
 import textwrap
 from dataclasses import dataclass, field
 from types import FunctionType, ModuleType
@@ -45,7 +46,7 @@ from sim_backend.batch.compiler import CompileError
 
 STATE = "_soa"                      # the state placeholder of every function
 # part of the generated text, so a new borrow or inlining rule is a new cache entry
-CODEGEN = "borrowed entries, per-robot path inlined (3)"
+CODEGEN = "borrowed entries, per-robot path inlined"
 BUILTINS = {"range", "len", "abs", "min", "max", "int", "bool"}
 CONSTANT_TYPES = (bool, int, float, str, type(None))
 
@@ -273,20 +274,22 @@ class Program:
         (docs/performance.md). The world's per-run functions stay calls:
         inlining them too only costs compile time."""
         robots = {k.cls for _, kinds in entries.values() for k in kinds if isinstance(k, ListOf)}
-        todo = [s.name for s in self.specs.values() if s.owner in robots]
+        steps = {s.name for s in self.specs.values() if s.owner in robots}
+        todo = list(steps)
         seen: set[str] = set()
         while todo:
             name = todo.pop()
             if name not in seen:
                 seen.add(name)
                 todo += self.done[name][0].calls
+        loops: set[str] = set()      # the functions that call a robot's methods, and theirs
         grew = True
         while grew:
             callers = {name for name, (ft, _) in self.done.items()
-                       if name not in seen and ft.calls & seen}
-            seen |= callers
+                       if name not in loops and name not in steps and ft.calls & (steps | loops)}
+            loops |= callers
             grew = bool(callers)
-        return seen
+        return seen | loops
 
     def render(self) -> list[tuple[str, str]]:
         """(origin comment, source) of every function, the state made parameters."""
@@ -713,7 +716,10 @@ def generate(layout: Layout, entries: dict[str, tuple[FunctionType, tuple]]) -> 
     for g, lit in sorted(p.globals.items()):
         lines.append(f"{g} = {lit}")
     lines.append("")
-    inline = p.robot_path(entries)
+    # TOUCHSWARM_SOA_INLINE=0: about half the cold compile for a tenth of the speed,
+    # for a behaviour being edited (each edit is a new module; docs/performance.md)
+    inline = p.robot_path(entries) if os.environ.get("TOUCHSWARM_SOA_INLINE", "1") != "0" \
+        else set()
     for (origin, src), name in zip(rendered, p.done):
         deco = "@njit(cache=True, forceinline=True)" if name in inline else "@njit(cache=True)"
         lines += ["", origin, deco, src, ""]
