@@ -65,13 +65,19 @@ GHOST = 22
 NOISE = 23
 RUN_ROWS = 24
 
-# rows of the grids (int64[GRID_ROWS, runs * stride])
+# the grids (a tuple of GRID_ROWS arrays of runs * stride cells)
 OBJ = 0
 OWNER = 1
 FIELD = 2
 OCC = 3
 STAMP = 4
 GRID_ROWS = 5
+# Each grid's element type: the smallest that holds its values, because every
+# probe of every robot reads the object and occupancy grids at a random cell
+# and a 10,000-robot arena's grids then stay near the core (docs/performance.md).
+# Object codes are 0..3; a patch holds at most every robot of its run (agents
+# <= 20,000, scenario.py); ticks <= 10,000,000, nodes and field sums fit int32.
+GRID_TYPES = ("int8", "int32", "int32", "int16", "int32")
 
 FIELDS = 6      # message fields a HAL send() carries
 

@@ -82,11 +82,11 @@ class BatchArrays:
         rt[B.LIVE] = 1
         table = np.zeros((3, max(1, int(tstarts[-1]))), dtype=np.int64)
         cell = np.zeros((4, max(1, int(cstarts[-1]))), dtype=np.int64)
-        # int32: every grid value fits (ticks <= 10,000,000, nodes, field sums), and
-        # half the bytes keep a 10,000-robot arena's grids nearer the core (a
-        # robot's probes land on random cells): 1.4x the soa engine's speed there
-        grids = np.zeros((B.GRID_ROWS, nr * self.stride), dtype=np.int32)
-        grids[B.STAMP] = -1
+        if max(agents) > np.iinfo(B.GRID_TYPES[B.OCC]).max:
+            raise EngineError(f"{max(agents)} robots in one run overflow the batch "
+                              f"engine's occupancy grid ({B.GRID_TYPES[B.OCC]})")
+        grids = tuple(np.zeros(nr * self.stride, dtype=t) for t in B.GRID_TYPES)
+        grids[B.STAMP][:] = -1
         rb = np.zeros((B.ROBOT_ROWS, nrob), dtype=np.int64)
         for r, w in enumerate(worlds):
             a, b = int(rt[B.T0, r]), int(rt[B.T1, r])
@@ -96,7 +96,7 @@ class BatchArrays:
             base, size = r * self.stride, w.n * w.n
             for row, grid in ((B.OBJ, w.obj), (B.OWNER, w.owner), (B.FIELD, w.field),
                               (B.OCC, w.occ)):
-                grids[row, base:base + size] = grid
+                grids[row][base:base + size] = grid
             lo, hi = int(starts[r]), int(starts[r + 1])
             rb[B.XS, lo:hi] = w.xs
             rb[B.YS, lo:hi] = w.ys
@@ -308,7 +308,7 @@ class BatchEngine:
         base, size = r * self.stride, w.n * w.n
         for row, name in ((B.OBJ, "obj"), (B.OWNER, "owner"), (B.FIELD, "field"),
                           (B.OCC, "occ"), (B.STAMP, "stamp")):
-            getattr(w, name)[:] = self.grids[row, base:base + size].tolist()
+            getattr(w, name)[:] = self.grids[row][base:base + size].tolist()
         w.xs[:] = self.rb[B.XS, lo:hi].tolist()
         w.ys[:] = self.rb[B.YS, lo:hi].tolist()
         w.held[:] = self.rb[B.HELD, lo:hi].tolist()
