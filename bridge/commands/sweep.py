@@ -69,10 +69,12 @@ def register(sub) -> None:
     p.add_argument("--engine", choices=ENGINES, default=None,
                    help="auto (default): the hand-vectorised engine for the thesis behaviour, "
                         "the batch engine compiled from the behaviour's source for any other; "
-                        "batch: always the compiled engine (compiles for ~15 s per process); "
+                        "batch: always the compiled engine (compiles for 1-2 min per process); "
                         "vector: thesis only; reference: the per-robot engine; soa: the "
-                        "struct-of-arrays transform of the behaviour's source, compiled "
-                        "once and cached on disk (docs/performance.md)")
+                        "struct-of-arrays transform of the behaviour's source, the fastest "
+                        "(2-7x vector), compiled once per machine and behaviour (2-3 min; "
+                        "TOUCHSWARM_SOA_INLINE=0 halves it, for slower runs) and cached on "
+                        "disk (docs/performance.md)")
     p.add_argument("--executor", default=None, metavar="SPEC",
                    help="processes[:N] (default: one per core), inline, or dask://HOST:PORT "
                         "(a dask.distributed scheduler)")
