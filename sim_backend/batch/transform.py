@@ -720,19 +720,16 @@ def generate(layout: Layout, entries: dict[str, tuple[FunctionType, tuple]]) -> 
     # for a behaviour being edited (each edit is a new module; docs/performance.md)
     inline = p.robot_path(entries) if os.environ.get("TOUCHSWARM_SOA_INLINE", "1") != "0" \
         else set()
+    entries_called: list[str] = []      # what Python calls: every array borrowed (borrow.py)
     for (origin, src), name in zip(rendered, p.done):
         deco = "@njit(cache=True, forceinline=True)" if name in inline else "@njit(cache=True)"
         lines += ["", origin, deco, src, ""]
-    for origin, src in rendered:
-        fdef = ast.parse(src).body[0]
-        assert isinstance(fdef, ast.FunctionDef)
-        if fdef.name not in names.values():
-            continue
-        args = [a.arg for a in fdef.args.args]
-        # the entry Python calls: every array borrowed (sim_backend/batch/borrow.py)
-        lines += ["", "@njit(cache=True)",
-                  f"def E_{fdef.name}({', '.join(args)}):",
-                  f"    return {fdef.name}({', '.join(f'borrow({a})' for a in args)})", ""]
+        if name in names.values():
+            args = [a.arg for a in ast.parse(src).body[0].args.args]  # type: ignore[attr-defined]
+            entries_called += ["", "@njit(cache=True)", f"def E_{name}({', '.join(args)}):",
+                               f"    return {name}({', '.join(f'borrow({a})' for a in args)})",
+                               ""]
+    lines += entries_called
     return "\n".join(lines) + "\n", {k: "E_" + v for k, v in names.items()}
 
 
