@@ -1,15 +1,17 @@
-"""Robot-ticks per second of the four engines, side by side, one core.
+"""Robot-ticks per second of the three engines, side by side, one core.
 
 Prints one JSON object. Each size runs the same scenario and seeds in the
 per-robot reference engine (the per-agent Python baseline, Mesa-style), the
-hand-vectorised numpy engine (thesis only), the batch engine compiled
-from the behaviour's own source (jitclasses) and the struct-of-arrays engine
+batch engine compiled from the behaviour's own source (jitclasses) and the
+struct-of-arrays engine
 transformed from the same source (with its cold and warm start in fresh
 processes), for a fixed number of ticks (set-up and
 compilation excluded from the rates and reported apart; every engine
 includes the host coordinators), checks that all end with identical robot
 positions, and reports the ratios. "20x500" is 500 independent 20-robot
-runs stepped as one batch, the way sweeps use it.
+runs stepped as one batch, the way sweeps use it. (The hand-vectorised
+numpy engine this bench also timed until it was retired has its last
+side-by-side figures in docs/performance.md.)
 
 Rates are robot-ticks per second of this process's CPU time
 (`time.process_time`; every engine runs on one pinned core, numba and
@@ -40,9 +42,8 @@ from sim_backend.batch import body as B  # noqa: E402
 from sim_backend.batch.compiler import twins  # noqa: E402
 from sim_backend.batch.engine import BatchEngine  # noqa: E402
 from sim_backend.batch.soa import SoaEngine  # noqa: E402
-from sim_backend.vector_engine import VectorEngine  # noqa: E402
 
-# robots -> (worldSize, ticks for the reference, ticks for the vector engine, runs)
+# robots -> (worldSize, ticks for the reference, ticks for the compiled engines, runs)
 SIZES = {
     "20": (18, 400, 400, 1),
     "20x500": (18, 200, 200, 500),
@@ -78,22 +79,6 @@ def time_reference(sc, seeds, ticks):
             e.step()
     dt = since(t0, ("reference", sc.agents, len(seeds)))
     return dt, [(list(e.world.xs), list(e.world.ys)) for e in engines]
-
-
-def time_vector(sc, seeds, ticks):
-    ve = VectorEngine([(sc, s) for s in seeds])
-    t0 = timed()
-    for _ in range(ticks):
-        ve.step()
-    dt = since(t0, ("vector", sc.agents, len(seeds)))
-    out = []
-    for r in range(len(seeds)):
-        if not ve.alive[r]:          # delivered early: the reference steps on, we stop
-            out.append(None)
-            continue
-        a = int(ve.run_start[r])
-        out.append((ve.x[a:a + sc.agents].tolist(), ve.y[a:a + sc.agents].tolist()))
-    return dt, out
 
 
 def time_batch(sc, seeds, ticks, engine=BatchEngine):
@@ -158,8 +143,6 @@ def main():
         ticks = min(rt, vt)
         # same tick count for the identity check, then each engine's own length
         ref_dt, ref_pos = time_reference(sc, seeds, ticks)
-        vec_dt_same, vec_pos = time_vector(sc, seeds, ticks)
-        vec_dt, _ = time_vector(sc, seeds, vt) if vt != ticks else (vec_dt_same, None)
         bat_dt, bat_pos, bat_setup = time_batch(sc, seeds, vt)
         soa_dt, soa_pos, soa_setup = time_batch(sc, seeds, vt, SoaEngine)
         # the timed runs' wall seconds (the identity re-runs below overwrite them)
@@ -169,26 +152,19 @@ def main():
             _, soa_pos, _ = time_batch(sc, seeds, ticks, SoaEngine)
         n = robots * runs
         ref_rate = n * ticks / ref_dt
-        vec_rate = n * vt / vec_dt
         res["sizes"][name] = {
             "robots": robots, "runs": runs, "worldSize": world,
             "reference": {"ticks": ticks, "seconds": round(ref_dt, 4),
                           "robot_ticks_per_s": round(ref_rate)},
-            "vector": {"ticks": vt, "seconds": round(vec_dt, 4),
-                       "robot_ticks_per_s": round(vec_rate)},
             "batch": {"ticks": vt, "seconds": round(bat_dt, 4), "setup_s": round(bat_setup, 3),
                       "robot_ticks_per_s": round(n * vt / bat_dt)},
             "soa": {"ticks": vt, "seconds": round(soa_dt, 4), "setup_s": round(soa_setup, 3),
                     "robot_ticks_per_s": round(n * vt / soa_dt)},
             "ratio_soa_to_reference": round(n * vt / soa_dt / ref_rate, 2),
             "ratio_soa_to_batch": round(bat_dt / soa_dt, 2),
-            "ratio_soa_to_vector": round(n * vt / soa_dt / vec_rate, 2),
-            "ratio_vector_to_reference": round(vec_rate / ref_rate, 2),
             "ratio_batch_to_reference": round(n * vt / bat_dt / ref_rate, 2),
-            "ratio_batch_to_vector": round(n * vt / bat_dt / vec_rate, 2),
             "wall_s": wall,
-            "identical_positions": all(v is None or v == r for r, v in zip(ref_pos, vec_pos))
-            and all(b is None or b == r for r, b in zip(ref_pos, bat_pos))
+            "identical_positions": all(b is None or b == r for r, b in zip(ref_pos, bat_pos))
             and all(b is None or b == r for r, b in zip(ref_pos, soa_pos)),
         }
     print(json.dumps(res, indent=2))

@@ -54,26 +54,6 @@ CHOICES: dict[str, tuple[str, ...]] = {
 CHOICES["activation"] = ("sync", "netlogo")
 
 
-def departures(sc: "Scenario") -> list[str]:
-    """The NetLogo options of `sc` set to anything but their default."""
-    return [k for k, ch in CHOICES.items() if getattr(sc, k) != ch[0]]
-
-
-def arena_features(sc: "Scenario") -> list[str]:
-    """What `sc` draws beyond the thesis's one object in an open arena with
-    its static field (the vector engine runs none of these)."""
-    out = []
-    if sc.obstacles:
-        out.append("obstacles")
-    if len(sc.objects) > 1:
-        out.append("several objects")
-    if sc.field != "static":
-        out.append(f"field={sc.field}")
-    if sc.wrap:
-        out.append("wrap")
-    return out
-
-
 def check_seed(seed: Any, source: str = "seed") -> int:
     """The seed as an int; ScenarioError naming the range when it is outside."""
     if isinstance(seed, bool) or not isinstance(seed, int):
@@ -258,26 +238,6 @@ CHOICES_ALL = {**CHOICES, **EXT_CHOICES}
 # what a [[breeds]] table may set besides its `count` and `name`
 BREED_KEYS = ("movementModel", "rPower", "robotVisionSpan", "fieldDefiance", "antBlocked",
               "levyMu", "mothNoise", "frogPause", "frogJump")
-
-
-def extensions(sc: "Scenario") -> list[str]:
-    """The issue-12 keys of `sc` that change the thesis's rules (a new movement
-    model, antBlocked, faults): the hand-vectorised engine runs none of them."""
-    out = [k for k, ch in EXT_CHOICES.items() if getattr(sc, k) != ch[0]]
-    if sc.movementModel not in ("firefly", "ant"):
-        out.append("movementModel")
-    from sim_backend import faults
-    if faults.active(sc):
-        out.append("faults")
-    if sc.lostAfter:
-        # the host counts every holder's heartbeats; the vector engine passes
-        # the coordinator the leader's only
-        out.append("lostAfter")
-    if sc.breeds:
-        out.append("breeds")
-    if sc.recognise:
-        out.append("recognise")
-    return out
 
 
 FIELDS = {f.name for f in dataclasses.fields(Scenario)}

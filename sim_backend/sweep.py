@@ -2,11 +2,12 @@
 
 A point is a dict of scenario overrides; every point runs every seed. Runs
 are cut into chunks; each chunk is one call of `run_chunk`, which steps its
-runs together in the vectorised engine (or one by one in the reference
-engine), so any concurrent.futures executor can spread the chunks: local
-processes, a dask.distributed cluster (`executor_from_spec("dask://HOST:PORT")`)
-or none (in this process). Rows come back in point, seed order whatever the
-executor, so the CSV is the same everywhere.
+runs together in a batch engine compiled from the behaviour's source (or one
+by one in the reference engine), so any concurrent.futures executor can
+spread the chunks: local processes, a dask.distributed cluster
+(`executor_from_spec("dask://HOST:PORT")`) or none (in this process). Rows
+come back in point, seed order whatever the executor, so the CSV is the
+same everywhere.
 """
 
 from __future__ import annotations
@@ -22,16 +23,16 @@ from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
 
 from sim_backend.errors import ScenarioError
-from sim_backend.scenario import (FIELDS, Scenario, arena_features, check_seed, departures,
-                                   extensions, link_faults, validate)
+from sim_backend.scenario import FIELDS, Scenario, check_seed, link_faults, validate
 
 log = logging.getLogger(__name__)
 # how long to wait for a dask scheduler to answer before calling it unreachable
 CONNECT_TIMEOUT_S = 5.0
 
-# auto: the hand-vectorised thesis engine for the thesis behaviour (faster at
-# sweep sizes, docs/performance.md), the compiled batch engine for any other
-ENGINES = ("auto", "batch", "vector", "reference", "soa")
+# auto: the struct-of-arrays engine (sim_backend/batch/soa.py), the fastest at
+# every size and cached on disk (docs/performance.md); batch: the jitclass
+# engine, compiled in every process; reference: one Engine per run
+ENGINES = ("auto", "soa", "batch", "reference")
 MEASURES = ["ticks", "found_tick", "converged_tick", "home_tick", "n_touches", "power",
             "shape_iou", "leader", "delivered", "segments", "touches", "converged_moves"]
 # the drawn pieces (tables, not values) go in one text column, `pieces`
@@ -108,13 +109,23 @@ def _scenario(base: dict[str, Any], params: dict[str, Any]) -> Scenario:
         f"{k}={v}" for k, v in params.items()))
 
 
-def pick_engine(engine: str, sc: Scenario) -> str:
-    """The engine `auto` stands for, for runs of `sc`: the hand-vectorised
-    engine for the thesis behaviour with the default rules only."""
-    if engine != "auto":
-        return engine
-    plain = not departures(sc) and not extensions(sc) and not arena_features(sc)
-    return "vector" if sc.behaviour == "thesis" and plain else "batch"
+def pick_engine(engine: str) -> str:
+    """The engine `auto` stands for: the struct-of-arrays engine, whatever the
+    behaviour and rules (every rule of the reference runs in it)."""
+    return "soa" if engine == "auto" else engine
+
+
+def warm(scenarios: Iterable[Scenario], engine: str = "auto",
+         on_compile: Callable[[str, Path], None] | None = None) -> list[str]:
+    """Compile, or load from the disk cache, the soa engine's step for every
+    behaviour of `scenarios`, in this process, before runs go to workers
+    (forked workers inherit it; spawned ones find it on disk). A no-op for
+    the other engines. on_compile(behaviour, cache folder) is called before a
+    compile the cache does not hold (minutes); returns those behaviours."""
+    if pick_engine(engine) != "soa":
+        return []
+    from sim_backend.batch.soa import warm as soa_warm
+    return soa_warm(scenarios, on_compile)
 
 
 def run_chunk(jobs: Sequence[tuple[dict, dict, int]], engine: str = "auto",
@@ -130,26 +141,11 @@ def run_chunk(jobs: Sequence[tuple[dict, dict, int]], engine: str = "auto",
         report = _queue_reporter(progress_queue, chunk_id)
     scs = [_scenario(b, p) for b, p, _ in jobs]
     seeds = [s for _, _, s in jobs]
-    if engine == "auto":
-        out: list[dict | None] = [None] * len(jobs)
-        groups: dict[str, list[int]] = {}
-        for j, sc in enumerate(scs):
-            groups.setdefault(pick_engine(engine, sc), []).append(j)
-        done = 0
-        for eng, idx in groups.items():
-            sub = None if report is None else _offset(report, done)
-            for j, summ in zip(idx, run_chunk([jobs[j] for j in idx], eng, until,
-                                              report=sub)):
-                out[j] = summ
-            done += len(idx)
-        return out  # type: ignore[return-value]
-    if engine == "vector":
-        from sim_backend.vector_engine import run_batch
-        return run_batch(scs, seeds, until=until, progress=report)
+    engine = pick_engine(engine)
     if engine == "batch":
         from sim_backend.batch.engine import run_batch as run_compiled
         return run_compiled(scs, seeds, until=until, progress=report)
-    if engine == "soa":     # the struct-of-arrays transform, cached on disk (opt-in)
+    if engine == "soa":     # the struct-of-arrays transform, cached on disk
         from sim_backend.batch.engine import run_batch as run_compiled
         from sim_backend.batch.soa import SoaEngine
         return run_compiled(scs, seeds, until=until, progress=report, engine=SoaEngine)
@@ -169,10 +165,6 @@ def run_chunk(jobs: Sequence[tuple[dict, dict, int]], engine: str = "auto",
         if report is not None:
             report(len(out))
     return out
-
-
-def _offset(report: Callable[[int], None], base: int) -> Callable[[int], None]:
-    return lambda k: report(base + k)
 
 
 def _queue_reporter(q: Any, chunk_id: int) -> Callable[[int], None]:
@@ -283,7 +275,8 @@ def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None =
           chunk_size: int = 256, overrides: dict[str, Any] | None = None,
           progress: Callable[[int], None] | None = None,
           on_rows: Callable[[list[dict]], None] | None = None,
-          done: Sequence[dict] = ()) -> list[dict]:
+          done: Sequence[dict] = (),
+          on_compile: Callable[[str, Path], None] | None = None) -> list[dict]:
     """Run every point with every seed; return tidy rows in point, seed order.
 
     executor: any concurrent.futures.Executor (None: run in this process).
@@ -296,6 +289,8 @@ def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None =
     done: rows of runs already made (a resumed sweep's sweep.csv); those runs
       are checked against this sweep (check_done) and not run again; the
       result holds only the new runs.
+    on_compile: told (behaviour, cache folder) before the soa engine compiles
+      a behaviour its disk cache does not hold (see warm).
     """
     if engine not in ENGINES:
         raise ValueError(f"engine: expected one of {ENGINES}, got {engine!r}")
@@ -317,6 +312,8 @@ def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None =
                 continue
             jobs.append((base_d, pt.as_dict(), s))
             meta.append((pt, sc, s))
+    if jobs:
+        warm([sc for _, sc, _ in meta], engine, on_compile)
     chunks = [list(range(i, min(i + chunk_size, len(jobs))))
               for i in range(0, len(jobs), chunk_size)]
     rows: list[dict | None] = [None] * len(jobs)

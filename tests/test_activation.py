@@ -15,8 +15,6 @@ from sim_backend import kernel
 from sim_backend.engine import Engine
 from sim_backend.errors import EngineError, ScenarioError
 from sim_backend.scenario import validate
-from sim_backend.sweep import pick_engine
-from sim_backend.vector_engine import VectorEngine
 from tests.harness import assert_same, mixed_scenarios
 
 # two ant robots that never turn (span 0), far from the object
@@ -157,14 +155,6 @@ def test_bad_activation_values_get_a_one_line_error():
             validate({"activation": bad})
         assert "activation: expected one of sync, netlogo" in str(err.value)
         assert "\n" not in str(err.value)
-
-
-def test_the_vector_engine_refuses_netlogo_activation_and_auto_picks_batch():
-    sc = validate({"activation": "netlogo"})
-    with pytest.raises(EngineError, match="activation"):
-        VectorEngine([(sc, 1)])
-    assert pick_engine("auto", sc) == "batch"
-    assert pick_engine("auto", validate({})) == "vector"
 
 
 def test_sweep_thesis_with_netlogo_activation_writes_both_units_and_the_thesis_figures(

@@ -307,39 +307,17 @@ def test_worked_examples_run_over_can_as_in_process(name, capsys):
     assert outs["can"]["outcome"] == "delivered"
 
 
-def test_vector_engine_refuses_what_it_does_not_draw_and_auto_picks_batch():
-    from sim_backend.errors import EngineError
-    from sim_backend.sweep import pick_engine
-    from sim_backend.vector_engine import VectorEngine
-    for sc, what in ((load("wall"), "obstacles"), (load("decoy"), "several objects"),
-                     (validate({"field": "dynamic"}), "field=dynamic"),
-                     (validate({"wrap": True}), "wrap")):
-        with pytest.raises(EngineError, match=what):
-            VectorEngine([(sc, 1)])
-        assert pick_engine("auto", sc) == "batch"
-    assert pick_engine("auto", load("crate")) == "vector"    # one drawn object it runs
-
-
-def test_vector_engine_equals_the_reference_on_a_drawn_object():
-    from sim_backend.vector_engine import VectorEngine
-    from tests.harness import assert_same
-    sc = load("crate")
-    got = assert_same([sc, sc, sc.replace(movementModel="ant")], [1, 2, 3], engine=VectorEngine,
-                      states=False)
-    assert all(r.delivered for r in got)
-
-
 def test_the_crowd_rule_cannot_change_a_run_until_convergence():
     """crowd acts only on the carried object, so the thesis's figures (runs
     stopped at convergence, `sweep --thesis`) are the same under either
     rule; after convergence the rules part (200 robots: block stalls)."""
     from sim_backend.batch.engine import run_batch_results
-    from sim_backend.vector_engine import VectorEngine
+    from sim_backend.batch.soa import SoaEngine
     runs = {}
     for crowd in ("yield", "block"):
         sc = validate({"agents": 150, "crowd": crowd, "maxTicks": 1500})
         got = run_batch_results([sc] * 3, [1, 2, 3], record_trajectories=True,
-                                until="converged", engine=VectorEngine)
+                                until="converged", engine=SoaEngine)
         assert all(r.coordinator.converged_tick > 0 for r in got)
         runs[crowd] = [(r.coordinator.converged_tick, r.summary()["touches"], r.trajectories)
                        for r in got]
@@ -348,5 +326,5 @@ def test_the_crowd_rule_cannot_change_a_run_until_convergence():
     for crowd in ("yield", "block"):
         sc = validate({"agents": 200, "crowd": crowd, "maxTicks": 2500})
         delivered[crowd] = sum(r.delivered for r in run_batch_results(
-            [sc] * 3, [1, 2, 3], engine=VectorEngine))
+            [sc] * 3, [1, 2, 3], engine=SoaEngine))
     assert delivered == {"yield": 3, "block": 0}

@@ -14,10 +14,8 @@ from firmware_logic.behaviours.thesis import spec
 from firmware_logic.behaviours.thesis.robot import FIELD, LEVY_KMAX, MOTH_SPIRAL, Robot
 from firmware_logic.hal import WALL
 from sim_backend.engine import Engine, run
-from sim_backend.errors import EngineError, ScenarioError
-from sim_backend.scenario import MODELS, extensions, validate
-from sim_backend.sweep import pick_engine
-from sim_backend.vector_engine import VectorEngine
+from sim_backend.errors import ScenarioError
+from sim_backend.scenario import MODELS, validate
 from tests.fakehal import FakeHal
 
 NEW = ("levy", "moth", "frog")
@@ -78,17 +76,6 @@ def test_a_model_runs_over_virtual_can_as_in_process(model):
         link.close()
     assert over_can == run(sc, 3).summary()
     assert over_can["found_tick"] is not None
-
-
-def test_the_vector_engine_refuses_the_new_rules_and_auto_picks_batch():
-    for raw in ({"movementModel": "levy"}, {"movementModel": "ant", "antBlocked": "turn"}):
-        sc = validate(raw)
-        assert extensions(sc)
-        with pytest.raises(EngineError, match="default rules only"):
-            VectorEngine([(sc, 1)])
-        assert pick_engine("auto", sc) == "batch"
-    assert extensions(validate({"movementModel": "ant"})) == []
-    assert pick_engine("auto", validate({})) == "vector"
 
 
 # -- the rules on a hand-driven HAL ------------------------------------------------
@@ -234,7 +221,7 @@ def test_bad_breeds_get_one_line_errors(raw, needle):
     assert needle in str(err.value) and "\n" not in str(err.value)
 
 
-def test_breeds_run_over_virtual_can_as_in_process_and_vector_refuses_them():
+def test_breeds_run_over_virtual_can_as_in_process():
     sc = validate({"breeds": BREEDS, "maxTicks": 500})
     link = CanLink(list(range(1, sc.agents + 1)))
     try:
@@ -242,9 +229,6 @@ def test_breeds_run_over_virtual_can_as_in_process_and_vector_refuses_them():
     finally:
         link.close()
     assert over_can == run(sc, 2).summary()
-    assert "breeds" in extensions(sc)
-    with pytest.raises(EngineError, match="breeds"):
-        VectorEngine([(sc, 1)])
 
 
 def test_the_breed_preset_varies_the_ant_share():

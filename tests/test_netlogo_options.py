@@ -15,10 +15,7 @@ from firmware_logic.rng import Rng
 from firmware_logic import registry
 from sim_backend import kernel
 from sim_backend.engine import Engine
-from sim_backend.errors import EngineError
-from sim_backend.scenario import CHOICES, Scenario, departures, validate
-from sim_backend.sweep import pick_engine
-from sim_backend.vector_engine import VectorEngine
+from sim_backend.scenario import CHOICES, Scenario, validate
 from sim_backend.world import World
 from tests.fakehal import FakeHal
 from tests.harness import assert_same
@@ -206,24 +203,15 @@ def test_netlogo_starts_walk_fd_random_max_pxcor_along_the_robots_own_heading():
 def test_the_netlogo_scenario_sets_every_option_to_the_thesis_rule():
     from sim_backend import scenario
     sc = scenario.load("netlogo")
-    assert departures(sc) == list(CHOICES)
+    assert all(getattr(Scenario(), k) != "netlogo" for k in CHOICES)    # not the defaults
     assert all(getattr(sc, k) == "netlogo" for k in CHOICES)
 
 
 def test_options_are_named_and_bad_values_refused():
-    assert departures(validate({})) == []
-    assert departures(validate({"starts": "netlogo", "arrival": "netlogo"})) == ["arrival",
-                                                                                   "starts"]
+    sc = validate({"starts": "netlogo", "arrival": "netlogo"})
+    assert (sc.starts, sc.arrival, sc.uphillTies) == ("netlogo", "netlogo", "ordered")
     with pytest.raises(Exception, match="uphillTies: expected one of ordered, netlogo"):
         validate({"uphillTies": "random"})
-
-
-def test_the_vector_engine_refuses_options_and_auto_picks_batch():
-    sc = validate({"signalMode": "netlogo"})
-    with pytest.raises(EngineError, match="default rules only, not signalMode"):
-        VectorEngine([(sc, 1)])
-    assert pick_engine("auto", sc) == "batch"
-    assert pick_engine("auto", validate({})) == "vector"
 
 
 @pytest.mark.parametrize("model", ["firefly", "ant"])

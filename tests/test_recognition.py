@@ -10,7 +10,7 @@ from firmware_logic.behaviours.thesis.robot import Robot
 from firmware_logic.hal import OBJECT
 from sim_backend import kernel
 from sim_backend.engine import Engine
-from sim_backend.errors import EngineError, ScenarioError
+from sim_backend.errors import ScenarioError
 from sim_backend.scenario import Scenario, load, validate
 from tests.harness import assert_same
 
@@ -40,13 +40,6 @@ def test_scenarios_lists_the_keys(capsys):
     assert main(["scenarios"]) == 0
     out = capsys.readouterr().out
     assert "recognise        False" in out and "confidence       0.9        0.5..0.999" in out
-
-
-def test_the_vector_engine_refuses_recognition():
-    from sim_backend.vector_engine import VectorEngine
-    with pytest.raises(EngineError, match="the vector engine runs the default rules only, "
-                                          "not recognise"):
-        VectorEngine([(validate({"recognise": True}), 1)])
 
 
 def test_bad_keys_on_the_command_line_are_one_line_errors(capsys):

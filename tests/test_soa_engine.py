@@ -2,9 +2,9 @@
 behaviour's own source through the transform (sim_backend/batch/transform.py).
 tests/test_batch_engine.py holds it to the differential harness with the
 jitclass engine (every behaviour, model, object, mixed batches, the
-single-source test); here: faults, the robots written back, named errors
-for constructs outside the transform, and a warm start from the on-disk
-cache in a second process.
+single-source test); here: faults, both crowd rules, the robots written
+back, named errors for constructs outside the transform, and a warm start
+from the on-disk cache in a second process.
 """
 
 import json
@@ -30,6 +30,16 @@ def test_faults_identical():
                    "ignoreFieldRate": 0.1, "ignoreHostRate": 0.1, "randomRate": 0.1,
                    "probeMiss": 0.1, "probeGhost": 0.02, "fieldNoise": 2})
     assert_same([sc] * 3, [1, 2, 3], engine=SoaEngine)
+
+
+@pytest.mark.parametrize("crowd", ["yield", "block"])
+def test_both_crowd_rules_identical_in_a_dense_swarm(crowd):
+    """crowd "yield" (the default) and "block": 150 robots crowd the object,
+    so robots stand in the carried group's way and (yield) step aside."""
+    sc = validate({"agents": 150, "crowd": crowd, "maxTicks": 1500})
+    got = assert_same([sc, sc.replace(movementModel="ant")], [1, 2], engine=SoaEngine)
+    if crowd == "yield":
+        assert all(r.delivered for r in got)
 
 
 def test_final_robots_are_the_reference_robots():
@@ -81,13 +91,18 @@ def test_a_construct_outside_the_transform_is_named_with_its_line(tmp_path, cons
 
 WARM = """
 import json, sys
+from sim_backend import sweep
 from sim_backend.batch.soa import SoaEngine
 from sim_backend.scenario import validate
-e = SoaEngine([(validate({"behaviour": "aggregate", "maxTicks": 50}), 1)])
+sc = validate({"behaviour": "aggregate", "maxTicks": 50})
+told = []
+cold = sweep.warm([sc, sc], "auto", lambda b, d: told.append([b, str(d)]))
+e = SoaEngine([(sc, 1)])
 e.step()
 s = e._tick_fn.stats
 print(json.dumps({"hits": sum(s.cache_hits.values()), "misses": sum(s.cache_misses.values()),
-                  "xs": e.rb[0].tolist(), "dir": str(e.compiled.path.parent)}))
+                  "xs": e.rb[0].tolist(), "dir": str(e.compiled.path.parent),
+                  "cold": cold, "told": told}))
 """
 
 
@@ -104,6 +119,9 @@ def test_a_second_process_loads_the_compiled_step_from_the_disk_cache(tmp_path):
     assert cold["misses"] >= 1 and cold["hits"] == 0
     assert warm["hits"] >= 1 and warm["misses"] == 0
     assert warm["xs"] == cold["xs"]
+    # sweep.warm compiles before the runs, and says so only when the cache lacks the step
+    assert cold["cold"] == ["aggregate"] and cold["told"] == [["aggregate", cold["dir"]]]
+    assert warm["cold"] == [] and warm["told"] == []
     assert Path(cold["dir"]).parent == tmp_path / "soa"
     assert list(Path(cold["dir"]).glob("__pycache__/*.nbi"))
 
@@ -112,7 +130,8 @@ def test_sweep_engine_soa_gives_the_reference_summaries():
     from sim_backend import sweep
     jobs = [({"maxTicks": 800}, {"fieldDefiance": 2}, seed) for seed in (1, 2)]
     got = sweep.run_chunk(jobs, engine="soa")
-    assert "soa" in sweep.ENGINES
+    assert sweep.run_chunk(jobs, engine="auto") == got      # auto is the soa engine
+    assert sweep.pick_engine("auto") == "soa"
     sc = validate({"maxTicks": 800, "fieldDefiance": 2})
     assert got == [reference(sc, 1).summary(), reference(sc, 2).summary()]
 

@@ -48,7 +48,7 @@ def test_progress_log_of_a_resumed_sweep_counts_only_new_runs_in_the_rate():
     assert lines == ["sweep: 7/10 runs (70%), 0.50 runs/s, ETA 6s"]
 
 
-@pytest.mark.parametrize("engine", ["vector", "reference"])
+@pytest.mark.parametrize("engine", ["soa", "reference"])
 def test_progress_moves_per_run_inside_one_chunk(engine):
     """One chunk of 12 runs: progress comes as runs finish, not once at the end."""
     steps: list[int] = []

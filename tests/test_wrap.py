@@ -9,7 +9,7 @@ import pytest
 from firmware_logic import fixedpoint as fx
 from firmware_logic.hal import NOTHING, OBJECT, WALL
 from sim_backend import kernel
-from sim_backend.errors import EngineError, ScenarioError
+from sim_backend.errors import ScenarioError
 from sim_backend.kernel import BLUE
 from sim_backend.scenario import validate
 from sim_backend.world import World
@@ -109,16 +109,6 @@ def test_bad_wrap_scenarios_get_one_line_errors(raw, message):
     with pytest.raises(ScenarioError) as err:
         validate(raw)
     assert message in str(err.value) and "\n" not in str(err.value)
-
-
-def test_the_vector_engine_refuses_wrap_and_auto_takes_the_batch_engine():
-    from sim_backend.sweep import pick_engine
-    from sim_backend.vector_engine import run_batch
-    sc = validate({"wrap": True})
-    with pytest.raises(EngineError, match="wrap"):
-        run_batch([sc], [1])
-    assert pick_engine("auto", sc) == "batch"
-    assert pick_engine("auto", validate({})) == "vector"
 
 
 def test_a_wrapping_run_delivers_and_robots_crossed_an_edge():

@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from bridge.errors import UsageError
+from sim_backend.sweep import ENGINES
 
 # key -> (TOML types allowed, what it holds)
 KEYS: dict[str, tuple[tuple[type, ...], str]] = {
@@ -35,7 +36,7 @@ KEYS: dict[str, tuple[tuple[type, ...], str]] = {
     "grid": ((dict,), "a table KEY = [V1, V2, ...]"),
     "set": ((dict,), "a table KEY = VALUE applied to every point"),
     "seeds": ((int, str, list), 'a count N, a range "A-B" or a list of seeds'),
-    "engine": ((str,), "auto, batch, vector or reference"),
+    "engine": ((str,), " or ".join(", ".join(ENGINES).rsplit(", ", 1))),
     "until": ((str,), "delivered or converged"),
     "out": ((str,), "the output directory"),
     "executor": ((str,), "processes[:N], inline or dask://HOST:PORT"),

@@ -67,14 +67,13 @@ def register(sub) -> None:
                    help="stop each run when the object is home or when power first reaches "
                         "its weight (default: delivered; --thesis: converged)")
     p.add_argument("--engine", choices=ENGINES, default=None,
-                   help="auto (default): the hand-vectorised engine for the thesis behaviour, "
-                        "the batch engine compiled from the behaviour's source for any other; "
-                        "batch: always the compiled engine (compiles for 1-2 min per process); "
-                        "vector: thesis only; reference: the per-robot engine; soa: the "
-                        "struct-of-arrays transform of the behaviour's source, the fastest "
-                        "(2-7x vector), compiled once per machine and behaviour (2-3 min; "
-                        "TOUCHSWARM_SOA_INLINE=0 halves it, for slower runs) and cached on "
-                        "disk (docs/performance.md)")
+                   help="auto (default) or soa: the struct-of-arrays transform of the "
+                        "behaviour's own source, the fastest; compiled once per machine and "
+                        "behaviour source (2-3 min, said on stderr; TOUCHSWARM_SOA_INLINE=0 "
+                        "halves it, for slower runs) and cached on disk "
+                        "(~/.cache/touchswarm or $TOUCHSWARM_CACHE); batch: the jitclass "
+                        "engine, compiled in every process (1-2 min); reference: the "
+                        "per-robot engine (docs/performance.md)")
     p.add_argument("--executor", default=None, metavar="SPEC",
                    help="processes[:N] (default: one per core), inline, or dask://HOST:PORT "
                         "(a dask.distributed scheduler)")
@@ -192,6 +191,11 @@ def _settings(args: argparse.Namespace) -> dict:
     return settings
 
 
+def _compiling(behaviour: str, folder: Path) -> None:
+    print(f"compiling the soa engine for behaviour {behaviour!r}: once per machine and "
+          f"behaviour source, 2-3 min; cached in {folder}", file=sys.stderr, flush=True)
+
+
 def cmd_sweep(args: argparse.Namespace) -> int:
     from sim_backend import scenario, sweep
 
@@ -302,7 +306,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     try:
         new = sweep.sweep(points, seeds, base=base, engine=cfg["engine"], executor=executor,
                           until=until, chunk_size=chunk, overrides=overrides, progress=step,
-                          on_rows=appender.append, done=done)
+                          on_rows=appender.append, done=done, on_compile=_compiling)
     finally:
         appender.close()
         if bar is not None:

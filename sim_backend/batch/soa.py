@@ -22,10 +22,11 @@ import importlib.util
 import logging
 import os
 import sys
+import threading
 import time
 from pathlib import Path
 from types import ModuleType
-from typing import Any
+from typing import Any, Callable, Iterable
 
 import numpy as np
 
@@ -72,6 +73,11 @@ class Compiled:
         self.path = Path(self.module.__file__)
         self.names = names
 
+    def on_disk(self, key: str) -> bool:
+        """Whether numba's cache beside the module holds an entry's machine code."""
+        return any((self.path.parent / "__pycache__").glob(
+            f"{self.path.stem}.{self.names[key]}-*.nbi"))
+
     def entry(self, key: str) -> tuple[Any, tuple[str, ...]]:
         """An entry function and the names of its leading state arguments."""
         name = self.names[key]
@@ -79,10 +85,20 @@ class Compiled:
 
 
 _LOADED: dict[str, Compiled] = {}
+# one batch's transform at a time: the threads of a sweep's thread pool each
+# build an engine, and CPython 3.11's ast.parse is not thread-safe (two at
+# once raised "SystemError: AST constructor recursion depth mismatch",
+# python/cpython#106905)
+_LOCK = threading.Lock()
 
 
 def compile_batch(robots: list[Any], body: Any) -> tuple[T.Layout, Compiled, dict[str, Any]]:
     """Layout, compiled module and state arrays of a batch's robots and body."""
+    with _LOCK:
+        return _compile_batch(robots, body)
+
+
+def _compile_batch(robots: list[Any], body: Any) -> tuple[T.Layout, Compiled, dict[str, Any]]:
     layout = T.Layout()
     layout.add(body)
     for r in robots:
@@ -131,3 +147,25 @@ class SoaEngine(BatchEngine):
         for robot in self.robot_objs[lo:hi]:
             T.unpack(self.layout, self.arrays, robot)
         super()._result(r, t)
+
+
+def warm(scenarios: Iterable[Any], on_compile: Callable[[str, Path], None] | None = None
+         ) -> list[str]:
+    """Compile, or load from the disk cache, the step of every behaviour of
+    `scenarios` in this process (one run of one tick each); on_compile(behaviour,
+    cache folder) is called before a compile the cache does not hold. Returns
+    the behaviours that compiled."""
+    first: dict[str, Any] = {}
+    for sc in scenarios:
+        first.setdefault(str(sc.behaviour), sc)
+    cold = []
+    for name, sc in first.items():
+        eng = SoaEngine([(sc.replace(maxTicks=1), 1)])
+        if not eng.compiled.on_disk("tick_all"):
+            cold.append(name)
+            log.info("compiling the soa engine for behaviour %s (cache %s)", name,
+                     eng.compiled.path.parent)
+            if on_compile is not None:
+                on_compile(name, eng.compiled.path.parent)
+        eng.step()
+    return cold
