@@ -441,12 +441,18 @@ def columns(behaviours: Iterable[str]) -> list[str]:
     return names
 
 
+def point_scenarios(points: Sequence[Point], base: Scenario | None = None,
+                    overrides: dict[str, Any] | None = None) -> list[Scenario]:
+    """The scenario of every point, in order."""
+    base_d = (base or Scenario()).to_dict()
+    base_d.update(overrides or {})
+    return [_scenario(base_d, pt.as_dict()) for pt in points]
+
+
 def point_behaviours(points: Sequence[Point], base: Scenario | None = None,
                      overrides: dict[str, Any] | None = None) -> list[str]:
     """The behaviour of every point, in order, each once."""
-    base_d = (base or Scenario()).to_dict()
-    base_d.update(overrides or {})
-    return list(dict.fromkeys(_scenario(base_d, pt.as_dict()).behaviour for pt in points))
+    return list(dict.fromkeys(sc.behaviour for sc in point_scenarios(points, base, overrides)))
 
 
 def make_row(pt: Point, sc: Scenario, seed: int, s: dict, until: str) -> dict:

@@ -73,7 +73,9 @@ def test_cli_prints_progress_lines_when_stderr_is_not_a_terminal(tmp_path, capsy
     assert main(["sweep", "--grid", "fieldDefiance=1,4", "--grid", "movementModel=firefly,ant",
                  "--seeds", "3", "--set", "maxTicks=3000", "--executor", "inline",
                  "--chunk", "12", "--no-plots", "--out", str(tmp_path)]) == 0
-    lines = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("sweep: ")]
+    cap = capsys.readouterr()
+    assert "12 runs (4 points x 3 seeds, soa (auto) engine, until delivered)" in cap.out
+    lines = [ln for ln in cap.err.splitlines() if ln.startswith("sweep: ")]
     # one chunk of 12 runs, yet a line per finished run (every 5% of 12 runs is 1 run)
     assert len(lines) > 1
     assert lines[-1].startswith("sweep: 12/12 runs (100%)") and "runs/s, ETA" in lines[-1]

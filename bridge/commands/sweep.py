@@ -301,6 +301,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     appender = sweep.CsvAppender(csv_path, names, resume=args.resume)
     if done:
         print(f"resuming: {len(done)} of {total} runs already in {csv_path}", file=sys.stderr)
+    # compile (or load) the engine first, so the progress rate counts runs only
+    if todo:
+        sweep.warm(sweep.point_scenarios(points, base, overrides), cfg["engine"], _compiling)
     bar, step = _progress(total, len(done), args.progress_every)
     t0 = time.perf_counter()
     try:
@@ -346,7 +349,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         print(json.dumps(info, sort_keys=True))
     else:
         again = f", {len(done)} kept from before" if done else ""
-        print(f"{len(rows)} runs ({len(points)} points x {len(seeds)} seeds, {cfg['engine']} "
+        used = sweep.pick_engine(cfg["engine"])
+        engine = used if used == cfg["engine"] else f"{used} ({cfg['engine']})"
+        print(f"{len(rows)} runs ({len(points)} points x {len(seeds)} seeds, {engine} "
               f"engine, until {until}{again}) in {wall:.1f} s")
         print(f"  {csv_path}")
         for p in pngs:
