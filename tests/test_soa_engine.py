@@ -190,3 +190,64 @@ def test_inlining_can_be_turned_off_for_a_faster_cold_compile(monkeypatch):
     assert "forceinline" not in text and "borrow(" in text
     monkeypatch.delenv("TOUCHSWARM_SOA_INLINE")
     assert SoaEngine([(validate({"maxTicks": 50}), 1)]).compiled.digest != e.compiled.digest
+
+
+TINY = '''
+from numba import njit
+
+
+@njit(cache=True)
+def E_inc(a):
+    return a + 1
+
+
+E_inc__STATE = ()
+'''
+
+FIRST = """
+import json, sys
+from sim_backend.batch.soa import Compiled
+c = Compiled(sys.argv[1], {"inc": "E_inc"})
+fn, _ = c.entry("inc")
+out = c.first_call(fn, (41,))
+print(json.dumps({"out": out, "hits": sum(fn.stats.cache_hits.values()),
+                  "dir": str(c.path.parent)}))
+"""
+
+
+def test_a_damaged_disk_cache_is_compiled_again_with_a_warning(tmp_path):
+    """numba raises on a cache file it cannot unpickle; the soa engine's
+    first call deletes that module's cache, says so, and compiles again."""
+    env = {**os.environ, "TOUCHSWARM_CACHE": str(tmp_path), "PYTHONPATH": str(ROOT)}
+
+    def run():
+        out = subprocess.run([sys.executable, "-c", FIRST, TINY], env=env, capture_output=True,
+                             text=True, check=True, cwd=ROOT)
+        return json.loads(out.stdout.strip().splitlines()[-1]), out.stderr
+    first, _ = run()
+    cache = Path(first["dir"]) / "__pycache__"
+    files = sorted(cache.glob("*.nb[ic]"))
+    assert first["out"] == 42 and files
+    for f in files:                                   # a truncated write, a bad disk
+        f.write_bytes(f.read_bytes()[:10])
+    again, err = run()
+    assert again["out"] == 42 and again["hits"] == 0
+    assert "could not be read" in err and str(cache) in err
+    warm, err = run()
+    assert warm["out"] == 42 and warm["hits"] == 1 and "could not be read" not in err
+
+
+def test_an_error_that_is_not_the_cache_is_raised_and_the_cache_kept(tmp_path, monkeypatch):
+    from sim_backend.batch.soa import Compiled
+    monkeypatch.setenv("TOUCHSWARM_CACHE", str(tmp_path))
+    c = Compiled(TINY + "\n# not loaded by another test\n", {"inc": "E_inc"})
+    fn, _ = c.entry("inc")
+    assert c.first_call(fn, (1,)) == 2
+    cache = c.path.parent / "__pycache__"
+    assert list(cache.glob("*.nbi"))
+
+    def boom():
+        raise ValueError("a bug in the step")
+    with pytest.raises(ValueError, match="a bug in the step"):
+        c.first_call(boom, ())
+    assert list(cache.glob("*.nbi"))

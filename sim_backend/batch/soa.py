@@ -21,9 +21,11 @@ import hashlib
 import importlib.util
 import logging
 import os
+import shutil
 import sys
 import threading
 import time
+import traceback
 from pathlib import Path
 from types import ModuleType
 from typing import Any, Callable, Iterable
@@ -83,6 +85,28 @@ class Compiled:
         name = self.names[key]
         return getattr(self.module, name), getattr(self.module, name + "__STATE")
 
+    def first_call(self, fn: Any, args: tuple) -> Any:
+        """fn(*args), the call that compiles fn or loads it from the disk
+        cache. numba raises on a cache file it cannot unpickle (a truncated
+        or damaged index or data file) instead of compiling again; then the
+        module's cache is deleted, a warning names it, and fn compiles."""
+        try:
+            return fn(*args)
+        except Exception as err:
+            if not _from_numba_cache(err):
+                raise
+            folder = self.path.parent / "__pycache__"
+            log.warning("the soa engine's disk cache %s could not be read (%s: %s); "
+                        "compiling it again", folder, type(err).__name__, err)
+            shutil.rmtree(folder, ignore_errors=True)
+            return fn(*args)
+
+
+def _from_numba_cache(err: BaseException) -> bool:
+    """Whether err was raised while numba read its disk cache."""
+    return any(Path(f.filename).parts[-3:] == ("numba", "core", "caching.py")
+               for f in traceback.extract_tb(err.__traceback__))
+
 
 _LOADED: dict[str, Compiled] = {}
 # one batch's transform at a time: the threads of a sweep's thread pool each
@@ -131,13 +155,22 @@ class SoaEngine(BatchEngine):
         self._tick_fn, self._tick_args = tick_all, tuple(self.arrays[n] for n in names)
         states_of, names = self.compiled.entry("states_of")
         self._states_fn, self._states_args = states_of, tuple(self.arrays[n] for n in names)
+        self._tick_ready = self._states_ready = False
         SoaEngine.compile_seconds += time.perf_counter() - c0
 
     def _tick(self, t: int) -> None:
-        self._tick_fn(*self._tick_args, 0, t)
+        if self._tick_ready:
+            self._tick_fn(*self._tick_args, 0, t)
+        else:
+            self.compiled.first_call(self._tick_fn, self._tick_args + (0, t))
+            self._tick_ready = True
 
     def _states(self, out: np.ndarray) -> None:
-        self._states_fn(*self._states_args, out)
+        if self._states_ready:
+            self._states_fn(*self._states_args, out)
+        else:
+            self.compiled.first_call(self._states_fn, self._states_args + (out,))
+            self._states_ready = True
 
     def _note_compile(self, seconds: float) -> None:
         SoaEngine.compile_seconds += seconds
