@@ -764,12 +764,12 @@ def unpack(layout: Layout, arrays: dict[str, Any], obj: Any) -> None:
     """Write an instance's fields (and its objects') back from the arrays."""
     cls, j = layout.index[id(obj)]
     cl = layout.classes[cls]
-    ints = arrays[ints_name(cl)]
+    row = arrays[ints_name(cl)][j].tolist()     # one call, not one per field
     for attr, f in cl.fields.items():
         if f[0] == "int":
-            setattr(obj, attr, int(ints[j, cl.columns[attr]]))
+            setattr(obj, attr, row[cl.columns[attr]])
         elif f[0] == "bool":
-            setattr(obj, attr, bool(ints[j, cl.columns[attr]]))
+            setattr(obj, attr, bool(row[cl.columns[attr]]))
         elif f[0] == "row":
             getattr(obj, attr)[:] = arrays[array_name(cl, attr)][j].tolist()
         elif f[0] == "inst":
