@@ -23,6 +23,7 @@ by path to a folder holding such a package.
 
 from __future__ import annotations
 
+import functools
 import importlib
 import importlib.metadata
 import importlib.util
@@ -115,11 +116,20 @@ def builtin() -> dict[str, str]:
             if (p / "__init__.py").is_file() and (p / "spec.py").is_file()}
 
 
+@functools.lru_cache(maxsize=1)
+def _entry_points() -> tuple[tuple[str, str], ...]:
+    """The behaviours installed packages declare, read once per process:
+    importlib.metadata reads every installed distribution's metadata on
+    each call (13 ms in this venv), and every scenario and world loads its
+    behaviour (a 512-run sweep chunk spent 13.6 of its 19.6 s here)."""
+    return tuple((ep.name, ep.value) for ep in importlib.metadata.entry_points(group=GROUP))
+
+
 def names() -> dict[str, str]:
     """Every installed behaviour: name -> module (built-ins, then entry points)."""
     out = builtin()
-    for ep in importlib.metadata.entry_points(group=GROUP):
-        out.setdefault(ep.name, ep.value)
+    for name, value in _entry_points():
+        out.setdefault(name, value)
     return out
 
 
