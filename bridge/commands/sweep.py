@@ -69,7 +69,7 @@ def register(sub) -> None:
     p.add_argument("--engine", choices=ENGINES, default=None,
                    help="auto (default) or soa: the struct-of-arrays transform of the "
                         "behaviour's own source, the fastest; compiled once per machine and "
-                        "behaviour source (2-3 min, said on stderr; TOUCHSWARM_SOA_INLINE=0 "
+                        "behaviour source (1.5-3.5 min, said on stderr; TOUCHSWARM_SOA_INLINE=0 "
                         "halves it, for slower runs) and cached on disk "
                         "(~/.cache/touchswarm or $TOUCHSWARM_CACHE); batch: the jitclass "
                         "engine, compiled in every process (1-2 min); reference: the "
@@ -193,7 +193,7 @@ def _settings(args: argparse.Namespace) -> dict:
 
 def _compiling(behaviour: str, folder: Path) -> None:
     print(f"compiling the soa engine for behaviour {behaviour!r}: once per machine and "
-          f"behaviour source, 2-3 min; cached in {folder}", file=sys.stderr, flush=True)
+          f"behaviour source, 1.5-3.5 min; cached in {folder}", file=sys.stderr, flush=True)
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
