@@ -33,6 +33,9 @@ CONNECT_TIMEOUT_S = 5.0
 # every size and cached on disk (docs/performance.md); batch: the jitclass
 # engine, compiled in every process; reference: one Engine per run
 ENGINES = ("auto", "soa", "batch", "reference")
+# how long the soa engine's first compile of a behaviour takes on a 2-core
+# machine (docs/performance.md: aggregate 80-95 s, thesis 142-206 s)
+SOA_COLD_COMPILE = "1.5-3.5 min"
 MEASURES = ["ticks", "found_tick", "converged_tick", "home_tick", "n_touches", "power",
             "shape_iou", "leader", "delivered", "segments", "touches", "converged_moves"]
 # the drawn pieces (tables, not values) go in one text column, `pieces`
@@ -276,7 +279,8 @@ def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None =
           progress: Callable[[int], None] | None = None,
           on_rows: Callable[[list[dict]], None] | None = None,
           done: Sequence[dict] = (),
-          on_compile: Callable[[str, Path], None] | None = None) -> list[dict]:
+          on_compile: Callable[[str, Path], None] | None = None,
+          compile_first: bool = True) -> list[dict]:
     """Run every point with every seed; return tidy rows in point, seed order.
 
     executor: any concurrent.futures.Executor (None: run in this process).
@@ -291,6 +295,7 @@ def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None =
       result holds only the new runs.
     on_compile: told (behaviour, cache folder) before the soa engine compiles
       a behaviour its disk cache does not hold (see warm).
+    compile_first: False when the caller ran warm itself.
     """
     if engine not in ENGINES:
         raise ValueError(f"engine: expected one of {ENGINES}, got {engine!r}")
@@ -312,7 +317,7 @@ def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None =
                 continue
             jobs.append((base_d, pt.as_dict(), s))
             meta.append((pt, sc, s))
-    if jobs:
+    if jobs and compile_first:
         warm([sc for _, sc, _ in meta], engine, on_compile)
     chunks = [list(range(i, min(i + chunk_size, len(jobs))))
               for i in range(0, len(jobs), chunk_size)]

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from bridge.commands.paths import path_arg
 from bridge.errors import UsageError
-from sim_backend.sweep import ENGINES
+from sim_backend.sweep import ENGINES, SOA_COLD_COMPILE
 
 
 def register(sub) -> None:
@@ -69,8 +69,8 @@ def register(sub) -> None:
     p.add_argument("--engine", choices=ENGINES, default=None,
                    help="auto (default) or soa: the struct-of-arrays transform of the "
                         "behaviour's own source, the fastest; compiled once per machine and "
-                        "behaviour source (1.5-3.5 min, said on stderr; TOUCHSWARM_SOA_INLINE=0 "
-                        "halves it, for slower runs) and cached on disk "
+                        f"behaviour source ({SOA_COLD_COMPILE}, said on stderr; "
+                        "TOUCHSWARM_SOA_INLINE=0 halves it, for slower runs) and cached on disk "
                         "(~/.cache/touchswarm or $TOUCHSWARM_CACHE); batch: the jitclass "
                         "engine, compiled in every process (1-2 min); reference: the "
                         "per-robot engine (docs/performance.md)")
@@ -193,7 +193,8 @@ def _settings(args: argparse.Namespace) -> dict:
 
 def _compiling(behaviour: str, folder: Path) -> None:
     print(f"compiling the soa engine for behaviour {behaviour!r}: once per machine and "
-          f"behaviour source, 1.5-3.5 min; cached in {folder}", file=sys.stderr, flush=True)
+          f"behaviour source, {SOA_COLD_COMPILE}; cached in {folder}", file=sys.stderr,
+          flush=True)
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
@@ -309,7 +310,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     try:
         new = sweep.sweep(points, seeds, base=base, engine=cfg["engine"], executor=executor,
                           until=until, chunk_size=chunk, overrides=overrides, progress=step,
-                          on_rows=appender.append, done=done, on_compile=_compiling)
+                          on_rows=appender.append, done=done, compile_first=False)
     finally:
         appender.close()
         if bar is not None:

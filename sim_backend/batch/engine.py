@@ -214,6 +214,10 @@ class BatchEngine:
     def _note_compile(self, seconds: float) -> None:
         twins().compile_seconds += seconds
 
+    def _first_tick(self, t: int) -> None:
+        """The first tick, which compiles the step (SoaEngine: or loads it)."""
+        self._tick(t)
+
     # -- one tick ---------------------------------------------------------------------------
 
     def step(self) -> None:
@@ -221,7 +225,7 @@ class BatchEngine:
         t = self.tick
         if not self._step_once_compiled:
             c0 = time.perf_counter()
-            self._tick(t)
+            self._first_tick(t)
             self._note_compile(time.perf_counter() - c0)
             self._step_once_compiled = True
         else:

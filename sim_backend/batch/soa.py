@@ -155,22 +155,20 @@ class SoaEngine(BatchEngine):
         self._tick_fn, self._tick_args = tick_all, tuple(self.arrays[n] for n in names)
         states_of, names = self.compiled.entry("states_of")
         self._states_fn, self._states_args = states_of, tuple(self.arrays[n] for n in names)
-        self._tick_ready = self._states_ready = False
         SoaEngine.compile_seconds += time.perf_counter() - c0
 
     def _tick(self, t: int) -> None:
-        if self._tick_ready:
-            self._tick_fn(*self._tick_args, 0, t)
-        else:
-            self.compiled.first_call(self._tick_fn, self._tick_args + (0, t))
-            self._tick_ready = True
+        self._tick_fn(*self._tick_args, 0, t)
 
     def _states(self, out: np.ndarray) -> None:
-        if self._states_ready:
-            self._states_fn(*self._states_args, out)
-        else:
+        self._states_fn(*self._states_args, out)
+
+    def _first_tick(self, t: int) -> None:
+        # the calls that load the step from the disk cache, or compile it
+        self.compiled.first_call(self._tick_fn, self._tick_args + (0, t))
+        if self.record:
+            out = np.zeros(len(self.robot_objs), dtype=np.int64)
             self.compiled.first_call(self._states_fn, self._states_args + (out,))
-            self._states_ready = True
 
     def _note_compile(self, seconds: float) -> None:
         SoaEngine.compile_seconds += seconds
