@@ -5,10 +5,14 @@ per-robot reference engine (the per-agent Python baseline, Mesa-style), the
 batch engine compiled from the behaviour's own source (jitclasses) and the
 struct-of-arrays engine
 transformed from the same source (with its cold and warm start in fresh
-processes), for a fixed number of ticks (set-up and
-compilation excluded from the rates and reported apart; every engine
-includes the host coordinators), checks that all end with identical robot
-positions, and reports the ratios. "20x500" is 500 independent 20-robot
+processes), over the same ticks from the same start: the first tick is
+stepped apart (set-up and compilation are excluded from the rates and
+reported apart; every engine includes the host coordinators), the rest in
+ten rounds that step the three engines in turn, so a neighbour slowing the
+shared machine for a while slows all three alike (it moved one engine's
+figure by half between two runs when each ran its ticks in one go). The
+bench checks that all end with identical robot positions, and reports the
+ratios. "20x500" is 500 independent 20-robot
 runs stepped as one batch, the way sweeps use it. (The hand-vectorised
 numpy engine this bench also timed until it was retired has its last
 side-by-side figures in docs/performance.md.)
@@ -43,12 +47,15 @@ from sim_backend.batch.compiler import twins  # noqa: E402
 from sim_backend.batch.engine import BatchEngine  # noqa: E402
 from sim_backend.batch.soa import SoaEngine  # noqa: E402
 
-# robots -> (worldSize, ticks for the reference, ticks for the compiled engines, runs)
+# robots -> (worldSize, ticks, runs). Every engine steps the same ticks from the
+# same start: a run's ticks are not alike (the first, with every robot searching,
+# are the reference's cheapest), so a rate over fewer reference ticks than
+# compiled ones would compare different work.
 SIZES = {
-    "20": (18, 400, 400, 1),
-    "20x500": (18, 200, 200, 500),
-    "1000": (40, 100, 400, 1),
-    "10000": (150, 10, 200, 1),
+    "20": (18, 400, 1),
+    "20x500": (18, 200, 500),
+    "1000": (40, 400, 1),
+    "10000": (150, 200, 1),
 }
 
 
@@ -56,48 +63,63 @@ def scenario(robots, world):
     return validate({"agents": robots, "worldSize": world, "maxTicks": 10_000_000})
 
 
-WALL = {}      # (engine, size) -> wall seconds of the timed steps
+ROUNDS = 10    # the timed ticks are stepped in this many rounds, the engines in turn
 
 
-def timed():
-    """(CPU, wall) clocks now."""
-    return time.process_time(), time.perf_counter()
+class Timed:
+    """One engine over a size's runs: its first tick apart (it compiles, or
+    loads, the step; the reference steps it too, so all start timing at the
+    same tick), then steps timed by CPU and wall clock."""
 
+    def __init__(self, name, sc, seeds):
+        self.name, self.cpu, self.wall = name, 0.0, 0.0
+        t0 = time.perf_counter()
+        if name == "reference":
+            self.engines = [Engine(sc, s) for s in seeds]
+        else:
+            self.engines = [{"batch": BatchEngine, "soa": SoaEngine}[name](
+                [(sc, s) for s in seeds])]
+        self._step()
+        self.setup = time.perf_counter() - t0
 
-def since(t, key):
-    """CPU seconds since `t` (from timed()); the wall seconds go to WALL[key]."""
-    c, w = timed()
-    WALL[key] = round(w - t[1], 4)
-    return c - t[0]
-
-
-def time_reference(sc, seeds, ticks):
-    engines = [Engine(sc, s) for s in seeds]
-    t0 = timed()
-    for e in engines:
-        for _ in range(ticks):
+    def _step(self):
+        for e in self.engines:
             e.step()
-    dt = since(t0, ("reference", sc.agents, len(seeds)))
-    return dt, [(list(e.world.xs), list(e.world.ys)) for e in engines]
+
+    def steps(self, k):
+        c, w = time.process_time(), time.perf_counter()
+        for _ in range(k):
+            self._step()
+        self.cpu += time.process_time() - c
+        self.wall += time.perf_counter() - w
+
+    def positions(self):
+        """Every run's robot positions (None for a run the batch finished)."""
+        if self.name == "reference":
+            return [(list(e.world.xs), list(e.world.ys)) for e in self.engines]
+        be = self.engines[0]
+        out = []
+        for r in range(len(be.runs)):
+            if not be.rt[B.LIVE, r]:   # delivered early, the reference steps on
+                out.append(None)
+                continue
+            a, b = int(be.rt[B.LO, r]), int(be.rt[B.HI, r])
+            out.append((be.rb[B.XS, a:b].tolist(), be.rb[B.YS, a:b].tolist()))
+        return out
 
 
-def time_batch(sc, seeds, ticks, engine=BatchEngine):
-    t0 = time.perf_counter()
-    be = engine([(sc, s) for s in seeds])
-    be.step()                      # the first tick compiles the step function
-    setup = time.perf_counter() - t0
-    t0 = timed()
-    for _ in range(ticks - 1):
-        be.step()
-    dt = since(t0, (engine.__name__, sc.agents, len(seeds)))
-    out = []
-    for r in range(len(seeds)):
-        if not be.rt[B.LIVE, r]:   # delivered early, the reference steps on
-            out.append(None)
-            continue
-        a, b = int(be.rt[B.LO, r]), int(be.rt[B.HI, r])
-        out.append((be.rb[B.XS, a:b].tolist(), be.rb[B.YS, a:b].tolist()))
-    return dt * ticks / (ticks - 1), out, setup
+def time_engines(sc, seeds, ticks):
+    """The three engines over the same ticks 2..ticks, interleaved: ROUNDS
+    rounds, each engine stepping its share in turn (the order rotating), so
+    a neighbour that slows the shared machine for a while slows all three."""
+    engines = [Timed(name, sc, seeds) for name in ("reference", "batch", "soa")]
+    left = ticks - 1
+    for k in range(ROUNDS):
+        share = left // (ROUNDS - k)
+        left -= share
+        for j in range(3):
+            engines[(k + j) % 3].steps(share)
+    return {e.name: e for e in engines}
 
 
 SOA_START = """
@@ -134,38 +156,27 @@ def main():
     res["batch_cold_start_s"] = round(time.perf_counter() - t0, 2)
     res["batch_compile_s"] = round(twins().compile_seconds, 2)
     SoaEngine([(scenario(20, 18), 1)]).step()      # this process's SoA (cache as it is)
-    for name, (world, rt, vt, runs) in SIZES.items():
+    for name, (world, ticks, runs) in SIZES.items():
         robots = int(name.split("x")[0])
         if quick:
-            rt, vt = max(2, rt // 10), max(2, vt // 10)
+            ticks = max(ROUNDS + 1, ticks // 10)
         sc = scenario(robots, world)
         seeds = list(range(1, runs + 1))
-        ticks = min(rt, vt)
-        # same tick count for the identity check, then each engine's own length
-        ref_dt, ref_pos = time_reference(sc, seeds, ticks)
-        bat_dt, bat_pos, bat_setup = time_batch(sc, seeds, vt)
-        soa_dt, soa_pos, soa_setup = time_batch(sc, seeds, vt, SoaEngine)
-        # the timed runs' wall seconds (the identity re-runs below overwrite them)
-        wall = {k[0]: v for k, v in WALL.items() if k[1:] == (robots, runs)}
-        if vt != ticks:
-            _, bat_pos, _ = time_batch(sc, seeds, ticks)
-            _, soa_pos, _ = time_batch(sc, seeds, ticks, SoaEngine)
-        n = robots * runs
-        ref_rate = n * ticks / ref_dt
+        eng = time_engines(sc, seeds, ticks)
+        n = robots * runs * (ticks - 1)
+        rate = {k: n / e.cpu for k, e in eng.items()}
+        ref = eng["reference"].positions()
         res["sizes"][name] = {
-            "robots": robots, "runs": runs, "worldSize": world,
-            "reference": {"ticks": ticks, "seconds": round(ref_dt, 4),
-                          "robot_ticks_per_s": round(ref_rate)},
-            "batch": {"ticks": vt, "seconds": round(bat_dt, 4), "setup_s": round(bat_setup, 3),
-                      "robot_ticks_per_s": round(n * vt / bat_dt)},
-            "soa": {"ticks": vt, "seconds": round(soa_dt, 4), "setup_s": round(soa_setup, 3),
-                    "robot_ticks_per_s": round(n * vt / soa_dt)},
-            "ratio_soa_to_reference": round(n * vt / soa_dt / ref_rate, 2),
-            "ratio_soa_to_batch": round(bat_dt / soa_dt, 2),
-            "ratio_batch_to_reference": round(n * vt / bat_dt / ref_rate, 2),
-            "wall_s": wall,
-            "identical_positions": all(b is None or b == r for r, b in zip(ref_pos, bat_pos))
-            and all(b is None or b == r for r, b in zip(ref_pos, soa_pos)),
+            "robots": robots, "runs": runs, "worldSize": world, "ticks": ticks,
+            "timed_ticks": ticks - 1, "rounds": ROUNDS,
+            **{k: {"seconds": round(e.cpu, 4), "wall_s": round(e.wall, 4),
+                   "setup_s": round(e.setup, 3), "robot_ticks_per_s": round(rate[k])}
+               for k, e in eng.items()},
+            "ratio_soa_to_reference": round(rate["soa"] / rate["reference"], 2),
+            "ratio_soa_to_batch": round(rate["soa"] / rate["batch"], 2),
+            "ratio_batch_to_reference": round(rate["batch"] / rate["reference"], 2),
+            "identical_positions": all(b is None or b == r for k in ("batch", "soa")
+                                       for r, b in zip(ref, eng[k].positions())),
         }
     print(json.dumps(res, indent=2))
 
