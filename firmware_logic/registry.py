@@ -65,6 +65,10 @@ class Behaviour:
         return getattr(self.robot_module, self.package.ROBOT.split(":")[1])
 
     def robot_args(self, node: int, seed: int, sc: Any) -> tuple:
+        """The FSM's constructor arguments for robot `node`, read off the
+        scenario of its breed (a [[breeds]] table may set any parameter)."""
+        if getattr(sc, "breeds", ()):
+            sc = sc.for_node(node)
         return tuple(self.package.robot_args(node, seed, sc))
 
     def make_robot(self, node: int, seed: int, sc: Any) -> Any:

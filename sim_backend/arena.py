@@ -270,12 +270,14 @@ def _check_weight(sc: Any, target: Piece, tname: str, taken: dict) -> None:
     w = sc.worldSize
     key = f"{tname}.{'density' if target.density is not None else 'weight'}" \
         if sc.objects else "objectWeight"
-    needed = -(-round(target.weight * 100) // sc.power_centi)
+    from sim_backend.scenario import holders_needed
+    needed = holders_needed(sc, round(target.weight * 100))
+    if needed is None:
+        return          # the behaviour holds no objects by weight
     if needed > sc.agents:
         raise ScenarioError(
-            f"{key}: weight {target.weight:g} needs {needed} robots of rPower {sc.rPower:g}, "
-            f"but agents is {sc.agents}; allowed weight <= agents * rPower = "
-            f"{sc.agents * sc.rPower:g}")
+            f"{key}: weight {target.weight:g} needs {needed} robots holding it (behaviour "
+            f"{sc.behaviour!r}), but agents is {sc.agents}; lower the weight or add robots")
     fewest = None
     for ax, ay in anchors(target):
         cs = set(target.placed(ax, ay))
@@ -291,10 +293,9 @@ def _check_weight(sc: Any, target: Piece, tname: str, taken: dict) -> None:
         fewest = n if fewest is None else min(fewest, n)
     if needed > fewest:
         raise ScenarioError(
-            f"{key}: weight {target.weight:g} needs {needed} robots of rPower {sc.rPower:g} "
-            f"holding, but only {fewest} can surround {target.name!r} (reachable segments with "
-            f"a free patch beside them, thesis 6.1.5); allowed weight <= "
-            f"{fewest * sc.rPower:g}")
+            f"{key}: weight {target.weight:g} needs {needed} robots holding, but only "
+            f"{fewest} can surround {target.name!r} (reachable segments with a free patch "
+            "beside them, thesis 6.1.5); lower the weight")
 
 
 def _outside(sc: Any, closed: set) -> set:

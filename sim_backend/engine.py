@@ -133,7 +133,8 @@ class RunResult:
             "scenario": self.scenario.name,
             "seed": self.seed,
             "robots": self.scenario.agents,
-            "movementModel": self.scenario.movementModel,
+            # the behaviour's own parameters, as the scenario set them
+            **dict(self.scenario.params),
             "object": self.scenario.object,
             "ticks": self.ticks,
             "found_tick": c.found_tick if c.found_tick >= 0 else None,
@@ -152,7 +153,7 @@ class RunResult:
             **({"touch_breeds": [self.scenario.breed_name(t.node)
                                   for t in getattr(c, "touches", ())]}
                if self.scenario.breeds else {}),
-            **({"wrong_transport": self.wrong_transport()} if self.scenario.recognise else {}),
+            **({"wrong_transport": self.wrong_transport()} if getattr(self.scenario, "recognise", False) else {}),
             **{k: v for inst in self.instruments for k, v in inst.summary().items()},
         }
 
@@ -234,7 +235,7 @@ class Engine:
         in a freshly drawn order takes its turn's steps, each applied at once;
         then the iteration's beacons and the carried group."""
         w = self.world
-        fs, fd = w.field_state, self.sc.fieldDefiance
+        fs, fd = w.field_state, w.extra_steps
         for i in range(len(self.robots)):
             w.beacon_set[i] = -1
         for i in w.draw_order():

@@ -102,7 +102,9 @@ def feasible(sc, seed: int) -> bool:
     """Can the robots that never die and may claim still lift the object?"""
     die, _, _, flags = plan(sc, seed)
     able = sum(1 for d, f in zip(die, flags) if d == NEVER and not f & RANDOM)
-    return able * sc.power_centi >= sc.weight_centi
+    from sim_backend.scenario import holders_needed
+    needed = holders_needed(sc, sc.weight_centi)
+    return needed is None or able >= needed
 
 
 def per_run(sc, seed: int) -> tuple[int, int, int, int]:

@@ -145,7 +145,7 @@ def plot_shapes(rows: Sequence[dict], objs: Sequence[str], title: str, path: Pat
 
     from firmware_logic import perception
     from sim_backend.scenario import validate
-    from sim_backend.sweep import SCENARIO_KEYS
+    from sim_backend.sweep import row_keys
     from sim_backend.world import World
 
     table = shape_table(rows)
@@ -164,7 +164,7 @@ def plot_shapes(rows: Sequence[dict], objs: Sequence[str], title: str, path: Pat
                 ax.axis("off")
                 continue
             # breeds (a tuple, "()" in a CSV) are not numbers: a shapes point has none
-            sc = validate({k: _num(r[k]) for k in SCENARIO_KEYS
+            sc = validate({k: _num(r[k]) for k in row_keys(r)
                            if r.get(k) not in (None, "", (), "()")})
             true = World(sc, int(_num(r["seed"]))).object_cells
             segs = [tuple(int(v) for v in p.split(":")) for p in str(r["segments"]).split()]

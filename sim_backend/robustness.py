@@ -124,10 +124,11 @@ def with_feasible(rows: Sequence[dict]) -> list[dict]:
     map's, and with lostAfter the cells of the holders that died: an object
     pinned by dead robots cannot be delivered by anyone)."""
     from sim_backend import faults
-    from sim_backend.scenario import FIELDS, validate
+    from sim_backend.scenario import validate
+    from sim_backend.sweep import row_keys
     out = []
     for r in rows:
-        raw = {k: v for k, v in r.items() if k in FIELDS and k not in ("name", "description")
+        raw = {k: v for k, v in r.items() if k in row_keys(r) and k not in ("name", "description")
                and v not in (None, "", "()", ())}
         sc = validate({k: _value(v) for k, v in raw.items()})
         out.append({**r, "feasible": faults.feasible(sc, int(r["seed"]))

@@ -1,8 +1,12 @@
-"""Scenarios: the thesis's parameters by their thesis names, loaded from TOML.
+"""Scenarios: the world's keys plus the behaviour's own, loaded from TOML.
 
-A scenario file is flat TOML; every key is optional and defaults to the
-thesis's set-up (docs/scenarios.md). Unknown keys and out-of-range values
-raise ScenarioError naming the key and the allowed range.
+A scenario file is flat TOML; every key is optional (docs/scenarios.md).
+The world's keys (arena, robots, objects, links, faults, activation) are
+the fields of `Scenario`; every other key is a parameter the scenario's
+behaviour declares in its spec.PARAMS, validated against the range declared
+there and read as an attribute like a world key (`sc.quorum`). Unknown keys
+and out-of-range values raise ScenarioError naming the key and the allowed
+range.
 """
 
 from __future__ import annotations
@@ -14,12 +18,10 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from firmware_logic.behaviours.thesis import spec as thesis_spec
-from sim_backend import arena, objects
+from sim_backend import arena, objects, params
 from sim_backend.errors import ScenarioError
 
-# movementModel names and codes: the thesis behaviour's (its spec.py)
-MODELS = {name: code for code, name in thesis_spec.MODELS}
+DEFAULT_BEHAVIOUR = "thesis"
 
 # The firmware's RNG folds a run seed modulo 1,000,003 (firmware_logic/rng.py,
 # seed_state), so seed 1,000,004 would silently repeat seed 1. Seeds are held
@@ -71,11 +73,7 @@ class Scenario:
     name: str = "default"
     description: str = ""
     agents: int = 20
-    movementModel: str = "firefly"
-    robotVisionSpan: int = 45
-    fieldDefiance: int = 2
     sigRadius: int = 5
-    rPower: float = 1.0
     objectWeight: float = 5.0
     object: str = "bar"
     worldSize: int = 18          # patches run from -worldSize to +worldSize
@@ -84,8 +82,7 @@ class Scenario:
     objectX: int | None = None   # None: `random 10`, as CreateWorld draws it
     objectY: int | None = None
     maxTicks: int = 20000
-    behaviour: str = "thesis"    # a name from `touchswarm behaviours` or a folder
-    quorum: int = 80             # aggregate: percent of the swarm that must stop
+    behaviour: str = DEFAULT_BEHAVIOUR   # a name from `touchswarm behaviours` or a folder
     signalMode: str = CHOICES["signalMode"][0]
     uphillTies: str = CHOICES["uphillTies"][0]
     leaderField: str = CHOICES["leaderField"][0]
@@ -97,37 +94,21 @@ class Scenario:
     objects: tuple = ()          # objects.Piece, the target among them
     obstacles: tuple = ()        # objects.Piece
     field: str = "static"        # beacons stay where lit (thesis), or move with holders
-    # issue 11: robots in the carried object's way step aside (NetLogo's turtles
+    # robots in the carried object's way step aside (NetLogo's turtles
     # overlap, so nothing stopped the thesis's object), or block it ("block")
     crowd: str = "yield"
-    wrap: bool = False           # issue 10: a toroidal search phase (NetLogo's default world)
-
-    def pieces(self) -> list:
-        """The scenario's objects as objects.Piece, the target first."""
-        if self.objects:
-            return sorted(self.objects, key=lambda p: not p.target)
-        at = None if self.objectX is None else (self.objectX, self.objectY)
-        return [objects.Piece(self.object, tuple(objects.offsets(self.object)), at,
-                              self.objectWeight, None, True)]
-    # -- issue 12 (the thesis's future work): ants that stay ants, more
-    # movement models, faults; ranges in EXT_RANGES / EXT_CHOICES below
-    antBlocked: str = "random"   # an ant blocked: random heading (thesis) or turn in its span
-    levyMu: float = 2.0          # levy: power-law exponent of flight lengths
-    mothNoise: int = 30          # moth: degrees of noise either side of uphill
-    frogPause: int = 4           # frog: ticks sitting between jumps
-    frogJump: int = 4            # frog: patches of one jump
+    wrap: bool = False           # a toroidal search phase (NetLogo's default world)
     # faults (sim_backend/faults.py), all off by default; rates are shares of the swarm
     deathRate: float = 0.0       # robots that stop for good at a random tick, holders too
     deadlockRate: float = 0.0    # robots stuck in place for deadlockTicks from a random tick
     deadlockTicks: int = 100
     ignoreFieldRate: float = 0.0  # non-complying: never sense the field
-    ignoreHostRate: float = 0.0  # non-complying: drop the host's TRANSPORT and HALT
+    ignoreHostRate: float = 0.0  # non-complying: drop the host's commands
     randomRate: float = 0.0      # random agents: wander, never claim
     probeMiss: float = 0.0       # chance a probe misses a free segment
     probeGhost: float = 0.0      # chance a probe of an empty patch reports a segment
     fieldNoise: int = 0          # field readings +- up to this much
     faultWindow: int = 1000      # deaths and deadlocks start in ticks 1..faultWindow
-    lostAfter: int = 0           # host: a holder silent this many ticks is lost (0: never)
     # the link's own faults (bridge/links/canlink.py Faults), over --link can only
     linkLoss: float = 0.0        # chance a frame is lost, each way
     linkDup: float = 0.0         # chance a frame is sent twice
@@ -136,14 +117,29 @@ class Scenario:
     # several breeds ([[breeds]] tables): each ((key, value), ...) with its count;
     # nodes are numbered breed by breed; empty: one breed, the keys above
     breeds: tuple = ()
-    # issue 13 §2: the host recognises the target from the touches (no truth)
-    # and transports only it; holders of a recognised decoy are released
-    recognise: bool = False      # off: the simulator tells the host the target's cells
-    confidence: float = 0.9      # posterior needed to call a cluster the target (or not)
+    # the behaviour's own keys (its spec.PARAMS), ((name, value), ...) in
+    # declaration order; read as attributes: sc.quorum (sim_backend/params.py)
+    params: tuple = ()
 
-    @property
-    def model(self) -> int:
-        return MODELS[self.movementModel]
+    def __post_init__(self) -> None:
+        if not self.params:
+            object.__setattr__(self, "params", params.defaults(self.behaviour))
+
+    def __getattr__(self, name: str) -> Any:
+        # only reached for names that are no field: the behaviour's parameters
+        for key, value in self.__dict__.get("params", ()):
+            if key == name:
+                return value
+        raise AttributeError(f"scenario has no key {name!r} (behaviour "
+                             f"{self.__dict__.get('behaviour')!r} declares none)")
+
+    def pieces(self) -> list:
+        """The scenario's objects as objects.Piece, the target first."""
+        if self.objects:
+            return sorted(self.objects, key=lambda p: not p.target)
+        at = None if self.objectX is None else (self.objectX, self.objectY)
+        return [objects.Piece(self.object, tuple(objects.offsets(self.object)), at,
+                              self.objectWeight, None, True)]
 
     def breed_index(self, node: int) -> int:
         """The breed (index into breeds) of robot `node` (1-based); 0 without breeds."""
@@ -162,27 +158,43 @@ class Scenario:
         """The scenario robot `node` lives by: its breed's keys over this one."""
         if not self.breeds:
             return self
-        over = {k: v for k, v in self.breeds[self.breed_index(node)] if k in BREED_KEYS}
-        return dataclasses.replace(self, breeds=(), **over)
-
-    @property
-    def levy_q(self) -> int:
-        """Per mille chance a Levy flight doubles (robot.py _new_flight): 2**(1 - mu)."""
-        return round(1000 * 2 ** (1 - self.levyMu))
-
-    @property
-    def power_centi(self) -> int:
-        return round(self.rPower * 100)
+        over = dict(self.breeds[self.breed_index(node)])
+        mine = tuple((k, over.get(k, v)) for k, v in self.params)
+        return dataclasses.replace(self, breeds=(), params=mine)
 
     @property
     def weight_centi(self) -> int:
         return round(self.objectWeight * 100)
 
     def to_dict(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
+        """Every key: the world's, then the behaviour's (flat, as a file sets them)."""
+        d = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)
+             if f.name != "params"}
+        d.update(self.params)
+        return d
 
     def replace(self, **changes: Any) -> "Scenario":
-        return validate({**self.to_dict(), **changes})
+        return validate(merge(self.to_dict(), changes))
+
+
+def merge(base: dict[str, Any], changes: dict[str, Any]) -> dict[str, Any]:
+    """The keys of `base` with `changes` over them. When the changes name
+    another behaviour, the old behaviour's parameters it does not declare
+    are left behind (they would be unknown keys of the new one)."""
+    old = base.get("behaviour", DEFAULT_BEHAVIOUR)
+    new = changes.get("behaviour", old)
+    if str(new) != str(old):
+        keep = set(params.names(str(new))) if _is_behaviour(new) else set()
+        base = {k: v for k, v in base.items() if k in FIELDS or k in keep}
+    return {**base, **changes}
+
+
+def _is_behaviour(ref: Any) -> bool:
+    try:
+        params.names(str(ref))
+    except ScenarioError:
+        return False
+    return True
 
 
 # key -> (kind, low, high); None bounds are unchecked. The simulator takes
@@ -191,10 +203,7 @@ class Scenario:
 # check a scenario against their own limits.
 RANGES: dict[str, tuple[type, Any, Any]] = {
     "agents": (int, 1, 20000),
-    "robotVisionSpan": (int, 0, 360),
-    "fieldDefiance": (int, 0, 50),
     "sigRadius": (int, 0, 30),
-    "rPower": (float, 0.01, 655.0),
     "objectWeight": (float, 0.01, 10000.0),
     # 414: 10,000 robots at the default arena's density (arena_presets.scaled_world)
     "worldSize": (int, 10, 420),
@@ -203,44 +212,24 @@ RANGES: dict[str, tuple[type, Any, Any]] = {
     "objectX": (int, -60, 60),
     "objectY": (int, -60, 60),
     "maxTicks": (int, 1, 10_000_000),
-    "quorum": (int, 1, 100),
-}
-
-# -- issue 12 block: keys whose range is the thesis behaviour's spec.PARAMS row
-EXT_CHOICES: dict[str, tuple[str, ...]] = {
-    # the thesis's rule first (the default)
-    "antBlocked": ("random", "turn"),
-}
-EXT_RANGES: dict[str, tuple[type, Any, Any]] = {
-    name: (float if isinstance(default, str) else int,
-           float(lo) if isinstance(default, str) else lo,
-           float(hi) if isinstance(default, str) else hi)
-    for name, default, lo, hi, _ in thesis_spec.PARAMS
-    if name in ("levyMu", "mothNoise", "frogPause", "frogJump")}
-EXT_RANGES.update({
     "deathRate": (float, 0.0, 1.0), "deadlockRate": (float, 0.0, 1.0),
     "deadlockTicks": (int, 1, 1_000_000), "ignoreFieldRate": (float, 0.0, 1.0),
     "ignoreHostRate": (float, 0.0, 1.0), "randomRate": (float, 0.0, 1.0),
     "probeMiss": (float, 0.0, 1.0), "probeGhost": (float, 0.0, 1.0),
     "fieldNoise": (int, 0, 10), "faultWindow": (int, 1, 10_000_000),
-    "lostAfter": (int, 0, 1_000_000),
     "linkLoss": (float, 0.0, 0.9), "linkDup": (float, 0.0, 0.9), "linkReorder": (int, 1, 64),
-    "linkDelay": (int, 0, 64)})
-EXT_RANGES["confidence"] = (float, 0.5, 0.999)   # > 0.5: target and decoy never both hold
+    "linkDelay": (int, 0, 64),
+}
 LINK_FAULT_KEYS = ("linkLoss", "linkDup", "linkReorder", "linkDelay")
 
 
 def link_faults(sc: "Scenario") -> list[str]:
     """The link fault keys `sc` sets (they need a real link: --link can)."""
-    return [k for k in LINK_FAULT_KEYS if getattr(sc, k) != getattr(Scenario(), k)]
-RANGES.update(EXT_RANGES)
-CHOICES_ALL = {**CHOICES, **EXT_CHOICES}
-# what a [[breeds]] table may set besides its `count` and `name`
-BREED_KEYS = ("movementModel", "rPower", "robotVisionSpan", "fieldDefiance", "antBlocked",
-              "levyMu", "mothNoise", "frogPause", "frogJump")
+    return [k for k in LINK_FAULT_KEYS if getattr(sc, k) != Scenario.__dataclass_fields__[k].default]
 
 
-FIELDS = {f.name for f in dataclasses.fields(Scenario)}
+FIELDS = {f.name for f in dataclasses.fields(Scenario)} - {"params"}
+WORLD_KEYS = frozenset(FIELDS)
 
 
 def _object_name(value: Any) -> str:
@@ -256,55 +245,42 @@ def _object_name(value: Any) -> str:
         f"object: expected 1-4 or one of {', '.join(sorted(objects.SHAPES))}, got {value!r}")
 
 
-def _model_name(value: Any) -> str:
-    names = {code: name for name, code in MODELS.items()}
-    if not isinstance(value, bool) and value in names:
-        return names[value]
-    if isinstance(value, str) and value.lower() in MODELS:
-        return value.lower()
-    named = [f"{name!r} ({code})" for name, code in MODELS.items()]
-    raise ScenarioError(f"movementModel: expected {named[0]} or {named[1]}, or "
-                        f"{', '.join(named[2:])}, got {value!r}")
-
-
-def _behaviour_name(value: Any) -> str:
+def _behaviour(value: Any) -> Any:
+    """The behaviour (firmware_logic.registry.Behaviour) a scenario names."""
     from firmware_logic import registry
 
     try:
-        registry.load(str(value))
+        return registry.load(str(value))
     except registry.BehaviourError as err:
         raise ScenarioError(f"behaviour: {err}") from err
-    return str(value)
 
 
 def validate(raw: dict[str, Any], source: str = "scenario") -> Scenario:
-    unknown = sorted(set(raw) - FIELDS)
+    behaviour = str(raw.get("behaviour", DEFAULT_BEHAVIOUR))
+    beh = _behaviour(behaviour)
+    declared = {p.name: p for p in params.declared(behaviour, WORLD_KEYS)}
+    unknown = sorted(set(raw) - FIELDS - set(declared))
     if unknown:
         raise ScenarioError(
-            f"{source}: unknown key {unknown[0]!r}; known keys: {', '.join(sorted(FIELDS))}")
-    values: dict[str, Any] = {}
+            f"{source}: unknown key {unknown[0]!r}; the world's keys: {', '.join(sorted(FIELDS))}; "
+            f"behaviour {behaviour!r}'s: {', '.join(declared) or 'none'}")
+    values: dict[str, Any] = {"behaviour": behaviour}
+    own = {name: p.default for name, p in declared.items()}
     raw = arena.parse(raw, values)
     for key, value in raw.items():
-        if key == "object":
+        if key == "behaviour":
+            continue
+        if key in declared:
+            own[key] = declared[key].check(value)
+        elif key == "object":
             values[key] = _object_name(value)
-        elif key == "movementModel":
-            values[key] = _model_name(value)
         elif key in ("name", "description"):
             values[key] = str(value)
-        elif key == "behaviour":
-            values[key] = _behaviour_name(value)
         elif key == "breeds":
-            values[key] = _breeds(value, source)
-        elif key == "recognise":
-            # sweep.csv cells read back (plots, thesis figures) say True/False
-            value = {"True": True, "False": False}.get(value, value) \
-                if isinstance(value, str) else value
-            if not isinstance(value, bool):
-                raise ScenarioError(f"recognise: expected true or false, got {value!r}")
-            values[key] = value
-        elif key in CHOICES_ALL:
-            if value not in CHOICES_ALL[key]:
-                raise ScenarioError(f"{key}: expected one of {', '.join(CHOICES_ALL[key])}, "
+            values[key] = _breeds(value, source, declared)
+        elif key in CHOICES:
+            if value not in CHOICES[key]:
+                raise ScenarioError(f"{key}: expected one of {', '.join(CHOICES[key])}, "
                                     f"got {value!r}")
             values[key] = value
         elif key in ("objectX", "objectY") and value is None:
@@ -319,6 +295,7 @@ def validate(raw: dict[str, Any], source: str = "scenario") -> Scenario:
             if value != value or value < lo or value > hi:     # NaN compares False
                 raise ScenarioError(f"{key}: {value!r} is outside the allowed range {lo}..{hi}")
             values[key] = kind(value)
+    values["params"] = tuple(own.items())
     if values.get("breeds"):
         total = sum(dict(b)["count"] for b in values["breeds"])
         if "agents" in raw and values["agents"] != total:
@@ -326,12 +303,6 @@ def validate(raw: dict[str, Any], source: str = "scenario") -> Scenario:
                                 f"which add up to {total}; give one of them")
         values["agents"] = total
     sc = Scenario(**values)
-    if sc.breeds:
-        for node in range(1, sc.agents + 1):
-            _check_model(sc.for_node(node))
-        if sc.behaviour != "thesis":
-            raise ScenarioError(f"breeds: behaviour {sc.behaviour!r} does not read [[breeds]] "
-                                "(the thesis behaviour does); drop the breeds")
     if sc.activation != "sync":
         from sim_backend import faults
         if faults.active(sc):
@@ -343,62 +314,58 @@ def validate(raw: dict[str, Any], source: str = "scenario") -> Scenario:
         raise ScenarioError(f"wrap: sigRadius {sc.sigRadius} exceeds worldSize "
                             f"{sc.worldSize}; on the torus a field must not reach round "
                             "to itself: lower sigRadius or enlarge worldSize")
-    if sc.recognise and sc.lostAfter:
-        # both change which holders' power counts; their interplay is not built
-        raise ScenarioError("recognise: not built together with lostAfter; set one of them")
-    if sc.recognise and sc.behaviour != "thesis":
-        raise ScenarioError(f"recognise: behaviour {sc.behaviour!r} has no object to "
-                            "recognise (the thesis behaviour has); drop recognise")
     if sc.objects or sc.obstacles:
         arena.check(sc)
     else:
         _check_consistency(sc)
+    # the behaviour's own rules over the whole scenario (its __init__.check)
+    check = getattr(beh.package, "check", None)
+    if check is not None:
+        try:
+            check(sc)
+        except ValueError as err:
+            raise ScenarioError(str(err)) from err
     return sc
 
 
-def _breeds(value: Any, source: str) -> tuple:
+def _breeds(value: Any, source: str, declared: dict[str, params.Param]) -> tuple:
     """[[breeds]] tables (or the tuple form to_dict gives back) as a tuple of
-    ((key, value), ...) per breed, each value checked like the scenario's own."""
+    ((key, value), ...) per breed; a breed sets `count`, `name` and any of
+    the behaviour's parameters, each checked like the scenario's own."""
     if isinstance(value, dict) or not isinstance(value, (list, tuple)):
         raise ScenarioError("breeds: expected a list of tables ([[breeds]] with count = N, "
-                            f"movementModel = ..., ...), got {value!r}")
+                            "and parameters of the behaviour), got {value!r}".format(value=value))
     out = []
     for j, b in enumerate(value, 1):
         d = dict(b) if isinstance(b, (dict, list, tuple)) else None
         if d is None or "count" not in d:
             raise ScenarioError(f"breeds #{j}: expected a table with count = N, got {b!r}")
-        unknown = sorted(set(d) - set(BREED_KEYS) - {"count", "name"})
+        unknown = sorted(set(d) - set(declared) - {"count", "name"})
         if unknown:
             raise ScenarioError(f"breeds #{j}: unknown key {unknown[0]!r}; a breed sets count, "
-                                f"name, {', '.join(BREED_KEYS)}")
+                                f"name, {', '.join(declared)}")
         count = d["count"]
         if isinstance(count, bool) or not isinstance(count, int) or not 1 <= count <= 20000:
             raise ScenarioError(f"breeds #{j}: count: expected int in 1..20000, got {count!r}")
-        keys = {k: v for k, v in d.items() if k in BREED_KEYS}
-        # each value checked alone (a light object, so a weak breed's power
-        # is not judged against the default weight; the whole swarm is, later)
-        checked = validate({**keys, "objectWeight": 0.01}, f"{source} breeds #{j}")
         row = [("count", count), ("name", str(d.get("name", f"breed{j}")))]
-        row += [(k, getattr(checked, k)) for k in BREED_KEYS if k in keys]
+        row += [(k, declared[k].check(d[k])) for k in declared if k in d]
         out.append(tuple(row))
     return tuple(out)
 
 
-def _check_lost_after(sc: Scenario) -> None:
-    from firmware_logic.behaviours.thesis.robot import HEARTBEAT_EVERY
-    if 0 < sc.lostAfter <= HEARTBEAT_EVERY:
-        # a holder waiting for the transport reports once per HEARTBEAT_EVERY
-        raise ScenarioError(f"lostAfter: {sc.lostAfter} must be 0 (never) or more than "
-                            f"{HEARTBEAT_EVERY}, the ticks between a waiting holder's reports")
+def holders_needed(sc: Scenario, weight_centi: int) -> int | None:
+    """The fewest robots that must hold an object of this weight, by the
+    behaviour's own rule (its __init__.holders_needed); None when the
+    behaviour holds no objects by weight."""
+    rule = getattr(_behaviour(sc.behaviour).package, "holders_needed", None)
+    return None if rule is None else int(rule(sc, weight_centi))
 
 
 def _check_consistency(sc: Scenario) -> None:
-    _check_model(sc)
     shares = (sc.deathRate + sc.ignoreFieldRate + sc.ignoreHostRate + sc.randomRate)
     if shares > 1.0 + 1e-9:
         raise ScenarioError(f"deathRate + ignoreFieldRate + ignoreHostRate + randomRate: "
                             f"{shares:g} exceeds 1 (they are disjoint shares of the swarm)")
-    _check_lost_after(sc)
     w = sc.worldSize
     offs = objects.offsets(sc.object)
     xs = [x for x, _ in offs]
@@ -427,41 +394,22 @@ def _check_consistency(sc: Scenario) -> None:
                         f"{ay[0]}..{ay[1]} may come within 4 patches of home "
                         f"({sc.homeX}, {sc.homeY}); it must stay at least 4 patches away: "
                         "move objectX/objectY or homeX/homeY")
-    reach = objects.touchable(sc.object)
-    if sc.breeds:
-        powers = sorted((sc.for_node(n).power_centi for n in range(1, sc.agents + 1)),
-                        reverse=True)
-        if sum(powers[:reach]) < sc.weight_centi:
+    needed = holders_needed(sc, sc.weight_centi)
+    if needed is not None:
+        reach = objects.touchable(sc.object)
+        if needed > sc.agents:
             raise ScenarioError(
-                f"objectWeight: {sc.objectWeight} exceeds what the strongest {reach} robots "
-                f"of the breeds can hold ({sum(powers[:reach]) / 100:g}) around {sc.object!r}")
-        needed = 1
-    else:
-        needed = -(-sc.weight_centi // sc.power_centi)
-    if needed > sc.agents:
-        raise ScenarioError(
-            f"objectWeight: {sc.objectWeight} needs {needed} robots of rPower {sc.rPower}, "
-            f"but agents is {sc.agents}; allowed objectWeight <= agents * rPower = "
-            f"{sc.agents * sc.rPower:g}")
-    if needed > reach:
-        raise ScenarioError(
-            f"objectWeight: {sc.objectWeight} needs {needed} robots holding, but {sc.object!r} "
-            f"has only {reach} reachable segments; allowed objectWeight <= {reach * sc.rPower:g}")
+                f"objectWeight: {sc.objectWeight} needs {needed} robots holding it "
+                f"(behaviour {sc.behaviour!r}), but agents is {sc.agents}; lower objectWeight "
+                "or add robots")
+        if needed > reach:
+            raise ScenarioError(
+                f"objectWeight: {sc.objectWeight} needs {needed} robots holding, but "
+                f"{sc.object!r} has only {reach} reachable segments; lower objectWeight")
     free = (2 * w - 1) ** 2 - len(cells)
     if sc.agents > free // 4:
         raise ScenarioError(f"agents: {sc.agents} robots crowd a {2 * w + 1}-patch arena; "
                             f"allowed 1..{free // 4} for worldSize={w}")
-
-
-def _check_model(sc: Scenario) -> None:
-    """The behaviour must know the movement model (aggregate: firefly, ant)."""
-    if sc.movementModel in ("firefly", "ant"):
-        return
-    from firmware_logic import registry
-    names = [n for _, n in registry.load(sc.behaviour).spec.MODELS]
-    if sc.movementModel not in names:
-        raise ScenarioError(f"movementModel: {sc.movementModel!r} is not a model of behaviour "
-                            f"{sc.behaviour!r}; expected one of {', '.join(names)}")
 
 
 def builtin_names() -> list[str]:

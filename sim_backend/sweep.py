@@ -22,8 +22,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
 
+from sim_backend import params
 from sim_backend.errors import ScenarioError
-from sim_backend.scenario import FIELDS, Scenario, check_seed, link_faults, validate
+from sim_backend.scenario import (DEFAULT_BEHAVIOUR, FIELDS, Scenario, check_seed, holders_needed,
+                                  link_faults,
+                                  merge, validate)
 
 log = logging.getLogger(__name__)
 # how long to wait for a dask scheduler to answer before calling it unreachable
@@ -40,9 +43,17 @@ MEASURES = ["ticks", "found_tick", "converged_tick", "home_tick", "n_touches", "
             "shape_iou", "leader", "delivered", "segments", "touches", "converged_moves"]
 # the drawn pieces (tables, not values) go in one text column, `pieces`
 PIECE_KEYS = ("objects", "obstacles")
-# [[breeds]] tables go in one text column too, `breeds`
+# [[breeds]] tables go in one text column too, `breeds`; the world's keys,
+# then each behaviour's own parameters (columns())
 SCENARIO_KEYS = [k for k in Scenario.__dataclass_fields__
-                 if k not in ("name", "description", "breeds") + PIECE_KEYS]
+                 if k not in ("name", "description", "breeds", "params") + PIECE_KEYS]
+
+
+def row_keys(row: dict[str, Any]) -> list[str]:
+    """The scenario keys a sweep.csv row holds: the world's, then its
+    behaviour's own parameters."""
+    from sim_backend import params
+    return [*SCENARIO_KEYS, *params.names(row.get("behaviour") or DEFAULT_BEHAVIOUR)]
 
 
 @dataclass(frozen=True)
@@ -57,10 +68,9 @@ class Point:
 
 def grid_points(grid: dict[str, Sequence[Any]], experiment: str = "grid") -> list[Point]:
     """The cartesian product of a grid {key: [values]}, in the grid's key order."""
+    # a key is checked with the point's scenario (the behaviour's own
+    # parameters are keys too): validate_points
     for key, values in grid.items():
-        if key not in FIELDS:
-            raise ScenarioError(f"--grid {key}: unknown scenario key; known keys: "
-                                f"{', '.join(sorted(FIELDS))}")
         if not values:
             raise ScenarioError(f"--grid {key}: no values; expected {key}=V1,V2,...")
         seen: list[Any] = []
@@ -107,9 +117,15 @@ THESIS_MAX_TICKS = 5000
 THESIS_UNTIL = "converged"
 
 
-def _scenario(base: dict[str, Any], params: dict[str, Any]) -> Scenario:
-    return validate({**base, **params}, "sweep point " + ", ".join(
-        f"{k}={v}" for k, v in params.items()))
+def _scenario(base: dict[str, Any], point: dict[str, Any]) -> Scenario:
+    behaviour = str(point.get("behaviour", base.get("behaviour", DEFAULT_BEHAVIOUR)))
+    for key in point:
+        if key not in FIELDS and key not in params.names(behaviour):
+            raise ScenarioError(
+                f"--grid {key}: unknown scenario key; `touchswarm scenarios --behaviour "
+                f"{behaviour}` lists the world's keys and the behaviour's")
+    return validate(merge(base, point), "sweep point " + ", ".join(
+        f"{k}={v}" for k, v in point.items()))
 
 
 def pick_engine(engine: str) -> str:
@@ -420,7 +436,7 @@ def check_done(done: Sequence[dict], points: Sequence[Point], seeds: Sequence[in
         if key in keys:
             raise ScenarioError(f"resume: {where} is there twice; the file was edited")
         sc = runs[key]
-        for k in SCENARIO_KEYS:
+        for k in [*SCENARIO_KEYS, *dict(sc.params)]:
             if _cell(row.get(k)) != _cell(getattr(sc, k)):
                 raise ScenarioError(f"resume: {where} has {k}={row.get(k)} but this sweep "
                                     f"runs {k}={getattr(sc, k)!r}; use another --out or the "
@@ -439,6 +455,13 @@ def columns(behaviours: Iterable[str]) -> list[str]:
     names = ["experiment", "point", *SCENARIO_KEYS, "pieces", "breeds", "required", "seed",
              "until",
              *MEASURES]
+    from sim_backend import params
+    at = names.index("pieces")
+    for b in dict.fromkeys(behaviours):
+        for name in params.names(b):
+            if name not in names:
+                names.insert(at, name)
+                at += 1
     for b in dict.fromkeys(behaviours):
         for name, _ in registry.load(b).spec.MEASURES:
             if name not in names:
@@ -465,9 +488,10 @@ def make_row(pt: Point, sc: Scenario, seed: int, s: dict, until: str) -> dict:
                            "point": ";".join(f"{k}={v}" for k, v in pt.params)}
     for k in SCENARIO_KEYS:
         row[k] = getattr(sc, k)
+    row.update(sc.params)
     row["pieces"] = " ".join(repr(p) for k in PIECE_KEYS for p in getattr(sc, k))
     row["breeds"] = " ".join(f"{dict(b)['name']}:{dict(b)['count']}" for b in sc.breeds)
-    row["required"] = -(-sc.weight_centi // sc.power_centi)
+    row["required"] = holders_needed(sc, sc.weight_centi)
     row["seed"] = seed
     row["until"] = until
     row["ticks"] = s["ticks"]

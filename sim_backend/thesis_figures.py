@@ -92,9 +92,9 @@ def _pairs(text) -> list[tuple[int, int]]:
 def _true_cells(r: dict) -> list[tuple[int, int]]:
     """The object's cells at the start of the run a sweep row describes."""
     from sim_backend.scenario import validate
-    from sim_backend.sweep import SCENARIO_KEYS
+    from sim_backend.sweep import row_keys
     from sim_backend.world import World
-    sc = validate({k: _num(r[k]) for k in SCENARIO_KEYS if r.get(k) not in (None, "")})
+    sc = validate({k: _num(r[k]) for k in row_keys(r) if r.get(k) not in (None, "")})
     return World(sc, int(_num(r["seed"]))).object_cells
 
 

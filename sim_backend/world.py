@@ -32,13 +32,17 @@ def signal_table(radius: int) -> list[tuple[int, int, int]]:
     return out
 
 
-def field_state(behaviour: str) -> int:
-    """The code of the behaviour's "field" state (a robot there takes 1 +
-    fieldDefiance steps per go iteration under sequential activation), -1
-    when it has none."""
+def multi_step(sc: Scenario) -> tuple[int, int]:
+    """(state code, extra steps): under sequential activation a robot whose
+    turn starts in that state of the behaviour takes 1 + extra FSM steps per
+    go iteration, as the behaviour declares in its __init__.MULTI_STEP
+    ((state name, parameter name)); (-1, 0) when it declares none."""
     from firmware_logic import registry
-    states = registry.load(behaviour).spec.STATES
-    return states.index("field") if "field" in states else -1
+    b = registry.load(sc.behaviour)
+    decl = getattr(b.package, "MULTI_STEP", None)
+    if decl is None:
+        return -1, 0
+    return b.spec.STATES.index(decl[0]), int(getattr(sc, decl[1]))
 
 
 class World:
@@ -104,7 +108,7 @@ class World:
         self.act = CHOICES["activation"].index(sc.activation)
         self.order = list(range(a))
         self.order_state = [kernel.order_seed(seed)]
-        self.field_state = field_state(sc.behaviour)
+        self.field_state, self.extra_steps = multi_step(sc)
         self.recount()
 
     def _redrawn_starts(self, sc: Scenario, setup: Rng) -> None:

@@ -11,7 +11,7 @@ from firmware_logic.behaviours.thesis.spec import HOLD
 from sim_backend import faults
 from sim_backend.engine import Engine
 from sim_backend.errors import ScenarioError
-from sim_backend.scenario import EXT_RANGES, Scenario, validate
+from sim_backend.scenario import RANGES, Scenario, validate
 from tests.harness import assert_same
 
 OFF = {"deathRate": 0.0, "deadlockRate": 0.0, "ignoreFieldRate": 0.0, "ignoreHostRate": 0.0,
@@ -34,7 +34,7 @@ def test_faults_explicitly_off_are_bit_identical_to_absent():
 
 @pytest.mark.parametrize("key", sorted(k for k in OFF))
 def test_every_fault_key_out_of_range_is_one_line(key):
-    kind, lo, hi = EXT_RANGES[key]
+    kind, lo, hi = RANGES[key]
     for bad in (lo - 1, hi + 1, "x"):
         with pytest.raises(ScenarioError) as err:
             validate({key: bad})

@@ -15,15 +15,17 @@ from firmware_logic.behaviours.thesis.robot import FIELD, LEVY_KMAX, MOTH_SPIRAL
 from firmware_logic.hal import WALL
 from sim_backend.engine import Engine, run
 from sim_backend.errors import ScenarioError
-from sim_backend.scenario import MODELS, validate
+from sim_backend import params
+from sim_backend.scenario import validate
 from tests.fakehal import FakeHal
 
 NEW = ("levy", "moth", "frog")
 
 
 def test_the_scenario_models_are_the_specs():
-    assert MODELS == {n: c for c, n in spec.MODELS}
-    assert set(NEW) <= set(MODELS)
+    model = {p.name: p for p in params.declared("thesis")}["movementModel"]
+    assert model.codes == spec.MODELS and model.choices == tuple(n for _, n in spec.MODELS)
+    assert set(NEW) <= set(model.choices)
     assert validate({"movementModel": 3}).movementModel == "levy"
 
 
@@ -120,7 +122,9 @@ def test_levy_flight_lengths_follow_the_truncated_power_law():
     assert 0.2 < share4 < 0.3
     steep = lengths(round(1000 * 2 ** (1 - 3.0)))          # mu = 3
     assert sum(steep) < sum(two)
-    assert validate({"levyMu": 3.0}).levy_q == 250
+    from firmware_logic import registry
+    sc = validate({"levyMu": 3.0, "movementModel": "levy"})
+    assert registry.load("thesis").robot_args(1, 1, sc)[8] == 250   # the FSM's levy_q
 
 
 def test_a_levy_walker_keeps_its_heading_for_the_flight():

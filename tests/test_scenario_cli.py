@@ -20,7 +20,7 @@ def test_builtin_scenarios_load_with_thesis_names():
     names = scenario.builtin_names()
     assert {"default", "ant", "L", "cross", "X", "plus", "T", "square"} <= set(names)
     sc = scenario.load("ant")
-    assert sc.movementModel == "ant" and sc.model == 2 and sc.agents == 20
+    assert sc.movementModel == "ant" and sc.agents == 20
 
 
 @pytest.mark.parametrize("raw, needle", [

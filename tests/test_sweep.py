@@ -51,7 +51,7 @@ def test_dask_local_cluster_gives_the_same_csv(tmp_path):
 
 def test_unknown_key_is_refused():
     with pytest.raises(ScenarioError, match="unknown scenario key"):
-        sweep.grid_points({"fieldDefyance": [1]})
+        sweep.validate_points(sweep.grid_points({"fieldDefyance": [1]}))
 
 
 def test_cli_sweep_writes_csv_and_plots(tmp_path, capsys):

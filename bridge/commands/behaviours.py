@@ -7,6 +7,7 @@ import argparse
 import keyword
 from pathlib import Path
 
+from bridge.commands.numbers import count
 from bridge.commands.paths import path_arg
 from bridge.errors import UsageError
 
@@ -40,6 +41,24 @@ def register(sub) -> None:
     new.add_argument("--into", type=path_arg, default=None,
                      help="parent folder (default: firmware_logic/behaviours/)")
     new.set_defaults(func=cmd_new)
+    chk = nsub.add_parser("check", help="run every step on a behaviour folder",
+                          description="Run every step a behaviour must pass, as a user runs "
+                                      "it: load, run, sweep (soa == reference), firmware "
+                                      "check, run --link can --record + replay, dbc, robots + "
+                                      "host over SLCAN on a pty, deploy (with --port). Prints "
+                                      "a table of PASS/FAIL with the first error of each; exit "
+                                      "1 when a step failed. A new behaviour's first sweep "
+                                      "compiles its soa engine (1.5-3.5 min).")
+    chk.add_argument("folder", type=path_arg, metavar="DIR|NAME",
+                     help="the behaviour's folder (or an installed behaviour's name)")
+    chk.add_argument("--ticks", type=count(1, what="ticks"), default=400, metavar="N",
+                     help="ticks of each run (default 400)")
+    chk.add_argument("--port", default=None, metavar="PORT",
+                     help="a MicroPython board's serial port for the deploy step")
+    chk.add_argument("--only", action="append", default=[], metavar="STEP",
+                     help="run only these steps (repeatable): load, run, sweep, firmware, "
+                          "can, dbc, bus, deploy")
+    chk.set_defaults(func=cmd_check)
     n.set_defaults(func=lambda args: (n.print_help(), 2)[1])
 
 
@@ -87,3 +106,29 @@ def cmd_new(args: argparse.Namespace) -> int:
     return 0
 
 
+
+
+def cmd_check(args: argparse.Namespace) -> int:
+    from bridge import behaviour_check as bc
+    from firmware_logic import registry
+
+    folder = args.folder
+    if not folder.exists():
+        known = registry.names()
+        if str(folder) not in known:
+            raise UsageError(f"behaviour {str(folder)!r}: no such folder nor an installed "
+                             f"behaviour ({', '.join(sorted(known))})")
+        folder = registry.load(str(folder)).folder
+    bad = [s for s in args.only if s not in bc.STEPS]
+    if bad:
+        raise UsageError(f"--only {bad[0]!r}: expected one of {', '.join(bc.STEPS)}")
+    steps = tuple(s for s in bc.STEPS if not args.only or s in args.only)
+    print(f"checking {folder} ({len(steps)} steps)")
+
+    def line(o) -> None:
+        print(f"  {o.step:9s} {o.status:8s} {o.seconds:6.1f} s  {o.detail}", flush=True)
+
+    out = bc.check(folder, ticks=args.ticks, port=args.port, steps=steps, on_step=line)
+    failed = [o.step for o in out if o.status == "FAIL"]
+    print(f"behaviour check: {'FAIL (' + ', '.join(failed) + ')' if failed else 'PASS'}")
+    return 1 if failed else 0

@@ -1,43 +1,59 @@
-"""`touchswarm scenarios`: list the built-in scenarios and their keys."""
+"""`touchswarm scenarios`: list the built-in scenarios, the world's keys and
+a behaviour's own keys."""
 
 from __future__ import annotations
 
 import argparse
 
+EPILOG = """examples:
+  touchswarm scenarios                          # built-ins, world keys, the thesis's keys
+  touchswarm scenarios --behaviour aggregate    # that behaviour's own keys (spec.PARAMS)
+  touchswarm scenarios --behaviour ./mine       # a behaviour folder's keys"""
+
 
 def register(sub) -> None:
     p = sub.add_parser("scenarios", help="list built-in scenarios and the scenario keys",
-                       description="List the built-in scenarios, then every scenario key "
-                                   "with its default and allowed range.")
+                       description="List the built-in scenarios, then every key of the "
+                                   "world with its default and allowed range, then the "
+                                   "keys the behaviour declares (its spec.PARAMS).",
+                       epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--behaviour", default=None, metavar="NAME|DIR",
+                   help="whose own keys to list (default: the default scenario's, thesis)")
     p.set_defaults(func=cmd_scenarios)
 
 
 def cmd_scenarios(args: argparse.Namespace) -> int:
-    from sim_backend import scenario
+    from sim_backend import arena, objects, params, scenario
+    behaviour = args.behaviour or scenario.DEFAULT_BEHAVIOUR
+    declared = params.declared(behaviour, scenario.WORLD_KEYS)   # ScenarioError: one line
     for name in scenario.builtin_names():
         sc = scenario.load(name)
         print(f"{name:10s} {sc.description}")
-    print("\nkeys (default, allowed):")
+    print("\nworld keys (default, allowed):")
     base = scenario.Scenario()
-    for key, value in base.to_dict().items():
+    for key in sorted(scenario.FIELDS, key=list(base.to_dict()).index):
+        value = getattr(base, key)
         rng = scenario.RANGES.get(key)
-        if key in scenario.CHOICES_ALL:
-            print(f"  {key:16s} {value!s:10s} {' | '.join(scenario.CHOICES_ALL[key])}")
-            continue
-        allowed = f"{rng[1]}..{rng[2]}" if rng else {
-            "movementModel": " | ".join(scenario.MODELS),
-            "breeds": "[[breeds]] tables: count, name, " + ", ".join(scenario.BREED_KEYS),
-            "object": "1-4 | " + " | ".join(
-                sorted(__import__('sim_backend.objects', fromlist=['x']).SHAPES)),
-            "objects": "[[objects]] tables (docs/scenarios.md)",
-            "obstacles": "[[obstacles]] tables (docs/scenarios.md)",
-            "field": "static | dynamic",
-            "crowd": "block | yield",
-            "wrap": "false | true",
-            "recognise": "true | false (confidence: the posterior it needs)",
-        }.get(key, "text")
+        if key in scenario.CHOICES:
+            allowed = " | ".join(scenario.CHOICES[key])
+        elif rng:
+            allowed = f"{rng[1]}..{rng[2]}"
+        else:
+            allowed = {
+                "behaviour": "a name from `touchswarm behaviours`, or a folder",
+                "breeds": "[[breeds]] tables: count, name and the behaviour's keys",
+                "object": "1-4 | " + " | ".join(sorted(objects.SHAPES)),
+                "objects": "[[objects]] tables (docs/scenarios.md)",
+                "obstacles": "[[obstacles]] tables (docs/scenarios.md)",
+                "field": " | ".join(arena.FIELD_MODES),
+                "crowd": " | ".join(arena.CROWD_MODES),
+                "wrap": "false | true",
+            }.get(key, "text")
         print(f"  {key:16s} {value!s:10s} {allowed}")
-    from sim_backend import objects
+    print(f"\nbehaviour {behaviour!r} keys (its spec.PARAMS; default, allowed, meaning):")
+    for p in declared:
+        default = str(p.default).lower() if p.kind == "bool" else p.default
+        print(f"  {p.name:16s} {default!s:10s} {p.allowed():22s} {p.meaning}")
     print("\nshapes (object = NAME, or shape = NAME in [[objects]]; rows top to bottom):")
     for name in sorted(objects.SHAPES):
         print(f"  {name}:")

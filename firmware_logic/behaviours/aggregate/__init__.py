@@ -7,7 +7,13 @@ SUBSET_SETUP = ("robot_args", "make_coordinator")   # host side: may allocate
 
 def robot_args(node, seed, sc):
     """The FSM's constructor arguments for robot `node` of scenario `sc`."""
-    return (node, seed, sc.model, sc.robotVisionSpan, sc.fieldDefiance, sc.power_centi)
+    from .spec import MODELS
+    model = 0
+    for code, name in MODELS:
+        if name == sc.movementModel:
+            model = code
+    # HELLO's power: every robot alike (aggregation lifts nothing)
+    return (node, seed, model, sc.robotVisionSpan, sc.fieldDefiance, 100)
 
 
 def make_coordinator(sc, journal=None, cells=None, on_reject=None):
@@ -17,5 +23,5 @@ def make_coordinator(sc, journal=None, cells=None, on_reject=None):
     aggregation has no object. journal, on_reject: the host contract
     (firmware_logic/roster.py)."""
     from firmware_logic.behaviours.aggregate.coordinator import Coordinator
-    return Coordinator(sc.agents, getattr(sc, "quorum", 80), journal=journal,
+    return Coordinator(sc.agents, sc.quorum, journal=journal,
                        on_reject=on_reject, world_size=getattr(sc, "worldSize", None))

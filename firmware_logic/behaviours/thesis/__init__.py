@@ -2,17 +2,67 @@
 
 # The wiring the registry reads (firmware_logic/registry.py); host side only.
 ROBOT = "robot:Robot"
-SUBSET_SETUP = ("robot_args", "make_coordinator")   # host side: may allocate
+SUBSET_SETUP = ("robot_args", "make_coordinator", "holders_needed")  # host side: may allocate
+
+
+# Under NetLogo's sequential activation a robot in this state takes 1 + the
+# parameter's value FSM steps per go iteration (go: FollowField, then
+# `repeat fieldDefiance [RandomHead]`); the world reads it (sim_backend/world.py).
+MULTI_STEP = ("field", "fieldDefiance")
+
+
+def model_code(name):
+    """The FSM's code of movement model `name` (spec.MODELS)."""
+    from .spec import MODELS
+    for code, known in MODELS:
+        if known == name:
+            return code
+    raise ValueError("movementModel: %r is not one of this behaviour's models" % (name,))
+
+
+def power_centi(sc):
+    """One robot's power in hundredths (HELLO.power)."""
+    return round(sc.rPower * 100)
 
 
 def robot_args(node, seed, sc):
     """The FSM's constructor arguments for robot `node` of scenario `sc`
-    (its breed's keys when the scenario declares [[breeds]])."""
-    if getattr(sc, "breeds", ()):
-        sc = sc.for_node(node)
-    return (node, seed, sc.model, sc.robotVisionSpan, sc.fieldDefiance, sc.power_centi,
+    (sc is already the robot's breed's scenario when [[breeds]] are declared)."""
+    model = model_code(sc.movementModel)
+    # per mille chance a Levy flight doubles (robot.py _new_flight): 2**(1 - mu)
+    levy_q = round(1000 * 2 ** (1 - sc.levyMu))
+    return (node, seed, model, sc.robotVisionSpan, sc.fieldDefiance, power_centi(sc),
             1 if sc.leaderField == "netlogo" else 0, 1 if sc.antBlocked == "turn" else 0,
-            sc.levy_q, sc.mothNoise, sc.frogPause, sc.frogJump)
+            levy_q, sc.mothNoise, sc.frogPause, sc.frogJump)
+
+
+def holders_needed(sc, weight_centi):
+    """The fewest robots whose power together reaches the weight (the
+    scenario's checks; more than the swarm when it cannot)."""
+    if not sc.breeds:
+        return -(-weight_centi // power_centi(sc))
+    powers = []
+    for n in range(1, sc.agents + 1):
+        powers.append(power_centi(sc.for_node(n)))
+    powers.sort(reverse=True)
+    total = 0
+    for k, p in enumerate(powers, 1):
+        total += p
+        if total >= weight_centi:
+            return k
+    return sc.agents + 1
+
+
+def check(sc):
+    """The thesis's own rules over a whole scenario; ValueError names the key."""
+    from .robot import HEARTBEAT_EVERY
+    if 0 < sc.lostAfter <= HEARTBEAT_EVERY:
+        # a holder waiting for the transport reports once per HEARTBEAT_EVERY
+        raise ValueError("lostAfter: %d must be 0 (never) or more than %d, the ticks "
+                         "between a waiting holder's reports" % (sc.lostAfter, HEARTBEAT_EVERY))
+    if sc.recognise and sc.lostAfter:
+        # both change which holders' power counts; their interplay is not built
+        raise ValueError("recognise: not built together with lostAfter; set one of them")
 
 
 def make_coordinator(sc, journal=None, cells=None, on_reject=None):

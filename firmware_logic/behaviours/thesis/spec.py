@@ -50,19 +50,29 @@ MESSAGES = (
 )
 
 # -- parameters: thesis name, default, low, high, meaning ---------------------
-# (scenario keys; the world's own keys are in sim_backend/scenario.py)
+# Scenario keys of scenarios running this behaviour (the world's own keys are
+# in sim_backend/scenario.py). The kind is read off the row (sim_backend/params.py):
+# an int default is an int in low..high; True/False a bool; text with text
+# bounds a float ("1.0"); text with a tuple of words in `low` one of them;
+# text with no bounds one of MODELS.
 PARAMS = (
     ("movementModel", "firefly", None, None,
      "firefly (1), ant (2), levy (3), moth (4) or frog (5)"),
     ("robotVisionSpan", 45, 0, 360, "ant turn range, degrees either side"),
     ("fieldDefiance", 2, 0, 50, "random steps between two uphill steps in a field"),
     ("rPower", "1.0", "0.01", "655.0", "power of one robot (weight units)"),
-    ("antBlocked", "random", None, None,
+    ("antBlocked", "random", ("random", "turn"), None,
      "an ant blocked on its step: random heading (thesis) or turn within its span"),
     ("levyMu", "2.0", "1.1", "3.0", "Levy walk: power-law exponent of flight lengths"),
     ("mothNoise", 30, 0, 180, "moth: noise on its uphill heading, degrees either side"),
     ("frogPause", 4, 1, 100, "frog: ticks it sits looking round between jumps"),
     ("frogJump", 4, 1, 30, "frog: patches of one jump"),
+    # the host's side (coordinator.py)
+    ("lostAfter", 0, 0, 1000000, "host: a holder silent this many ticks is lost (0: never)"),
+    ("recognise", False, None, None,
+     "host: recognise the target from the touches (no truth), release holders of decoys"),
+    ("confidence", "0.9", "0.5", "0.999",
+     "recognise: the posterior needed to call a cluster the target (or not)"),
 )
 
 # -- measures a run reports (summary keys) -----------------------------------
