@@ -168,9 +168,8 @@ class Scenario:
 
     def to_dict(self) -> dict[str, Any]:
         """Every key: the world's, then the behaviour's (flat, as a file sets them)."""
-        d = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)
-             if f.name != "params"}
-        d.update(self.params)
+        d = dataclasses.asdict(self)        # pieces and obstacles as tables, too
+        d.update(d.pop("params"))
         return d
 
     def replace(self, **changes: Any) -> "Scenario":
@@ -361,6 +360,17 @@ def holders_needed(sc: Scenario, weight_centi: int) -> int | None:
     return None if rule is None else int(rule(sc, weight_centi))
 
 
+def holders_within_swarm(sc: Scenario, weight_centi: int, key: str) -> int | None:
+    """holders_needed, refused in one line naming `key` when the whole swarm
+    together cannot hold the weight."""
+    needed = holders_needed(sc, weight_centi)
+    if needed is not None and needed > sc.agents:
+        raise ScenarioError(
+            f"{key}: weight {weight_centi / 100:g} is more than all {sc.agents} robots can hold "
+            f"together (behaviour {sc.behaviour!r}); lower the weight or add robots")
+    return needed
+
+
 def _check_consistency(sc: Scenario) -> None:
     shares = (sc.deathRate + sc.ignoreFieldRate + sc.ignoreHostRate + sc.randomRate)
     if shares > 1.0 + 1e-9:
@@ -394,14 +404,9 @@ def _check_consistency(sc: Scenario) -> None:
                         f"{ay[0]}..{ay[1]} may come within 4 patches of home "
                         f"({sc.homeX}, {sc.homeY}); it must stay at least 4 patches away: "
                         "move objectX/objectY or homeX/homeY")
-    needed = holders_needed(sc, sc.weight_centi)
+    needed = holders_within_swarm(sc, sc.weight_centi, "objectWeight")
     if needed is not None:
         reach = objects.touchable(sc.object)
-        if needed > sc.agents:
-            raise ScenarioError(
-                f"objectWeight: {sc.objectWeight} needs {needed} robots holding it "
-                f"(behaviour {sc.behaviour!r}), but agents is {sc.agents}; lower objectWeight "
-                "or add robots")
         if needed > reach:
             raise ScenarioError(
                 f"objectWeight: {sc.objectWeight} needs {needed} robots holding, but "

@@ -75,14 +75,14 @@ BAD = [
       "obstacles": [{"art": "#", "at": [-15, -15]}]}, "obstacles[0].at: 'obstacle0' covers home"),
     ({"objects": [{"shape": "bar", "at": [-14, -12]}]}, "within 4 patches of home"),
     ({"objects": [{"shape": "bar", "at": [0, 0], "weight": 30}]},
-     "needs 30 robots of rPower 1, but agents is 20"),
+     "objects[0].weight: weight 30 is more than all 20 robots can hold together"),
     # a single cell: at most one robot at a time can hold it, thesis 6.1.5
     ({"objects": [{"cells": [[0, 0]], "at": [0, 0], "weight": 2}]},
      "only 1 can surround"),
     # a square walled in on three sides: only the four on its open side can hold it
     ({"objects": [{"shape": "square", "at": [0, 0], "density": 0.5}],
       "obstacles": [{"art": "#....#\n#....#\n#....#\n#....#\n#....#\n######", "at": [0, 0]}],
-      "agents": 30}, "objects[0].density: weight 8 needs 8 robots of rPower 1 holding, but "
+      "agents": 30}, "objects[0].density: weight 8 needs 8 robots holding, but "
                      "only 4 can surround"),
     ({"objects": [{"shape": "bar", "at": [0, 0]}],
       "obstacles": [{"art": "#" * 37, "at": [-18, -2]}]}, "objects[0].at: 'object0' has no way home"),

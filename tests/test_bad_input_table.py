@@ -52,7 +52,7 @@ ROWS = [
     (["sweep", "--grid", "starts=netlogo,random", "--seeds", "1"],
      "starts: expected one of redraw, netlogo"),
     (["run", "--set", "object=blob"], "object: expected 1-4 or one of"),
-    (["run", "--set", "movementModel=6"], "movementModel: expected 'firefly'"),
+    (["run", "--set", "movementModel=6"], "movementModel: expected one of 'firefly' (1)"),
     (["run", "--set", "agents=1e9"], "agents: 1000000000 is outside"),
     (["run", "--scenario", "{T}/bad.toml"], "bad.toml: not valid TOML"),
     (["run", "--scenario", "{T}/badkey.toml"], "unknown key 'colour'"),
