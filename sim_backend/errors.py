@@ -11,3 +11,8 @@ class ScenarioError(SimError, ValueError):
 
 class EngineError(SimError):
     """An engine cannot run what it was given (names what and why)."""
+
+
+class CompileError(EngineError):
+    """Behaviour source the batch engine cannot compile (a construct outside
+    the subset it transforms): names the file, line and construct."""
