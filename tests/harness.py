@@ -109,7 +109,7 @@ def wrap_scenarios():
 def count_pushes(monkeypatch) -> list[int]:
     """Record every push along the crowd (kernel._chain, crowd "yield") the
     Python kernel makes from now on: the free cell it ended at, -1 none.
-    The compiled engines read the real kernel: patch only around Python runs."""
+    The compiled engine reads the real kernel: patch only around Python runs."""
     from sim_backend import kernel
     pushes: list[int] = []
     chain = kernel._chain
