@@ -14,5 +14,5 @@ class EngineError(SimError):
 
 
 class CompileError(EngineError):
-    """Behaviour source the batch engine cannot compile (a construct outside
-    the subset it transforms): names the file, line and construct."""
+    """Behaviour source the batch engine cannot compile (a construct or an
+    attribute type outside what it transforms): names it and where."""
