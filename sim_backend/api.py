@@ -105,7 +105,7 @@ def sweep(grid: Mapping[str, Iterable[Any]], seeds: int | Iterable[int] = 20,
 
     grid: {scenario key: [values]}, their product is the set of points.
     seeds: a count N (seeds 1..N) or the seeds themselves.
-    engine: auto, soa, batch or reference (sim_backend.sweep.ENGINES).
+    engine: auto, soa or reference (sim_backend.sweep.ENGINES).
     executor: a concurrent.futures.Executor (None: this process).
     overrides: scenario keys for every point, e.g. maxTicks=3000.
     """

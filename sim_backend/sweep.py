@@ -32,10 +32,9 @@ log = logging.getLogger(__name__)
 # how long to wait for a dask scheduler to answer before calling it unreachable
 CONNECT_TIMEOUT_S = 5.0
 
-# auto: the struct-of-arrays engine (sim_backend/batch/soa.py), the fastest at
-# every size and cached on disk (docs/performance.md); batch: the jitclass
-# engine, compiled in every process; reference: one Engine per run
-ENGINES = ("auto", "soa", "batch", "reference")
+# auto: the struct-of-arrays engine (sim_backend/batch/soa.py), compiled and
+# cached on disk (docs/performance.md); reference: one Engine per run
+ENGINES = ("auto", "soa", "reference")
 # how long the soa engine's first compile of a behaviour takes on a 2-core
 # machine (docs/performance.md: aggregate 80-95 s, thesis 142-206 s)
 SOA_COLD_COMPILE = "1.5-3.5 min"
@@ -161,13 +160,9 @@ def run_chunk(jobs: Sequence[tuple[dict, dict, int]], engine: str = "auto",
     scs = [_scenario(b, p) for b, p, _ in jobs]
     seeds = [s for _, _, s in jobs]
     engine = pick_engine(engine)
-    if engine == "batch":
-        from sim_backend.batch.engine import run_batch as run_compiled
-        return run_compiled(scs, seeds, until=until, progress=report)
     if engine == "soa":     # the struct-of-arrays transform, cached on disk
-        from sim_backend.batch.engine import run_batch as run_compiled
-        from sim_backend.batch.soa import SoaEngine
-        return run_compiled(scs, seeds, until=until, progress=report, engine=SoaEngine)
+        from sim_backend.batch.soa import run_batch
+        return run_batch(scs, seeds, until=until, progress=report)
     if engine != "reference":
         raise ValueError(f"engine: expected one of {ENGINES}, got {engine!r}")
     from sim_backend.engine import Engine, RunResult

@@ -311,13 +311,12 @@ def test_the_crowd_rule_cannot_change_a_run_until_convergence():
     """crowd acts only on the carried object, so the thesis's figures (runs
     stopped at convergence, `sweep --thesis`) are the same under either
     rule; after convergence the rules part (200 robots: block stalls)."""
-    from sim_backend.batch.engine import run_batch_results
-    from sim_backend.batch.soa import SoaEngine
+    from sim_backend.batch.soa import run_batch_results
     runs = {}
     for crowd in ("yield", "block"):
         sc = validate({"agents": 150, "crowd": crowd, "maxTicks": 1500})
         got = run_batch_results([sc] * 3, [1, 2, 3], record_trajectories=True,
-                                until="converged", engine=SoaEngine)
+                                until="converged")
         assert all(r.coordinator.converged_tick > 0 for r in got)
         runs[crowd] = [(r.coordinator.converged_tick, r.summary()["touches"], r.trajectories)
                        for r in got]
@@ -326,5 +325,5 @@ def test_the_crowd_rule_cannot_change_a_run_until_convergence():
     for crowd in ("yield", "block"):
         sc = validate({"agents": 200, "crowd": crowd, "maxTicks": 2500})
         delivered[crowd] = sum(r.delivered for r in run_batch_results(
-            [sc] * 3, [1, 2, 3], engine=SoaEngine))
+            [sc] * 3, [1, 2, 3]))
     assert delivered == {"yield": 3, "block": 0}

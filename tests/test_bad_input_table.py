@@ -129,8 +129,8 @@ ROWS = [
     (["sweep", "--grid", "sigRadius=3,4", "--executor", "processes:0"], "N >= 1 worker"),
     (["sweep", "--grid", "sigRadius=3,4", "--out", "{T}/plainfile"], "is a file; expected a dir"),
     (["sweep", "--grid", "sigRadius=3,4", "--out", ""], "argument --out: an empty path"),
-    (["sweep", "--grid", "sigRadius=3,4", "--engine", "vector"],      # retired: one line
-     "invalid choice: 'vector' (choose from 'auto', 'soa', 'batch', 'reference')"),
+    (["sweep", "--grid", "sigRadius=3,4", "--engine", "batch"],       # retired: one line
+     "invalid choice: 'batch' (choose from 'auto', 'soa', 'reference')"),
     (["sweep", "--grid", "nokey=1,2"], "--grid nokey: unknown scenario key"),
     (["sweep", "--grid", "sigRadius"], "expected KEY=V1,V2,..."),
     (["sweep", "--grid", "sigRadius=1,1"], "value 1 is listed twice"),

@@ -119,7 +119,7 @@ def test_real_links_refuse_more_robots_than_node_ids():
     (["deploy", "--port", "/dev/ttyACM97"], "--port /dev/ttyACM97: no such device"),
     (["deploy", "--port", "/dev/null", "--behaviour", "nope"], "--behaviour: behaviour 'nope'"),
     (["run", "--set", "behaviour=nope"], "behaviour 'nope': not an installed behaviour"),
-    (["sweep", "--grid", "sigRadius=3", "--engine", "batch", "--set", "behaviour=nope"],
+    (["sweep", "--grid", "sigRadius=3", "--engine", "soa", "--set", "behaviour=nope"],
      "behaviour 'nope'"),
 ])
 def test_more_bad_commands_are_one_line_exit_2(args, needle):

@@ -68,12 +68,11 @@ def register(sub) -> None:
                         "its weight (default: delivered; --thesis: converged)")
     p.add_argument("--engine", choices=ENGINES, default=None,
                    help="auto (default) or soa: the struct-of-arrays transform of the "
-                        "behaviour's own source, the fastest; compiled once per machine and "
-                        f"behaviour source ({SOA_COLD_COMPILE}, said on stderr; "
-                        "TOUCHSWARM_SOA_INLINE=0 halves it, for slower runs) and cached on disk "
-                        "(~/.cache/touchswarm or $TOUCHSWARM_CACHE); batch: the jitclass "
-                        "engine, compiled in every process (1-2 min); reference: the "
-                        "per-robot engine (docs/performance.md)")
+                        "behaviour's own source, compiled once per machine and behaviour "
+                        f"source ({SOA_COLD_COMPILE}, said on stderr; TOUCHSWARM_SOA_INLINE=0 "
+                        "halves it, for slower runs) and cached on disk (~/.cache/touchswarm "
+                        "or $TOUCHSWARM_CACHE); reference: the per-robot engine, bit-identical "
+                        "and over 100x slower at 10,000 robots (docs/performance.md)")
     p.add_argument("--executor", default=None, metavar="SPEC",
                    help="processes[:N] (default: one per core), inline, or dask://HOST:PORT "
                         "(a dask.distributed scheduler)")

@@ -3,10 +3,11 @@
 `BatchBody` implements firmware_logic/hal.py for robot `i` (set before each
 step) by calling the world's rules in sim_backend/kernel.py, the same
 functions the reference engine's SimBody calls; `tick_all` steps every live
-robot's FSM and applies the intents run by run. The batch engine compiles
-this file, the kernel and the behaviour's firmware modules with numba
-(sim_backend/batch/compiler.py); it stays plain Python so it can be read,
-and run uncompiled, like the rest.
+robot's FSM and applies the intents run by run. The batch engine transforms
+this file, the kernel and the behaviour's firmware modules into array
+functions and compiles them with numba (sim_backend/batch/transform.py,
+soa.py); it stays plain Python so it can be read, and run uncompiled, like
+the rest.
 """
 
 from firmware_logic import messages as msg
