@@ -2,7 +2,8 @@
 
 # The wiring the registry reads (firmware_logic/registry.py); host side only.
 ROBOT = "robot:Robot"
-SUBSET_SETUP = ("robot_args", "make_coordinator", "holders_needed")  # host side: may allocate
+SUBSET_SETUP = ("robot_args", "make_coordinator", "holders_needed",
+                "summary_values")  # host side: may allocate
 
 
 # Under NetLogo's sequential activation a robot in this state takes 1 + the
@@ -63,6 +64,19 @@ def check(sc):
     if sc.recognise and sc.lostAfter:
         # both change which holders' power counts; their interplay is not built
         raise ValueError("recognise: not built together with lostAfter; set one of them")
+
+
+def summary_values(coord):
+    """The text summary's own values (spec.SUMMARY `held`): the power held
+    when the holders first matched the weight; the summary's power is the
+    final one, which later touches may have raised."""
+    if coord.converged_tick < 0:
+        return {"held": "(power %g held at the end)" % (coord.power / 100)}
+    held = 0
+    for t in coord.touches:
+        if t.tick <= coord.converged_tick:
+            held += t.power
+    return {"held": "(power %g held then)" % (held / 100)}
 
 
 def make_coordinator(sc, journal=None, cells=None, on_reject=None):
