@@ -84,6 +84,13 @@ def is_tick(name: str) -> bool:
     return name.endswith("_tick")
 
 
+def named_text(name: str, v: Any) -> str:
+    """A measure's value as text: a tick as "tick N" or "never" (is_tick)."""
+    if is_tick(name):
+        return "never" if v is None else f"tick {v}"
+    return value_text(v)
+
+
 def value_text(v: Any) -> str:
     """A value as the summary prints it."""
     if v is None:
@@ -167,7 +174,7 @@ def result_line(behaviour: Any, summary: dict) -> str:
 
 def frame_title(w: Words, tick: int, reporters: dict, iou: float | None = None) -> str:
     """The GIF's frame title: the tick, each reporter, the shape's score when declared."""
-    parts = [f"{name} {value_text(v)}" for name, v in reporters.items()]
+    parts = [f"{name} {named_text(name, v)}" for name, v in reporters.items()]
     if w.shape is not None and iou is not None:
         parts.append(f"{w.label(w.shape)} {iou:.2f}")
     return f"tick {tick}" + (": " + ", ".join(parts) if parts else "")
