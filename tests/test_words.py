@@ -1,0 +1,160 @@
+"""A run's outputs speak its behaviour's words (issue 26 item 6,
+sim_backend/words.py): the text summary, world.png, the GIF's titles and
+the sweep plots show the behaviour's MEASURES and REPORTERS with their
+titles; the thesis's words (power, weight, shape IoU, touches that hold
+the object) appear only for the thesis, which declares them in its spec.py.
+The live view's side is in tests/test_view.py."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import matplotlib
+import pytest
+
+matplotlib.use("Agg")
+
+from bridge.cli import main  # noqa: E402
+from firmware_logic import registry  # noqa: E402
+from sim_backend import plots, scenario, sweep, words  # noqa: E402
+
+# words only the thesis may say (its spec.py HEADER, SUMMARY, RESULT, SHAPE, LOAD, PLOTS)
+THESIS_WORDS = ("power", "weight", "IoU", "perceived", "hold the object", "DELIVERED",
+                "delivered home", "convergence", "delivery")
+
+
+def no_thesis_words(text: str) -> None:
+    for word in THESIS_WORDS:
+        assert word not in text, f"{word!r} in {text!r}"
+
+
+def figure_texts(fig) -> str:
+    """Every text a figure draws: titles, labels, legends, tick labels."""
+    from matplotlib.text import Text
+    return "\n".join(t.get_text() for t in fig.findobj(Text))
+
+
+def titles(behaviour) -> list[str]:
+    b = registry.load(behaviour)
+    return [t for _, t in b.spec.MEASURES] + [t for _, t in getattr(b.spec, "REPORTERS", ())]
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory) -> Path:
+    """A behaviour from the scaffold, outside the repo, with measure titles of its own."""
+    into = tmp_path_factory.mktemp("mine")
+    assert main(["behaviour", "new", "tiny", "--into", str(into)]) == 0
+    spec = into / "tiny" / "spec.py"
+    text = spec.read_text()
+    for old, new in (("robots that stopped", "robots resting in a heap"),
+                     ("robots in the largest cluster", "robots in the biggest heap")):
+        assert old in text
+        text = text.replace(old, new)
+    spec.write_text(text)
+    return into / "tiny"
+
+
+# -- the text summary ------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("which", ["aggregate", "tiny"])
+def test_the_summary_says_the_behaviours_measures_and_no_thesis_word(which, tiny, capsys):
+    behaviour = str(tiny) if which == "tiny" else which
+    assert main(["run", "--behaviour", behaviour]) == 0       # quorum reached
+    out = capsys.readouterr().out
+    for title in titles(behaviour):
+        assert title in out
+    assert re.search(r"robots that stopped +\d+" if which == "aggregate"
+                     else r"robots resting in a heap +\d+", out)
+    assert re.search(r"tick the first robot stopped +tick \d+", out)
+    assert "DONE after" in out and f"behaviour {registry.load(behaviour).name}" in out
+    no_thesis_words(out)
+
+
+def test_the_thesis_summary_keeps_its_own_words(capsys):
+    main(["run", "--set", "maxTicks=400"])
+    out = capsys.readouterr().out
+    assert "robots hold the object, power" in out and "shape IoU" in out
+    assert re.search(r"converged +tick \d+  \(power [\d.]+ held then\)", out)
+    assert "firefly robots, object bar" in out
+
+
+def test_a_summary_line_whose_values_the_run_lacks_is_left_out():
+    b = registry.load("aggregate")
+    lines = words.summary_lines(b, {"scenario": "s", "robots": 3, "seed": 1, "stopped": 2})
+    assert lines[0] == "scenario s: 3 robots, behaviour aggregate, seed 1"
+    assert [ln.split()[-1] for ln in lines[1:]] == ["2"]     # only `stopped` was given
+    assert words.fill("{found_tick!t} / {n!n}", {"found_tick": None, "n": [1, 2]}) \
+        == "never / 2"
+
+
+# -- world.png and the GIF -------------------------------------------------------------
+
+
+def test_world_png_shows_the_measures_and_no_shape_panel(tiny, tmp_path):
+    from sim_backend.engine import Engine
+    from sim_backend.observe import Trails
+    from sim_backend.render import figure, render
+    for behaviour in ("aggregate", str(tiny)):
+        engine = Engine(scenario.load("default").replace(behaviour=behaviour), 1)
+        trails = Trails(engine)
+        result = engine.run()
+        fig = figure(result, trails)
+        text = figure_texts(fig)
+        for title in titles(behaviour):
+            assert title in text
+        assert re.search(r"robots (that stopped|resting in a heap): \d+", text)
+        no_thesis_words(text)
+        path = render(result, tmp_path / "world.png", trails)
+        assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_world_png_of_the_thesis_has_its_perceived_vs_true_panel():
+    from sim_backend.engine import Engine
+    from sim_backend.render import figure
+    result = Engine(scenario.load("default").replace(maxTicks=300), 1).run()
+    text = figure_texts(figure(result))
+    assert "perceived (blue outline" in text and "shape IoU" in text
+
+
+def test_the_gif_titles_are_the_tick_and_the_reporters(tmp_path):
+    from sim_backend.animate import Animation
+    from sim_backend.engine import Engine
+    from sim_backend.observe import Trails
+    engine = Engine(scenario.load("default").replace(behaviour="aggregate", maxTicks=30), 1)
+    anim = Animation(engine, Trails(engine), every=10)
+    engine.run()
+    assert anim.write(tmp_path / "run.gif") == 4
+    title = anim.title(anim.frames[-1])
+    assert re.fullmatch(r"tick 30: stopped \d+, clusters \d+, largest \d+", title)
+    thesis = Engine(scenario.load("default").replace(maxTicks=30), 1)
+    anim = Animation(thesis, Trails(thesis), every=10)
+    thesis.run()
+    anim.finish()
+    assert re.fullmatch(r"tick 30: holders \d+, home_d2 -?\d+, shape IoU [\d.]+",
+                        anim.title(anim.frames[-1]))
+
+
+# -- the sweep plots: one panel per declared measure -----------------------------------
+
+
+def test_sweep_plots_of_aggregation_have_one_panel_per_measure(tmp_path):
+    base = scenario.load("default").replace(behaviour="aggregate")
+    rows = sweep.sweep(sweep.grid_points({"quorum": [50, 80]}), [1, 2], base=base,
+                       engine="reference")
+    fig = plots.factor_figure(rows, "quorum", [])
+    spec = registry.load("aggregate").spec
+    assert [ax.get_title() for ax in fig.axes] == [t for _, t in spec.MEASURES]
+    no_thesis_words(figure_texts(fig))
+    paths = plots.grid_plots(rows, ["quorum"], tmp_path)
+    assert [p.name for p in paths] == ["by_quorum.png"] and paths[0].stat().st_size > 1000
+
+
+def test_sweep_plots_of_the_thesis_are_its_declared_plots():
+    rows = [{"experiment": "grid", "maxTicks": "300", "fieldDefiance": str(d), "seed": str(s),
+             "converged_tick": str(100 + s), "delivered": "True", "shape_iou": "0.5"}
+            for d in (1, 2) for s in (1, 2)]
+    fig = plots.factor_figure(rows, "fieldDefiance", [])
+    assert [ax.get_title() for ax in fig.axes] == ["convergence tick", "delivery rate",
+                                                   "shape IoU"]
