@@ -158,3 +158,42 @@ def test_sweep_plots_of_the_thesis_are_its_declared_plots():
     fig = plots.factor_figure(rows, "fieldDefiance", [])
     assert [ax.get_title() for ax in fig.axes] == ["convergence tick", "delivery rate",
                                                    "shape IoU"]
+
+
+# -- the documented commands (docs/outputs.md "The behaviour's words",
+# docs/writing-a-behaviour.md "Its words") run as written ----------------------------
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def doc_commands(doc: str, heading: str) -> list[str]:
+    """The `sh` fenced commands of one section of a doc, comments dropped."""
+    text = (ROOT / "docs" / doc).read_text()
+    m = re.search(rf"^## {re.escape(heading)}$(.*?)(?=^## |\Z)", text, re.M | re.S)
+    assert m, f"docs/{doc} has no section '## {heading}'"
+    blocks = re.findall(r"```sh\n(.*?)```", m.group(1), re.S)
+    return [line.split("#")[0].strip() for b in blocks for line in b.splitlines()
+            if line.split("#")[0].strip()]
+
+
+@pytest.mark.parametrize("doc, heading", [("outputs.md", "The behaviour's words"),
+                                          ("writing-a-behaviour.md", "Its words")])
+def test_the_documented_commands_run(doc, heading, tmp_path, capsys):
+    import shlex
+    cmds = doc_commands(doc, heading)
+    assert len(cmds) == 2
+    for cmd in cmds:
+        argv = shlex.split(cmd.replace("/tmp", str(tmp_path)))
+        assert argv[0] == "touchswarm"
+        assert main(argv[1:]) == 0, cmd
+    out = capsys.readouterr().out
+    if doc == "outputs.md":
+        # the two summaries the section shows, as the runs print them
+        section = (ROOT / "docs" / doc).read_text().split("## The behaviour's words")[1]
+        shown = re.findall(r"```text\n(.*?)```", section.split("\n## ")[0], re.S)
+        for block in shown:
+            for line in block.splitlines():
+                if line.strip() != "...":
+                    assert line in out.splitlines(), line
+    else:
+        no_thesis_words(out.split("created")[-1].split("guide:")[-1])
