@@ -91,10 +91,13 @@ def register(sub) -> None:
     from sim_backend.animate import MAX_FRAMES
     p = sub.add_parser(
         "run", help="run the whole mission in the simulated world",
-        description="Run one scenario to the end with no hardware: robots search, touch, "
-                    "converge, and carry the object home. Prints a summary. Exit status 0 "
-                    "when the object was delivered home, 1 when it was not, 2 on bad input "
-                    "(checked before the run starts, output paths included).",
+        description="Run one scenario to the end with no hardware: the behaviour's robots "
+                    "and its host coordinator (the thesis's search, touch, converge and "
+                    "carry the object home). Prints a summary in the behaviour's words: "
+                    "its measures and reporters (docs/outputs.md). Exit status 0 when the "
+                    "mission ended (the coordinator's delivered_tick; the thesis: the "
+                    "object delivered home), 1 when it did not, 2 on bad input (checked "
+                    "before the run starts, output paths included).",
         epilog="examples:\n"
                "  touchswarm run                                  # the default scenario\n"
                "  touchswarm run --scenario ant --seed 7 --out ant7/\n"
@@ -121,8 +124,9 @@ def register(sub) -> None:
                         "suffix picks the format: .csv or .parquet")
     p.add_argument("--animate", type=path_arg, metavar="FILE",
                    help="draw the run over time to FILE.gif (or .mp4 when ffmpeg is on PATH): "
-                        "trails coloured by state, the field, touches in order, the perceived "
-                        "shape, the path home. Frames: the start, every --frame-every ticks "
+                        "trails coloured by state, the field, touches in order, the "
+                        "behaviour's reporters in the title (the thesis: also the perceived "
+                        "shape and the path home). Frames: the start, every --frame-every ticks "
                         f"and the last tick; by default the stride doubles until at most "
                         f"{MAX_FRAMES} frames are kept (the default scenario: 87 frames, "
                         "about 1.3 MB)")
