@@ -333,3 +333,21 @@ def test_the_thesis_run_shows_its_load_and_shape(sim):
     st = get(sim, "/state.json")
     assert {"shape_iou", "holders"} <= {m["name"] for m in st["measures"]}
     assert "perceived" in st and "iou" in st
+
+
+def test_page_of_aggregation_lists_its_measures_and_hides_the_load_bar(browser):
+    server = ViewServer(SimSource(scenario.load("default").replace(behaviour="aggregate"), SEED),
+                        port=0).start()
+    try:
+        post(server, "/control/step", {"ticks": 30})
+        browser.get(server.url)
+        wait_for(browser, lambda d: d.execute_script("return document.body.dataset.tick") == "30")
+        wait_for(browser, lambda d: "robots that stopped" in text(d, "measures"))
+        shown = text(browser, "measures")
+        assert "robots in the largest cluster" in shown and "tick the first robot stopped" in shown
+        assert not browser.find_element("id", "load").is_displayed()
+        page = browser.find_element("tag name", "body").text
+        for word in THESIS_WORDS:
+            assert word not in page, word
+    finally:
+        server.stop()
