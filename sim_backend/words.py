@@ -72,10 +72,49 @@ def of(behaviour: Any) -> Words:
     lines = tuple(getattr(spec, "SUMMARY", ())) or tuple(
         (t, "{%s!t}" % n if is_tick(n) else "{%s}" % n) for n, t in measures + tuple(
             r for r in reporters if r[0] not in dict(measures)))
-    return Words(spec.NAME, measures, reporters, getattr(spec, "HEADER", DEFAULT_HEADER),
-                 lines, tuple(getattr(spec, "RESULT", DEFAULT_RESULT)),
-                 getattr(spec, "SHAPE", None), getattr(spec, "LOAD", None),
-                 tuple(getattr(spec, "PLOTS", ())))
+    w = Words(spec.NAME, measures, reporters, getattr(spec, "HEADER", DEFAULT_HEADER),
+              lines, tuple(getattr(spec, "RESULT", DEFAULT_RESULT)),
+              getattr(spec, "SHAPE", None), getattr(spec, "LOAD", None),
+              tuple(getattr(spec, "PLOTS", ())))
+    _check(w)
+    return w
+
+
+def _check(w: Words) -> None:
+    """The optional declarations' shapes; BehaviourError naming the first wrong one."""
+    from firmware_logic.registry import BehaviourError
+
+    def bad(what: str, why: str) -> BehaviourError:
+        return BehaviourError(f"behaviour {w.name!r}: spec.py {what}: {why}")
+
+    def pairs(rows: tuple, what: str) -> None:
+        for row in rows:
+            if not (isinstance(row, tuple) and len(row) == 2
+                    and all(isinstance(x, str) for x in row)):
+                raise bad(what, f"{row!r} is not a (text, text) pair")
+
+    pairs(w.lines, "SUMMARY")
+    pairs(w.plots, "PLOTS")
+    for template in [w.header] + [t for _, t in w.lines]:
+        try:
+            for _, _, _, conversion in string.Formatter().parse(template):
+                if conversion not in (None, "r", "s", "a", "t", "n"):
+                    raise ValueError(f"unknown conversion !{conversion}; "
+                                     "!t (a tick) or !n (a count)")
+        except ValueError as err:
+            raise bad("HEADER" if template is w.header else "SUMMARY",
+                      f"{template!r}: {err}") from None
+    if len(w.result) != 3 or not all(isinstance(x, str) for x in w.result):
+        raise bad("RESULT", f"{w.result!r} is not (summary key, word if true, word if false)")
+    if w.load is not None and (len(w.load) != 2 or not all(isinstance(x, str) for x in w.load)):
+        raise bad("LOAD", f"{w.load!r} is not (held, needed): two coordinator attribute names")
+    measures = dict(w.measures)
+    for what, names in (("SHAPE", [w.shape] if w.shape is not None else []),
+                        ("PLOTS", [n for n, _ in w.plots])):
+        for name in names:
+            if name not in measures:
+                raise bad(what, f"{name!r} is not one of its MEASURES "
+                                f"({', '.join(measures)})")
 
 
 def is_tick(name: str) -> bool:

@@ -197,3 +197,23 @@ def test_the_documented_commands_run(doc, heading, tmp_path, capsys):
                     assert line in out.splitlines(), line
     else:
         no_thesis_words(out.split("created")[-1].split("guide:")[-1])
+
+
+@pytest.mark.parametrize("line, words_", [
+    ('SHAPE = "area"', "spec.py SHAPE: 'area' is not one of its MEASURES"),
+    ('PLOTS = (("stopped", "robots stopped"), ("nope", "x"))', "PLOTS: 'nope' is not one of"),
+    ('RESULT = ("delivered", "OK")', "RESULT: ('delivered', 'OK') is not (summary key"),
+    ('LOAD = ("power",)', "LOAD: ('power',) is not (held, needed)"),
+    ('SUMMARY = (("stopped", "{stopped"),)', "SUMMARY: '{stopped'"),
+    ('HEADER = "{robots!x}"', "HEADER: '{robots!x}'"),
+])
+def test_a_wrong_words_declaration_is_one_line_naming_it(line, words_, tmp_path, capsys):
+    # a name of its own per case: the registry keeps a folder's modules by name
+    name = "odd" + re.sub(r"\W", "", line.split("=")[0]).lower()
+    assert main(["behaviour", "new", name, "--into", str(tmp_path)]) == 0
+    spec = tmp_path / name / "spec.py"
+    spec.write_text(spec.read_text() + "\n" + line + "\n")
+    capsys.readouterr()
+    assert main(["run", "--behaviour", str(tmp_path / name), "--set", "maxTicks=5"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and words_ in err and f"behaviour {name!r}" in err
