@@ -301,7 +301,8 @@ def test_screenshot_option_saves_the_page_at_the_tick(capsys, tmp_path):
 
 # -- the behaviour's own words (issue 26 item 6) ---------------------------------------
 
-THESIS_WORDS = ("power", "weight", "IoU", "perceived", "hold the object", "delivered")
+THESIS_WORDS = ("power", "weight", "IoU", "perceived", "hold the object", "delivered",
+                "converged")
 
 
 def test_an_aggregate_run_shows_its_own_measures_and_no_thesis_words():
@@ -312,8 +313,9 @@ def test_an_aggregate_run_shows_its_own_measures_and_no_thesis_words():
         assert info["load"] is None and info["shape"] is False
         assert ["clusters", "groups of stopped robots touching each other (8-neighbours)"] \
             in info["measures"]
-        post(server, "/control/step", {"ticks": 40})
+        post(server, "/control/step", {"ticks": 100})      # past the quorum (tick 54)
         st = get(server, "/state.json")
+        assert st["finished"] and "tick 54: DONE" in st["events"]
     finally:
         server.stop()
     titles = {m["name"]: m["title"] for m in st["measures"]}

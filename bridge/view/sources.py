@@ -131,7 +131,10 @@ class SimSource:
         self.events: list[str] = [f"tick 0: {sc.agents} robots, scenario {sc.name}, seed {seed}"]
         self._seen = {"touches": 0, "converged": False, "delivered": False}
         from sim_backend import words
-        self.done_word = words.of(self.engine.behaviour).result[1]   # e.g. DELIVERED
+        said = words.of(self.engine.behaviour)
+        self.done_word = said.result[1]                 # e.g. DELIVERED
+        # convergence is an event only for a behaviour that measures it
+        self._seen["converged"] = "converged_tick" not in dict(said.measures)
         self.snap = self.engine.snapshot()
         self.engine.observe(self._observe)
         self.runner = threading.Thread(target=self._run, name="view-sim", daemon=True)
