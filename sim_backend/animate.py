@@ -5,7 +5,8 @@ Each frame shows the field with a colour bar, the object and its held
 segments, every robot's recent trail coloured by its state, the touches
 numbered in order, the perceived shape (blue squares; a behaviour declaring
 spec.SHAPE) and the object's path home; its title the tick and the
-behaviour's reporters (sim_backend/words.py). Frames: the start, then every `every` ticks, then the last tick.
+behaviour's reporters (sim_backend/words.py). Frames: the start, then every
+`every` ticks, then the last tick.
 With no `every`, the stride starts at 1 and doubles whenever more than
 MAX_FRAMES frames are kept, so a long run stays a small file.
 """
