@@ -217,3 +217,10 @@ def test_a_wrong_words_declaration_is_one_line_naming_it(line, words_, tmp_path,
     assert main(["run", "--behaviour", str(tmp_path / name), "--set", "maxTicks=5"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and words_ in err and f"behaviour {name!r}" in err
+
+
+def test_the_thesis_held_power_text_is_integer_math_printed_as_g():
+    # firmware subset (no floats): hundredths printed the way "%g" prints weight units
+    from firmware_logic.behaviours.thesis import _weight_text
+    for centi in list(range(0, 1001)) + [12345, 65500]:
+        assert _weight_text(centi) == f"{centi / 100:g}", centi
