@@ -67,8 +67,10 @@ def of(behaviour: Any) -> Words:
         from firmware_logic import registry
         behaviour = registry.load(behaviour)
     spec = behaviour.spec
-    measures = tuple((n, t) for n, t in spec.MEASURES)
-    reporters = tuple((n, t) for n, t in getattr(spec, "REPORTERS", ()))
+    measures = tuple(spec.MEASURES)
+    reporters = tuple(getattr(spec, "REPORTERS", ()))
+    _pairs(spec.NAME, measures, "MEASURES")
+    _pairs(spec.NAME, reporters, "REPORTERS")
     lines = tuple(getattr(spec, "SUMMARY", ())) or tuple(
         (t, "{%s!t}" % n if is_tick(n) else "{%s}" % n) for n, t in measures + tuple(
             r for r in reporters if r[0] not in dict(measures)))
@@ -80,21 +82,25 @@ def of(behaviour: Any) -> Words:
     return w
 
 
+def _bad(name: str, what: str, why: str) -> Exception:
+    from firmware_logic.registry import BehaviourError
+    return BehaviourError(f"behaviour {name!r}: spec.py {what}: {why}")
+
+
+def _pairs(name: str, rows: tuple, what: str) -> None:
+    for row in rows:
+        if not (isinstance(row, tuple) and len(row) == 2
+                and all(isinstance(x, str) for x in row)):
+            raise _bad(name, what, f"{row!r} is not a (text, text) pair")
+
+
 def _check(w: Words) -> None:
     """The optional declarations' shapes; BehaviourError naming the first wrong one."""
-    from firmware_logic.registry import BehaviourError
+    def bad(what: str, why: str) -> Exception:
+        return _bad(w.name, what, why)
 
-    def bad(what: str, why: str) -> BehaviourError:
-        return BehaviourError(f"behaviour {w.name!r}: spec.py {what}: {why}")
-
-    def pairs(rows: tuple, what: str) -> None:
-        for row in rows:
-            if not (isinstance(row, tuple) and len(row) == 2
-                    and all(isinstance(x, str) for x in row)):
-                raise bad(what, f"{row!r} is not a (text, text) pair")
-
-    pairs(w.lines, "SUMMARY")
-    pairs(w.plots, "PLOTS")
+    _pairs(w.name, w.lines, "SUMMARY")
+    _pairs(w.name, w.plots, "PLOTS")
     for template in [w.header] + [t for _, t in w.lines]:
         try:
             for _, _, _, conversion in string.Formatter().parse(template):

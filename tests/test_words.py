@@ -206,6 +206,7 @@ def test_the_documented_commands_run(doc, heading, tmp_path, capsys):
     ('LOAD = ("power",)', "LOAD: ('power',) is not (held, needed)"),
     ('SUMMARY = (("stopped", "{stopped"),)', "SUMMARY: '{stopped'"),
     ('HEADER = "{robots!x}"', "HEADER: '{robots!x}'"),
+    ('MEASURES = (("stopped", "robots", "extra"),)', "MEASURES: ('stopped', 'robots', 'extra')"),
 ])
 def test_a_wrong_words_declaration_is_one_line_naming_it(line, words_, tmp_path, capsys):
     # a name of its own per case: the registry keeps a folder's modules by name
