@@ -301,16 +301,24 @@ def _censored(rs: list[dict], panel: tuple[str, str, str]) -> list[float]:
     return [c for c, ok in (_tick(r, measure) for r in _declares(rs, measure)) if not ok]
 
 
-FACTOR_LABELS = {"tick": "{} (runs that got there: mean, 95% CI)",
-                 "rate": "{} (fraction of runs, 95% CI)",
-                 "value": "{} (mean, 95% CI)"}
-CATEGORY_LABELS = {"tick": "{} (runs that got there; box: quartiles)",
-                   "rate": "{} (fraction of runs)",
-                   "value": "{} (box: quartiles)"}
+# the y axis says the statistic; the panel's title says the measure
+FACTOR_LABELS = {"tick": "tick (runs that got there: mean, 95% CI)",
+                 "rate": "fraction of runs (95% CI)",
+                 "value": "mean, 95% CI"}
+CATEGORY_LABELS = {"tick": "tick (runs that got there; box: quartiles)",
+                   "rate": "fraction of runs",
+                   "value": "box: quartiles"}
 
 
 def _title(rows: Sequence[dict], factor: str, pans: list) -> str:
-    return f"{factor}: " + ", ".join(label for _, label, _ in pans)
+    from sim_backend.scenario import DEFAULT_BEHAVIOUR
+    names = ", ".join(dict.fromkeys(r.get("behaviour") or DEFAULT_BEHAVIOUR for r in rows))
+    return f"{factor}: {len(pans)} measure{'s' if len(pans) != 1 else ''} of {names}"
+
+
+def _panel_title(label: str) -> str:
+    import textwrap
+    return textwrap.fill(label, 38)
 
 
 def factor_figure(rows: Sequence[dict], factor: str, others: Sequence[str]):
@@ -355,8 +363,8 @@ def factor_figure(rows: Sequence[dict], factor: str, others: Sequence[str]):
     for ax, (measure, label, kind) in zip(axes[0], pans):
         ax.set_xticks(xs_all)
         ax.set_xlabel(factor)
-        ax.set_title(label, fontsize=9)
-        ax.set_ylabel(FACTOR_LABELS[kind].format(label), fontsize=8)
+        ax.set_title(_panel_title(label), fontsize=9)
+        ax.set_ylabel(FACTOR_LABELS[kind], fontsize=8)
         if kind == "rate":
             ax.set_ylim(-0.05, 1.05)
         elif kind == "tick":
@@ -430,8 +438,8 @@ def category_figure(rows: Sequence[dict], factor: str, others: Sequence[str]):
     for ax, (measure, label, kind) in zip(axes[0], pans):
         ax.set_xticks(range(len(levels)), ticks, fontsize=7)
         ax.set_xlabel(factor)
-        ax.set_title(label, fontsize=9)
-        ax.set_ylabel(CATEGORY_LABELS[kind].format(label), fontsize=8)
+        ax.set_title(_panel_title(label), fontsize=9)
+        ax.set_ylabel(CATEGORY_LABELS[kind], fontsize=8)
         if kind == "rate":
             ax.set_ylim(-0.05, 1.05)
         ax.grid(alpha=0.3, axis="y")

@@ -145,7 +145,8 @@ def test_sweep_plots_of_aggregation_have_one_panel_per_measure(tmp_path):
                        engine="reference")
     fig = plots.factor_figure(rows, "quorum", [])
     spec = registry.load("aggregate").spec
-    assert [ax.get_title() for ax in fig.axes] == [t for _, t in spec.MEASURES]
+    assert [ax.get_title().replace("\n", " ") for ax in fig.axes] \
+        == [t for _, t in spec.MEASURES]
     no_thesis_words(figure_texts(fig))
     paths = plots.grid_plots(rows, ["quorum"], tmp_path)
     assert [p.name for p in paths] == ["by_quorum.png"] and paths[0].stat().st_size > 1000
