@@ -226,3 +226,21 @@ def test_the_thesis_held_power_text_is_integer_math_printed_as_g():
     from firmware_logic.behaviours.thesis import _weight_text
     for centi in list(range(0, 1001)) + [12345, 65500]:
         assert _weight_text(centi) == f"{centi / 100:g}", centi
+
+
+def test_the_live_view_data_of_a_scaffolded_behaviour_speaks_its_words(tiny):
+    import json
+
+    from bridge.view.sources import SimSource
+    src = SimSource(scenario.load("default").replace(behaviour=str(tiny)), 1)
+    try:
+        src.control("step", {"ticks": 100})
+        info, st = src.info(), src.state()
+    finally:
+        src.close()
+    assert ["stopped", "robots resting in a heap"] in info["measures"]
+    assert info["load"] is None and info["shape"] is False
+    shown = {m["title"]: m["value"] for m in st["measures"]}
+    assert shown["robots resting in a heap"] == len(st["touches"])
+    assert "robots in the biggest heap" in shown
+    no_thesis_words(json.dumps([info, st["measures"], st["status"], st["events"]]))
