@@ -248,10 +248,13 @@ def _behaviour(value: Any) -> Any:
     """The behaviour (firmware_logic.registry.Behaviour) a scenario names."""
     from firmware_logic import registry
 
+    from sim_backend import words
     try:
-        return registry.load(str(value))
+        beh = registry.load(str(value))
+        words.of(beh)          # its outputs' words, checked before any run
     except registry.BehaviourError as err:
         raise ScenarioError(f"behaviour: {err}") from err
+    return beh
 
 
 def validate(raw: dict[str, Any], source: str = "scenario") -> Scenario:

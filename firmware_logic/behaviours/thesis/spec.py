@@ -97,3 +97,24 @@ REPORTERS = (
     ("holders", "robots holding the object (accepted touches)"),
     ("home_d2", "squared patch distance from the object's nearest segment to home, -1 before a touch"),
 )
+
+# -- words: how the outputs speak of a run (sim_backend/words.py reads these;
+# optional: a behaviour without them gets one summary line and one sweep-plot
+# panel per measure, titled by its meaning, and no power bar or shape panel)
+HEADER = "scenario {scenario}: {robots} {movementModel} robots, object {object}, seed {seed}"
+SUMMARY = (
+    ("first touch", "{found_tick!t}"),
+    ("converged", "{converged_tick!t}  {held}"),   # held: __init__.summary_values
+    ("delivered home", "{home_tick!t}"),
+    ("leader", "robot {leader}"),
+    ("touches", "{touches!n} robots hold the object, power {power:g}"),
+    ("shape IoU", "{shape_iou:.3f}"),
+)
+RESULT = ("delivered", "DELIVERED", "NOT delivered")
+SHAPE = "shape_iou"          # world.png's perceived-vs-true panel, perceived cells drawn
+LOAD = ("power", "weight")   # the live view's bar: the holders' power of the weight
+PLOTS = (
+    ("converged_tick", "convergence tick"),
+    ("delivered", "delivery rate"),
+    ("shape_iou", "shape IoU"),
+)
