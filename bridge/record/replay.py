@@ -22,7 +22,7 @@ from pathlib import Path
 import can
 
 from bridge.errors import UsageError
-from bridge.links.codec import HOST_KINDS, BadFrames, Decoder, Message
+from bridge.links.codec import BadFrames, Decoder, Message
 from bridge.record.formats import meta_path, record_format
 from bridge.record.recorder import Q_RECV, Q_X, Q_Y
 from firmware_logic import messages as msg
@@ -113,7 +113,7 @@ def behaviour(meta: dict, path: Path) -> registry.Behaviour:
     recordings made before behaviours existed ran the thesis)."""
     name = meta["scenario"].get("behaviour", "thesis")
     try:
-        return registry.load(name)
+        return registry.load(name).activate()
     except registry.BehaviourError as err:
         raise UsageError(f"replay: sidecar {meta_path(path)}: {err}") from None
 
@@ -132,8 +132,8 @@ def load(path: Path) -> Recording:
         raise UsageError(f"replay: {path} is empty (0 bytes); expected a recording made by "
                          "`touchswarm run --record`")
     rec = Recording(meta=_sidecar(path))
-    behaviour(rec.meta, path)            # its own message kinds, before any frame is read
-    dec = Decoder("host", BadFrames("replay"))
+    b = behaviour(rec.meta, path)        # its own message kinds, before any frame is read
+    dec = Decoder("host", BadFrames("replay"), behaviour=b)
     tick = 0
     try:
         with _quiet_python_can():
@@ -153,7 +153,7 @@ def load(path: Path) -> Recording:
                         rec.stamps[t] = frame.timestamp
                     table = rec.sensors if kind == msg.SENSOR else rec.actions
                     table[node].setdefault(t, []).append(tuple(f[2:]))
-                elif kind in HOST_KINDS:
+                elif kind in dec.schema.host_kinds:
                     rec.down[tick].append((node, kind, tuple(f)))
                 else:
                     rec.up[tick].append((node, kind, tuple(f)))
