@@ -183,6 +183,10 @@ def _import_folder(path: Path) -> ModuleType:
     if name in sys.modules and Path(getattr(sys.modules[name], "__file__", "")) \
             .resolve() == init.resolve():
         return sys.modules[name]
+    # another folder of the same name was imported before: its modules
+    # (name.spec, name.robot, ...) must not stand in for this one's
+    for key in [k for k in sys.modules if k.startswith(name + ".")]:
+        del sys.modules[key]
     spec = importlib.util.spec_from_file_location(name, init,
                                                   submodule_search_locations=[str(path)])
     if spec is None or spec.loader is None:

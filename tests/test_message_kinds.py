@@ -150,3 +150,17 @@ def test_dbc_of_a_behaviour_folder_decodes_its_own_message(tmp_path, capsys):
     assert main(["dbc", "--behaviour", "nosuch", "--out", str(tmp_path / "x.dbc")]) == 2
     err = capsys.readouterr().err.strip()
     assert "--behaviour" in err and "\n" not in err
+
+
+def test_two_folders_of_one_name_each_bring_their_own_messages(tmp_path):
+    """Two scaffolds named alike in different folders (two projects, or two
+    tests): the second's spec.py is its own, not the first's left in
+    sys.modules, and so are its message kinds."""
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    a = scaffold(tmp_path / "a", "twin", own_kinds)
+    b = scaffold(tmp_path / "b", "twin",
+                 lambda t: t.replace('(LEAVE, "LEAVE", UP,', '(LEAVE, "GONE", UP,'))
+    assert codec.schema(registry.load(a)).names[7] == "QUIT"
+    assert codec.schema(registry.load(b)).names[7] == "GONE"
+    assert registry.load(b).spec.__file__ == str(b / "spec.py")
