@@ -80,6 +80,8 @@ def test_two_behaviours_may_give_one_kind_their_own_messages(tmp_path, monkeypat
     assert main(["behaviours"]) == 0
     listing = capsys.readouterr().out
     assert "BROKEN" not in listing
+    assert "QUIT (kind 7, up), NUDGE (kind 8, down)" in listing
+    assert "LEAVE (kind 7, up)" in listing and "RELEASE (kind 8, down)" in listing
     assert {"thesis", "aggregate", "other"} <= {ln.split()[0] for ln in listing.splitlines()
                                                 if ln and not ln[0].isspace()}
 
