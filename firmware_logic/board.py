@@ -250,10 +250,10 @@ class TetherHal(Hal):
 
 def make_robot(robot_class, spec, node, seed, model, span, defiance, power):
     """The behaviour's FSM and the code of its "halt" state; its own message
-    kinds (spec.MESSAGES) are declared first. main.py imports the behaviour
+    kinds (spec.MESSAGES) are put in use first. main.py imports the behaviour
     robot_config.py names (bridge/serial/board_main.py)."""
     if hasattr(spec, "MESSAGES"):
-        msg.declare(spec.MESSAGES)
+        msg.activate(spec.MESSAGES)
     return robot_class(node, seed, model, span, defiance, power), spec.STATES.index("halt")
 
 

@@ -178,7 +178,7 @@ class Engine:
         nodes = list(range(1, sc.agents + 1))
         self.link = link if link is not None else InprocLink(nodes)
         # the behaviour seam: robots and coordinator come from the registry
-        self.behaviour = registry.load(sc.behaviour)
+        self.behaviour = registry.load(sc.behaviour).activate()   # its message kinds in use
         self.robots = [self.behaviour.make_robot(n, seed, sc) for n in nodes]
         self.bodies = [SimBody(self.world, i, n, self.link) for i, n in enumerate(nodes)]
         from bridge.perception import host_coordinator

@@ -116,6 +116,13 @@ THESIS_MAX_TICKS = 5000
 THESIS_UNTIL = "converged"
 
 
+def base_dict(base: Scenario | None, overrides: dict[str, Any] | None) -> dict[str, Any]:
+    """The keys every point starts from: the base scenario's with the --set
+    overrides over them (an override naming another behaviour leaves the base
+    behaviour's own parameters behind: scenario.merge)."""
+    return merge((base or Scenario()).to_dict(), dict(overrides or {}))
+
+
 def _scenario(base: dict[str, Any], point: dict[str, Any]) -> Scenario:
     behaviour = str(point.get("behaviour", base.get("behaviour", DEFAULT_BEHAVIOUR)))
     for key in point:
@@ -260,8 +267,7 @@ def validate_points(points: Sequence[Point], base: Scenario | None = None,
     """ScenarioError for the first point that is not a valid scenario."""
     if not points:
         raise ScenarioError("sweep: no grid points; expected at least one")
-    base_d = (base or Scenario()).to_dict()
-    base_d.update(overrides or {})
+    base_d = base_dict(base, overrides)
     for pt in points:
         sc = _scenario(base_d, pt.as_dict())
         if link_faults(sc):
@@ -316,8 +322,7 @@ def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None =
     check_seeds(seeds)
     if not points:
         raise ScenarioError("sweep: no grid points; expected at least one")
-    base_d = (base or Scenario()).to_dict()
-    base_d.update(overrides or {})
+    base_d = base_dict(base, overrides)
     skip = check_done(done, points, seeds, base_d, until)
     jobs: list[tuple[dict, dict, int]] = []
     meta: list[tuple[Point, Scenario, int]] = []
@@ -467,8 +472,7 @@ def columns(behaviours: Iterable[str]) -> list[str]:
 def point_scenarios(points: Sequence[Point], base: Scenario | None = None,
                     overrides: dict[str, Any] | None = None) -> list[Scenario]:
     """The scenario of every point, in order."""
-    base_d = (base or Scenario()).to_dict()
-    base_d.update(overrides or {})
+    base_d = base_dict(base, overrides)
     return [_scenario(base_d, pt.as_dict()) for pt in points]
 
 

@@ -84,7 +84,7 @@ def test_a_behaviours_own_message_travels_and_counts() -> None:
     and the coordinator drops that stop (and only that one) at once."""
     from bridge.links import codec
     from firmware_logic import messages as msg
-    agg = registry.load("aggregate")
+    agg = registry.load("aggregate").activate()
     leave = agg.spec.LEAVE
     assert msg.fields(leave) == (("seq", 1, 0), ("x", 2, 1), ("y", 2, 1))
     frame = codec.encode(4, leave, (3, 512, -256))

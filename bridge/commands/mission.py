@@ -87,6 +87,9 @@ def cmd_mission(args: argparse.Namespace) -> int:
         print(format_summary(summary, sc.behaviour, result.coordinator))
         for node, text in summary["bodies"].items():
             if node in summary["real_touches"]:
-                print(f"  robot {node:<11} {text}: {summary['real_touches'][node]} touch(es), "
-                      f"{summary['real_failed_ticks'][node]} failed tick(s)")
+                # a body the host steps counts its failed ticks; a tethered
+                # board (mpy://) ticks on its own and has none to count
+                failed = summary["real_failed_ticks"].get(node)
+                print(f"  robot {node:<11} {text}: {summary['real_touches'][node]} touch(es)"
+                      + ("" if failed is None else f", {failed} failed tick(s)"))
     return 0 if summary["delivered"] else 1

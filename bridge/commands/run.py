@@ -137,11 +137,30 @@ def register(sub) -> None:
 
 
 def check_outputs(args: argparse.Namespace) -> None:
-    """Refuse unusable --out and --record paths before the run, not after it."""
-    from bridge.commands.paths import check_out_dir, check_out_file
+    """Refuse unusable --out and --record paths before the run, not after it.
+    --out is created first, so --trace/--record/--animate may name files in
+    it; it is removed again (when still empty) if another path is refused."""
+    from bridge.commands.paths import check_out_dir
+    if args.out is None:
+        _check_files(args)
+        return
+    check_out_dir(args.out, "--out")
+    created = [d for d in (args.out, *args.out.parents) if not d.exists()]
+    args.out.mkdir(parents=True, exist_ok=True)
+    try:
+        _check_files(args)
+    except UsageError:
+        for d in created:
+            try:
+                d.rmdir()
+            except OSError:
+                break           # not empty: something else wrote there meanwhile
+        raise
+
+
+def _check_files(args: argparse.Namespace) -> None:
+    from bridge.commands.paths import check_out_file
     from bridge.record.formats import meta_path, record_format
-    if args.out is not None:
-        check_out_dir(args.out, "--out")
     if args.record is not None:
         record_format(args.record)
         check_out_file(args.record, "--record", "run.blf")

@@ -39,7 +39,8 @@ def register(sub) -> None:
                    help="base scenario every point starts from (default: default)")
     p.add_argument("--grid", action="append", default=[], metavar="KEY=V1,V2,...",
                    help="a scenario key and its distinct values (repeatable, once per key; "
-                        "the grid is their product)")
+                        "the grid is their product; none: one point, the scenario with "
+                        "its --set keys)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scenario key for every point (repeatable, once per key, "
                         "not a --grid key)")
@@ -251,10 +252,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         until = cfg.get("until") or sweep.THESIS_UNTIL
         overrides.setdefault("maxTicks", sweep.THESIS_MAX_TICKS)
     else:
-        if not cfg.get("grid"):
-            raise UsageError("give at least one --grid KEY=V1,V2,... (or --thesis, or an "
-                             "experiment file)")
-        grid = cfg["grid"]
+        # no --grid: one point, the scenario with --set, over the seeds
+        grid = cfg.get("grid") or {}
         both = sorted(set(grid) & set(overrides))
         if both:
             raise UsageError(f"--set {both[0]} and --grid {both[0]} both given; the grid "
@@ -275,7 +274,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     done: list[dict] = []
     if args.resume:
         done = sweep.read_done(csv_path)
-        base_d = {**base.to_dict(), **overrides}
+        base_d = sweep.base_dict(base, overrides)
         sweep.check_done(done, points, seeds, base_d, until)
     elif csv_path.exists() and not args.overwrite and sweep.read_done(csv_path):
         raise UsageError(f"--out {out}: sweep.csv already holds {len(sweep.read_done(csv_path))}"

@@ -48,7 +48,7 @@ def cmd_check(args: argparse.Namespace) -> int:
     from firmware_logic import registry
 
     try:
-        b = registry.load(getattr(args, "behaviour", "thesis"))
+        b = registry.load(getattr(args, "behaviour", "thesis")).activate()
     except registry.BehaviourError as err:
         print(f"touchswarm: {err}", file=sys.stderr)
         return 2

@@ -66,7 +66,7 @@ def host_behaviour(name: str | None, sc: Any = None) -> registry.Behaviour:
     contract; UsageError (one line) for an unknown one or one whose
     coordinator does not, before any port or journal is touched."""
     try:
-        b = registry.load(name)
+        b = registry.load(name).activate()
     except registry.BehaviourError as err:
         raise UsageError(f"host: {err}") from None
     params = inspect.signature(b.package.make_coordinator).parameters

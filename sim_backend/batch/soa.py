@@ -262,7 +262,7 @@ class SoaEngine:
         names = {sc.behaviour for sc, _ in self.runs}
         if len(names) != 1:
             raise EngineError(f"a batch runs one behaviour, got {sorted(map(str, names))}")
-        self.behaviour = registry.load(names.pop())
+        self.behaviour = registry.load(names.pop()).activate()   # its message kinds in use
         self.until = until
         self.record = record_trajectories
         self.tick = 0
