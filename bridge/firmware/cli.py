@@ -82,6 +82,7 @@ def cmd_check(args: argparse.Namespace) -> int:
 
     sc = check_scenario(args)
     b = registry.load(str(sc.behaviour))
+    b.robot_args(args.node, args.seed, sc)     # one line when they do not fit the FSM
     violations = check_package()
     if not b.folder.is_relative_to(package_dir()):
         violations = sorted(violations + check_paths([b.folder]))
@@ -121,6 +122,7 @@ def cmd_check(args: argparse.Namespace) -> int:
         else:
             trace = "no trace"
         print("%s: %s" % (m.model, trace))
+        print("  robot: %s%r" % (b.robot_class.__name__, tuple(m.robot_args)))
         print("  states visited: %s" % (" ".join(m.states_visited) or "-"))
         if m.heap_steps:
             print("  heap: %d bytes over %d steps = %.2f bytes/step; under heap_lock: %s"

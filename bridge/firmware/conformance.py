@@ -40,6 +40,7 @@ from bridge.firmware import mp_runner
 from bridge.firmware.subset_check import firmware_files, package_dir
 from bridge.serial.board_main import PACKAGE
 from bridge.serial.deploy import BOARD_MAIN, behaviour_source, config_text
+from firmware_logic.messages import DOWN
 
 log = logging.getLogger(__name__)
 
@@ -84,6 +85,7 @@ class Divergence:
 @dataclass
 class ModelResult:
     model: str
+    robot_args: list = field(default_factory=list)   # the FSM's constructor arguments
     trace_lines: int = 0
     actions: int = 0
     states_visited: list[str] = field(default_factory=list)
@@ -394,7 +396,7 @@ def run_conformance(src: Path | None = None, params: RunParams | None = None,
     b = registry.load(base.behaviour)
     spec = b.spec
     rep = Report(behaviour=b.name, states=list(spec.STATES),
-                 down_messages=[m[1] for m in getattr(spec, "MESSAGES", ()) if m[2] == "down"])
+                 down_messages=[m[1] for m in getattr(spec, "MESSAGES", ()) if m[2] == DOWN])
     src = package_dir() if src is None else Path(src)
     behaviour_dir = behaviour_source(b, src)
     try:
@@ -431,7 +433,7 @@ def run_conformance(src: Path | None = None, params: RunParams | None = None,
             shutil.copytree(behaviour_dir, fw_dir / PACKAGE, ignore=ignore)
             rep.loaded_from = "py"
         for label, args in plan:
-            res = ModelResult(label)
+            res = ModelResult(label, list(args))
             rep.models.append(res)
             p = base
             try:
