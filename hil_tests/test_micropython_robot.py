@@ -312,3 +312,57 @@ def test_deploy_another_behaviour_and_the_board_builds_it(micropython_device: Pt
         "messages.declare(s.MESSAGES)\n"
         "print('built', r.node, r.span, s.STATES[s.STATES.index('halt')], messages.dlc(s.LEAVE))\n")
     assert "built 2 30 halt 5" in text, text
+
+
+def test_deploy_a_folder_outside_the_repo_and_the_board_imports_it(
+        micropython_device: PtyRelay, tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """A behaviour made by the scaffold in a folder outside the repository,
+    with a state only its own down message reaches and a module of its own
+    read by relative import (tests/test_behaviour_folder.py): deploy copies
+    it as the package behaviour/ (that module too, its coordinator not),
+    writes its robot_args, and verifies by importing it on the board; the
+    board's runtime then builds it and obeys its own NUDGE."""
+    from tests.test_behaviour_folder import scaffold, with_down_only_state
+    (tmp_path / "mine").mkdir()
+    folder = scaffold(tmp_path / "mine", "nudger")
+    with_down_only_state(folder)
+    rc = cli_main(["deploy", "--port", micropython_device.path, "--behaviour", str(folder),
+                   "--set", "robotVisionSpan=20", "--config", "NODE=5"])
+    out, err = capsys.readouterr()
+    assert rc == 0, out + err
+    flash = micropython_device.flash   # type: ignore[attr-defined]
+    own = sorted(p.name for p in (flash / "behaviour").iterdir())
+    assert own == ["__init__.mpy", "moves.mpy", "robot.mpy", "spec.mpy"]
+    assert "ARGS = (5, 1, 1, 20, 2, 100)" in (flash / "robot_config.py").read_text()
+    assert "imported nudger on the device and built its robot (Robot, 6 arguments, " \
+        "state search)" in out
+    text = Deployer(micropython_device.path).exec(
+        "import main\n"
+        "r, s = main.build(main.config())\n"
+        "class Hal:\n"
+        "    q = [s.NUDGE]\n"
+        "    def recv(self, buf):\n"
+        "        return self.q.pop() if self.q else 0\n"
+        "    def beacon(self, on):\n"
+        "        pass\n"
+        "    def __getattr__(self, name):\n"
+        "        return lambda *a: 0\n"
+        "r.state = s.STAY\n"
+        "r.step(Hal())\n"
+        "print('after nudge', s.STATES[r.state], r.flee)\n")
+    assert "after nudge flee 4" in text, text
+
+
+def test_deploy_refuses_a_behaviour_the_board_cannot_import(
+        micropython_device: PtyRelay, tmp_path: Path) -> None:
+    """Copied and hashed is not enough: a robot.py importing a module the
+    board does not have (here the host's roster, not deployed) fails the
+    import on the device, and the deploy says so."""
+    from tests.test_behaviour_folder import edit, scaffold
+    (tmp_path / "mine").mkdir()
+    folder = scaffold(tmp_path / "mine", "hosty")
+    edit(folder / "robot.py", "from firmware_logic.rng import Rng\n",
+         "from firmware_logic.rng import Rng\nfrom firmware_logic import roster  # noqa: F401\n")
+    with pytest.raises(DeployError, match=r"could not import the behaviour 'hosty'.*roster"):
+        Deployer(micropython_device.path, behaviour=str(folder)).deploy({"NODE": 1})
