@@ -118,6 +118,12 @@ def cmd_deploy(args: argparse.Namespace) -> int:
     config = parse_config(args.config)
     _check_tool("--mpy-cross", args.mpy_cross)
     _check_tool("--mpremote", args.mpremote)
+    from firmware_logic import registry
+    if args.behaviour is not None:
+        try:
+            registry.load(args.behaviour)
+        except registry.BehaviourError as err:
+            raise UsageError(f"--behaviour: {err}") from None
     sc = deploy_scenario(args)
     behaviour = args.behaviour if args.behaviour is not None else \
         (str(sc.behaviour) if sc is not None else "thesis")

@@ -30,7 +30,7 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # typ
         epilog="examples:\n"
                "  touchswarm firmware check\n"
                "  touchswarm firmware check --behaviour ./my_behaviours/disperse\n"
-               "  touchswarm firmware check --behaviour aggregate --set quorum=60 --ticks 1500",
+               "  touchswarm firmware check --behaviour aggregate --scenario my.toml --ticks 1500",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     c.add_argument("--json", action="store_true", help="print one JSON object")
     c.add_argument("--behaviour", default=None, metavar="NAME|FOLDER",
