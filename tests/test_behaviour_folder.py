@@ -9,6 +9,7 @@ hil_tests/test_micropython_robot.py.
 
 from __future__ import annotations
 
+import json
 import re
 from pathlib import Path
 
@@ -115,6 +116,10 @@ def test_a_state_never_reached_is_named_in_a_fail_line(
     assert "FAIL: state 'flee' was never reached under MicroPython (firefly, ant)" in out
     assert out.count("FAIL: state") == 1
     assert out.rstrip().endswith("firmware check: FAIL")
+    assert main(["firmware", "check", "--behaviour", str(folder), "--ticks", "1500",
+                 "--json"]) == 1
+    d = json.loads(capsys.readouterr().out)
+    assert d["unvisited"] == {"flee": ["firefly", "ant"]} and d["ok"] is False
 
 
 def test_a_constructor_that_does_not_fit_robot_args_is_one_line(

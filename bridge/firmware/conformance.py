@@ -146,6 +146,7 @@ class Report:
     def as_dict(self) -> dict[str, object]:
         d = asdict(self)
         d["mpy_total"] = self.mpy_total
+        d["unvisited"] = self.unvisited()
         d["ok"] = self.ok
         for md, m in zip(d["models"], self.models):  # type: ignore[arg-type]
             md["heap_per_step"] = m.heap_per_step
