@@ -142,6 +142,10 @@ def test_a_constructor_that_does_not_fit_robot_args_is_one_line(
         assert main(argv) == 2
         err_text = capsys.readouterr().err
         assert err_text == f"touchswarm: error: {line}\n", argv
+    # behaviour check's first step says it too
+    assert main(["behaviour", "check", str(folder), "--only", "load"]) == 1
+    out = capsys.readouterr().out
+    assert re.search(r"load +FAIL .* " + re.escape(line), out), out
 
 
 def test_optional_constructor_arguments_fit() -> None:
