@@ -89,6 +89,7 @@ class Checker:
         try:
             b = registry.load(str(self.folder))
             sc = scenario.validate({"behaviour": str(self.folder)})
+            b.robot_args(1, 1, sc)       # they fit the FSM's constructor
         except (registry.BehaviourError, ScenarioError) as err:
             raise StepFailed(str(err)) from None
         return (f"{b.name}: {len(b.spec.STATES)} states, {len(sc.params)} parameters, "

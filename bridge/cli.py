@@ -84,10 +84,13 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return EXIT_USAGE
+    from firmware_logic.registry import BehaviourError
     from sim_backend.errors import SimError
     try:
         return args.func(args)
-    except (UsageError, SimError) as err:
+    except (UsageError, SimError, BehaviourError) as err:
+        # BehaviourError: a behaviour that loads but does not hold together
+        # (e.g. robot_args that do not fit its constructor), found when used
         print(f"touchswarm: error: {err}", file=sys.stderr)
         return EXIT_USAGE
     except BridgeError as err:

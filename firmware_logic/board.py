@@ -41,7 +41,6 @@ from firmware_logic.hal import WALL
 A_END = 0
 A_STOP = 255
 
-SUBSET_SETUP = ("make_robot",)   # start-up: may allocate (docs/subset.md)
 
 INBOX = 8          # queued host messages between two FSM steps
 REPLY_MS = 200     # wait for one answer before asking again
@@ -248,31 +247,20 @@ class TetherHal(Hal):
         return self.box[k]
 
 
-def make_robot(robot_class, spec, node, seed, model, span, defiance, power):
-    """The behaviour's FSM and the code of its "halt" state; its own message
-    kinds (spec.MESSAGES) are put in use first. main.py imports the behaviour
-    robot_config.py names (bridge/serial/board_main.py)."""
-    if hasattr(spec, "MESSAGES"):
-        msg.activate(spec.MESSAGES)
-    return robot_class(node, seed, model, span, defiance, power), spec.STATES.index("halt")
-
-
-def run(port, node, seed, model, span, defiance, power, max_ticks, linger,
-        robot_class=None, spec=None, guard=None):
+def run(port, node, robot, spec, max_ticks, linger, guard=None):
     """The robot's main loop: step the FSM, let the body apply the tick,
-    until `max_ticks` ticks (0: forever) or `linger` ticks after HALT;
-    then one ACTION STOP frame says the loop has ended.
-    Returns the HAL (its counters), with the robot as `hal.robot`.
-    robot_class, spec: the behaviour's (default: the thesis's).
+    until `max_ticks` ticks (0: forever) or `linger` ticks after the
+    behaviour's "halt" state; then one ACTION STOP frame says the loop has
+    ended. Returns the HAL (its counters), with the robot as `hal.robot`.
+    robot: the behaviour's FSM, built from its robot_args (main.py builds it
+    from robot_config.ARGS, bridge/serial/board_main.py); spec: its spec.py
+    (its own message kinds are put in use here, its STATES name "halt").
     guard: a heap check (bridge/serial/board_main.py HeapGuard): after
     guard.warmup ticks, guard.tick(robot, hal) runs each whole tick under
     heap_lock() and counts the ticks that tried to allocate."""
-    if robot_class is None:
-        from firmware_logic.behaviours.thesis import robot as thesis_robot
-        from firmware_logic.behaviours.thesis import spec as thesis_spec
-        robot_class = thesis_robot.Robot
-        spec = thesis_spec
-    robot, halt = make_robot(robot_class, spec, node, seed, model, span, defiance, power)
+    if hasattr(spec, "MESSAGES"):
+        msg.activate(spec.MESSAGES)
+    halt = spec.STATES.index("halt")
     hal = TetherHal(port, node)
     hal.robot = robot
     after = 0

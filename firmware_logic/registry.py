@@ -65,12 +65,43 @@ class Behaviour:
     def robot_class(self) -> type:
         return getattr(self.robot_module, self.package.ROBOT.split(":")[1])
 
+    @property
+    def ref(self) -> str:
+        """How a scenario names this behaviour: its installed name, or its folder."""
+        return self.name if names().get(self.name) == self.module_name else str(self.folder)
+
     def robot_args(self, node: int, seed: int, sc: Any) -> tuple:
         """The FSM's constructor arguments for robot `node`, read off the
-        scenario of its breed (a [[breeds]] table may set any parameter)."""
+        scenario of its breed (a [[breeds]] table may set any parameter);
+        BehaviourError when their number does not fit the constructor."""
         if getattr(sc, "breeds", ()):
             sc = sc.for_node(node)
-        return tuple(self.package.robot_args(node, seed, sc))
+        args = tuple(self.package.robot_args(node, seed, sc))
+        lo, hi = self.arity
+        if not lo <= len(args) <= hi:
+            takes = str(lo) if lo == hi else f"{lo}..{hi}"
+            raise BehaviourError(
+                f"behaviour {self.name!r}: robot_args in {self.folder / '__init__.py'} gives "
+                f"{len(args)} arguments, but {self.robot_class.__name__}.__init__ in "
+                f"{self.robot_module.__file__} takes {takes}; make them agree")
+        return args
+
+    @functools.cached_property
+    def arity(self) -> tuple[int, float]:
+        """(fewest, most) positional arguments the FSM's constructor takes
+        (after self); most is infinite with *args."""
+        import inspect
+        try:
+            sig = inspect.signature(self.robot_class.__init__)
+        except (TypeError, ValueError):
+            return 0, float("inf")
+        params = list(sig.parameters.values())[1:]
+        positional = [p for p in params if p.kind in (p.POSITIONAL_ONLY,
+                                                       p.POSITIONAL_OR_KEYWORD)]
+        lo = sum(1 for p in positional if p.default is p.empty)
+        hi = float("inf") if any(p.kind == p.VAR_POSITIONAL for p in params) \
+            else len(positional)
+        return lo, hi
 
     def make_robot(self, node: int, seed: int, sc: Any) -> Any:
         return self.robot_class(*self.robot_args(node, seed, sc))

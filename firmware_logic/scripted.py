@@ -22,10 +22,16 @@ Answers are plausible, not physical:
                  one tick in 6 with increasing step numbers (a quarter of
                  them repeat the previous step); HALT at random in the last
                  tenth of the horizon, and at the latest two ticks before it;
-                 the thesis's RELEASE 1..3 ticks after half the TOUCHes of
-                 the second half, twice at most (a box of 7 x 7 patches
-                 beside the robot, which it may wander into), so the FSM
-                 still goes on to carry.
+                 each down message the behaviour declares (spec.MESSAGES
+                 rows with direction DOWN, e.g. the thesis's RELEASE): once
+                 at a random tick between a quarter of the horizon and the
+                 HALT, and 1..3 ticks after half the reports (TOUCH or the
+                 behaviour's own up messages) of the second half, DOWN_REACTS
+                 times at most, so the FSM still goes on after it. Its
+                 fields: a field named seq carries the robot's last report's
+                 seq; a field in patches the robot's patch (x or y by the
+                 field name's first letter) -4..+4; any other a random raw
+                 value, each within the field's declared bounds.
 Position is tracked from forward/carry in Q8 inside a 35 x 35 arena.
 
 Ticks are counted by recv: the FSM calls recv until it answers 0 at the start
@@ -38,7 +44,6 @@ from firmware_logic import messages as msg
 from firmware_logic.hal import Hal
 from firmware_logic.rng import Rng
 from firmware_logic.hal import CLAIMED, NOTHING, OBJECT, ROBOT, WALL
-from firmware_logic.behaviours.thesis.spec import RELEASE
 
 # trace record: op, tick, then ARITY[op] ints
 OP_X = 1
@@ -65,15 +70,28 @@ IS_ACTION = (0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 1, 1, 1, 0, 0)
 
 ARENA = 35 * fx.ONE
 SCRIPT_NODE = 0          # the script's RNG lane: node 0 is the host
+# the down messages' own lane, so declaring one leaves the rest of the script alone
+DOWN_LANE = 65520
+DOWN_REACTS = 2          # deliveries of each down message in answer to reports
+MAX_FIELDS = 6           # fields of one message (messages.check)
+
+# how a down message's field is filled (ScriptHal.__init__ reads the row)
+F_SEQ = 0                # the seq of the robot's last report
+F_PX = 1                 # the robot's patch x, -4..+4
+F_PY = 2                 # the robot's patch y, -4..+4
+F_RANDOM = 3             # a random raw value
 
 # lines() and drain_lines() build strings: not the step path
 SUBSET_SETUP = ("ScriptHal.lines", "ScriptHal.drain_lines")
 
 
 class ScriptHal(Hal):
-    def __init__(self, seed, horizon=2000, capacity=1024, state_names=()):
+    def __init__(self, seed, horizon=2000, capacity=1024, state_names=(), messages=()):
+        """messages: the behaviour's own (its spec.MESSAGES); the script
+        sends each one whose direction is DOWN."""
         self.state_names = state_names   # the behaviour's STATES, for the trace
         self.rng = Rng(seed, SCRIPT_NODE)
+        self.drng = Rng(seed, DOWN_LANE)
         self.horizon = horizon
         self.contest_until = horizon // 2
         self.halt_from = horizon - horizon // 10
@@ -92,10 +110,8 @@ class ScriptHal(Hal):
         self.q_transport = 0
         self.q_ack = 0
         self.q_hello = 0
-        self.q_release = 0
-        self.releases = 2          # RELEASEs left to send
-        self.release_due = 0
         # script state
+        self.last_seq = 0          # seq of the robot's last report
         self.touched = 0
         self.halted = 0
         self.ack_due = 0
@@ -104,6 +120,54 @@ class ScriptHal(Hal):
         self.tstep = 0
         self.tdx = 0
         self.tdy = 0
+        self.setup_messages(messages)
+
+    def setup_messages(self, messages):
+        """The behaviour's up kinds (its reports) and down messages, each down
+        one with its schedule and, per field, how it is filled (kind, lo, hi)."""
+        self.up_kinds = []
+        self.down_kinds = []
+        self.down_nfields = []
+        self.down_at = []          # tick of the unprompted delivery
+        self.down_due = []         # tick a delivery answering a report is due (0: none)
+        self.down_left = []        # deliveries answering reports left
+        self.down_q = []           # 1: delivered during this tick
+        self.f_kind = []           # per down message MAX_FIELDS slots
+        self.f_lo = []
+        self.f_hi = []
+        first = self.horizon // 4
+        for m in messages:
+            if m[2] == msg.UP:
+                self.up_kinds.append(m[0])
+                continue
+            if m[2] != msg.DOWN:
+                continue
+            self.down_kinds.append(m[0])
+            self.down_nfields.append(len(m[4]))
+            self.down_at.append(first + self.drng.below(self.halt_from - first))
+            self.down_due.append(0)
+            self.down_left.append(DOWN_REACTS)
+            self.down_q.append(0)
+            j = 0
+            while j < MAX_FIELDS:
+                kind, lo, hi = F_RANDOM, 0, 0
+                if j < len(m[4]):
+                    name, size, signed, _div, unit, flo, fhi = m[4][j][:7]
+                    bits = 8 * size
+                    lo, hi = (-(1 << (bits - 1)), (1 << (bits - 1)) - 1) if signed \
+                        else (0, (1 << bits) - 1)
+                    if flo is not None:
+                        lo = max(lo, flo)
+                    if fhi is not None:
+                        hi = min(hi, fhi)
+                    if name == "seq":
+                        kind = F_SEQ
+                    elif unit == "patch":
+                        kind = F_PY if name[:1] == "y" else F_PX
+                self.f_kind.append(kind)
+                self.f_lo.append(lo)
+                self.f_hi.append(hi)
+                j += 1
 
     # -- trace buffer ------------------------------------------------------
 
@@ -236,14 +300,32 @@ class ScriptHal(Hal):
 
     # -- messages ------------------------------------------------------------
 
+    def _is_report(self, kind):
+        if kind == msg.TOUCH:
+            return 1
+        i = 0
+        n = len(self.up_kinds)
+        while i < n:
+            if self.up_kinds[i] == kind:
+                return 1
+            i += 1
+        return 0
+
     def send(self, kind, a0, a1, a2, a3, a4, a5):
         self._rec7(OP_SEND, kind, a0, a1, a2, a3, a4, a5)
+        if self._is_report(kind):
+            self.last_seq = a0
+            # the behaviour's down messages answer some reports
+            if self.tick >= self.contest_until:
+                i = 0
+                n = len(self.down_kinds)
+                while i < n:
+                    if self.down_left[i] and self.down_due[i] == 0 and self.drng.below(2) == 0:
+                        self.down_left[i] -= 1
+                        self.down_due[i] = self.tick + 1 + self.drng.below(3)
+                    i += 1
         if kind == msg.TOUCH:
             self.touched = 1
-            if self.releases and self.tick >= self.contest_until and self.release_due == 0 \
-                    and self.rng.below(2) == 0:
-                self.releases -= 1
-                self.release_due = self.tick + 1 + self.rng.below(3)
             # a quarter of the reports go unanswered: the FSM retransmits
             if self.ack_due == 0 and self.rng.below(4) != 0:
                 self.ack_due = self.tick + 1 + self.rng.below(6)
@@ -269,9 +351,15 @@ class ScriptHal(Hal):
                 self.tdx = self.rng.below(3) - 1
                 self.tdy = self.rng.below(3) - 1
                 self.q_transport = 1
-        if self.release_due and t >= self.release_due:
-            self.release_due = 0
-            self.q_release = 1
+        i = 0
+        n = len(self.down_kinds)
+        while i < n:
+            if self.down_due[i] and t >= self.down_due[i]:
+                self.down_due[i] = 0
+                self.down_q[i] = 1
+            if t == self.down_at[i]:
+                self.down_q[i] = 1
+            i += 1
         if not self.halted and t >= self.halt_from:
             if self.rng.below(16) == 0 or t >= self.horizon - 2:
                 self.halted = 1
@@ -304,21 +392,44 @@ class ScriptHal(Hal):
         if self.q_hello:
             self.q_hello = 0
             return self._deliver(buf, msg.ACK, 0, 0, 0)
-        if self.q_release:
-            self.q_release = 0
-            x = fx.patch(self.px)
-            y = fx.patch(self.py)
-            buf[0] = x + 2
-            buf[1] = y + 2
-            buf[2] = x + 8
-            buf[3] = y + 8
-            buf[4] = 0
-            buf[5] = 0
-            self._rec7(OP_RECV, RELEASE, x + 2, y + 2, x + 8, y + 8, 0, 0)
-            return RELEASE
+        i = 0
+        n = len(self.down_kinds)
+        while i < n:
+            if self.down_q[i]:
+                self.down_q[i] = 0
+                return self._deliver_down(buf, i)
+            i += 1
         self.fresh = 1
         self._rec7(OP_RECV, 0, 0, 0, 0, 0, 0, 0)
         return 0
+
+    def _field(self, k):
+        """The value of field slot k (setup_messages) for a delivery now."""
+        kind = self.f_kind[k]
+        if kind == F_SEQ:
+            v = self.last_seq
+        elif kind == F_PX:
+            v = fx.patch(self.px) + self.drng.below(9) - 4
+        elif kind == F_PY:
+            v = fx.patch(self.py) + self.drng.below(9) - 4
+        else:
+            v = self.f_lo[k] + self.drng.below(self.f_hi[k] - self.f_lo[k] + 1)
+        if v < self.f_lo[k]:
+            v = self.f_lo[k]
+        elif v > self.f_hi[k]:
+            v = self.f_hi[k]
+        return v
+
+    def _deliver_down(self, buf, i):
+        base = i * MAX_FIELDS
+        nf = self.down_nfields[i]
+        j = 0
+        while j < MAX_FIELDS:
+            buf[j] = self._field(base + j) if j < nf else 0
+            j += 1
+        kind = self.down_kinds[i]
+        self._rec7(OP_RECV, kind, buf[0], buf[1], buf[2], buf[3], buf[4], buf[5])
+        return kind
 
     # -- dumping (allocates: never call it from a step) ------------------------
 

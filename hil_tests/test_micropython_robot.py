@@ -19,12 +19,13 @@ import pytest
 
 from bridge.cli import main as cli_main
 from bridge.host.journal import Journal
-from bridge.serial.deploy import MODULES, Deployer, DeployError
+from bridge.serial.deploy import Deployer, DeployError
 from bridge.serial.pty import PtyRelay
 from bridge.serial.transport import SerialTransport
 from firmware_logic import fixedpoint as fx
 from firmware_logic import messages as msg
 from firmware_logic.behaviours.thesis.coordinator import Coordinator, Touch
+from firmware_logic import registry
 from sim_backend import scenario
 from sim_backend.emulators.tether import TetherTransport
 from sim_backend.engine import Engine
@@ -35,11 +36,14 @@ SEED = 3
 HANG_GUARD_S = 120.0
 
 
-def mission_engine() -> Engine:
+def mission_scenario() -> scenario.Scenario:
     # two robots so one touch (power 1.0) does not reach the weight 2.0:
     # the run ends when the host has journalled and acknowledged the touch
-    sc = scenario.load("default").replace(agents=2, objectWeight=2.0, objectX=0, objectY=0)
-    eng = Engine(sc, SEED)
+    return scenario.load("default").replace(agents=2, objectWeight=2.0, objectX=0, objectY=0)
+
+
+def mission_engine() -> Engine:
+    eng = Engine(mission_scenario(), SEED)
     w = eng.world
     # robot 1 (tethered) starts two patches west of the bar; robot 2 stays put
     w.xs[0], w.ys[0] = fx.ONE * -1, 0
@@ -50,8 +54,9 @@ def mission_engine() -> Engine:
 
 
 def deploy_and_start(dev: PtyRelay, max_ticks: int = 3000, **extra: int) -> None:
-    Deployer(dev.path).deploy({"NODE": 1, "SEED": SEED, "MODEL": 1, "MAX_TICKS": max_ticks,
-                               "LINGER": 2, **extra})
+    # the robot's arguments: the thesis's robot_args over the mission's scenario
+    Deployer(dev.path).deploy({"NODE": 1, "SEED": SEED, "MAX_TICKS": max_ticks,
+                               "LINGER": 2, **extra}, mission_scenario())
     Deployer(dev.path).start()
 
 
@@ -150,15 +155,26 @@ def test_deploy_command_prints_bytes_and_verifies(micropython_device: PtyRelay,
     flash = micropython_device.flash   # type: ignore[attr-defined]
     on_disk = sum(p.stat().st_size for p in flash.rglob("*") if p.is_file())
     assert int(m.group(1)) == on_disk
-    assert int(m.group(2)) == len(MODULES) + 2   # + main.py and robot_config.py
-    assert (flash / "robot_config.py").read_text() == "NODE = 4\n"
-    assert out.count("verified") == len(MODULES) + 2
+    files = sorted(p.relative_to(flash).as_posix() for p in flash.rglob("*") if p.is_file())
+    # the firmware core, the thesis as the package behaviour/ (its host side left
+    # behind), main.py and robot_config.py
+    assert int(m.group(2)) == len(files) and out.count("verified") == len(files)
+    assert "firmware_logic/board.mpy" in files and "behaviour/robot.mpy" in files
+    assert "behaviour/coordinator.mpy" not in files
+    assert not any("behaviours" in f for f in files)
+    config = (flash / "robot_config.py").read_text()
+    args = registry.load("thesis").robot_args(4, 1, scenario.validate({"behaviour": "thesis"}))
+    assert config == ("ARGS = %r\nBEHAVIOUR = 'thesis'\nNODE = 4\nSEED = 1\n" % (args,))
+    # verified by importing on the device: main.build made the robot from ARGS
+    assert "imported thesis on the device and built its robot (Robot, 12 arguments, " \
+        "state search)" in out
     assert "kept" not in out
     # a redeploy without --config keeps the old configuration, and says so
     assert cli_main(["deploy", "--port", micropython_device.path]) == 0
     out = capsys.readouterr().out
-    assert "kept the device's robot_config.py from an earlier deploy (NODE=4)" in out
-    assert (flash / "robot_config.py").read_text() == "NODE = 4\n"
+    assert "kept the device's robot_config.py from an earlier deploy (" in out
+    assert "NODE=4" in out and "imported thesis" in out
+    assert (flash / "robot_config.py").read_text() == config
 
 
 def test_deploy_refuses_a_device_with_another_mpy_version(micropython_device: PtyRelay,
@@ -176,7 +192,7 @@ def test_deploy_refuses_firmware_failing_the_subset_check(micropython_device: Pt
     import shutil
 
     from bridge.serial.deploy import FIRMWARE_DIR
-    fw = tmp_path / "fw"
+    fw = tmp_path / "fw"      # a copy of firmware_logic: the thesis is taken from it
     shutil.copytree(FIRMWARE_DIR, fw, ignore=shutil.ignore_patterns("__pycache__"))
     (fw / "behaviours" / "thesis" / "robot.py").write_text((fw / "behaviours" / "thesis" / "robot.py").read_text()
                                  + "\n\ndef bad():\n    print('x', 1.5)\n")
@@ -276,22 +292,77 @@ def test_deploy_another_behaviour_and_the_board_builds_it(micropython_device: Pt
                                                           capsys: pytest.CaptureFixture[str]
                                                           ) -> None:
     """deploy --behaviour aggregate copies that behaviour (not the thesis's FSM)
-    and names it in robot_config.py; on the device, main.py's import of it and
-    the runtime's make_robot build the aggregation FSM with its own messages."""
+    as the package behaviour/ and writes its robot_args into robot_config.py
+    (its own parameter applied with --set); on the device, main.build imports
+    it and builds the aggregation FSM, and the runtime declares its messages."""
     rc = cli_main(["deploy", "--port", micropython_device.path, "--behaviour", "aggregate",
-                   "--config", "NODE=2"])
+                   "--set", "robotVisionSpan=30", "--config", "NODE=2"])
     out, err = capsys.readouterr()
     assert rc == 0, out + err
     flash = micropython_device.flash   # type: ignore[attr-defined]
-    assert (flash / "firmware_logic/behaviours/aggregate/robot.mpy").is_file()
-    assert not (flash / "firmware_logic/behaviours/aggregate/coordinator.mpy").exists()
-    assert "BEHAVIOUR = 'firmware_logic.behaviours.aggregate'" in \
-        (flash / "robot_config.py").read_text()
+    assert (flash / "behaviour/robot.mpy").is_file()
+    assert not (flash / "behaviour/coordinator.mpy").exists()
+    config = (flash / "robot_config.py").read_text()
+    assert "BEHAVIOUR = 'aggregate'" in config and "ARGS = (2, 1, 1, 30, 2, 100)" in config
+    assert "imported aggregate on the device and built its robot (Robot, 6 arguments" in out
     text = Deployer(micropython_device.path).exec(
-        "import robot_config as c\n"
-        "from firmware_logic import board, messages\n"
-        "m = __import__(c.BEHAVIOUR + '.robot', None, None, ('Robot',))\n"
-        "s = __import__(c.BEHAVIOUR + '.spec', None, None, ('STATES',))\n"
-        "r, h = board.make_robot(m.Robot, s, c.NODE, 1, 1, 45, 2, 100)\n"
-        "print('built', r.node, s.STATES[h], messages.dlc(s.LEAVE))\n")
-    assert "built 2 halt 5" in text, text
+        "import main\n"
+        "from firmware_logic import messages\n"
+        "r, s = main.build(main.config())\n"
+        "messages.declare(s.MESSAGES)\n"
+        "print('built', r.node, r.span, s.STATES[s.STATES.index('halt')], messages.dlc(s.LEAVE))\n")
+    assert "built 2 30 halt 5" in text, text
+
+
+def test_deploy_a_folder_outside_the_repo_and_the_board_imports_it(
+        micropython_device: PtyRelay, tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """A behaviour made by the scaffold in a folder outside the repository,
+    with a state only its own down message reaches and a module of its own
+    read by relative import (tests/test_behaviour_folder.py): deploy copies
+    it as the package behaviour/ (that module too, its coordinator not),
+    writes its robot_args, and verifies by importing it on the board; the
+    board's runtime then builds it and obeys its own NUDGE."""
+    from tests.test_behaviour_folder import scaffold, with_down_only_state
+    (tmp_path / "mine").mkdir()
+    folder = scaffold(tmp_path / "mine", "nudger")
+    with_down_only_state(folder)
+    rc = cli_main(["deploy", "--port", micropython_device.path, "--behaviour", str(folder),
+                   "--set", "robotVisionSpan=20", "--config", "NODE=5"])
+    out, err = capsys.readouterr()
+    assert rc == 0, out + err
+    flash = micropython_device.flash   # type: ignore[attr-defined]
+    own = sorted(p.name for p in (flash / "behaviour").iterdir())
+    assert own == ["__init__.mpy", "moves.mpy", "robot.mpy", "spec.mpy"]
+    assert "ARGS = (5, 1, 1, 20, 2, 100)" in (flash / "robot_config.py").read_text()
+    assert "imported nudger on the device and built its robot (Robot, 6 arguments, " \
+        "state search)" in out
+    text = Deployer(micropython_device.path).exec(
+        "import main\n"
+        "r, s = main.build(main.config())\n"
+        "class Hal:\n"
+        "    q = [s.NUDGE]\n"
+        "    def recv(self, buf):\n"
+        "        return self.q.pop() if self.q else 0\n"
+        "    def beacon(self, on):\n"
+        "        pass\n"
+        "    def __getattr__(self, name):\n"
+        "        return lambda *a: 0\n"
+        "r.state = s.STAY\n"
+        "r.step(Hal())\n"
+        "print('after nudge', s.STATES[r.state], r.flee)\n")
+    assert "after nudge flee 4" in text, text
+
+
+def test_deploy_refuses_a_behaviour_the_board_cannot_import(
+        micropython_device: PtyRelay, tmp_path: Path) -> None:
+    """Copied and hashed is not enough: a robot.py importing a module the
+    board does not have (here the host's roster, not deployed) fails the
+    import on the device, and the deploy says so."""
+    from tests.test_behaviour_folder import edit, scaffold
+    (tmp_path / "mine").mkdir()
+    folder = scaffold(tmp_path / "mine", "hosty")
+    edit(folder / "robot.py", "from firmware_logic.rng import Rng\n",
+         "from firmware_logic.rng import Rng\nfrom firmware_logic import roster  # noqa: F401\n")
+    with pytest.raises(DeployError, match=r"could not import the behaviour 'hosty'.*roster"):
+        Deployer(micropython_device.path, behaviour=str(folder)).deploy({"NODE": 1})

@@ -203,10 +203,9 @@ def test_a_micropython_robot_joins_a_simulated_swarm(micropython_device) -> None
     in ticks, waiting on the touch, never on a sleep."""
     from bridge.serial.deploy import Deployer
     dev = micropython_device
-    Deployer(dev.path).deploy({"NODE": REAL, "SEED": SEED, "MODEL": 1, "MAX_TICKS": 5000,
-                               "LINGER": 2})
-    Deployer(dev.path).start()
     sc = mission_scenario()
+    Deployer(dev.path).deploy({"NODE": REAL, "SEED": SEED, "MAX_TICKS": 5000, "LINGER": 2}, sc)
+    Deployer(dev.path).start()
     with MixedMission(sc, SEED, {REAL: parse_body_url(f"mpy://{dev.path}?x=0&y=0")},
                       tick_s=0.02) as m:
         c = m.engine.coordinator

@@ -68,8 +68,7 @@ def test_scaffold_runs_like_its_template(tmp_path: Path,
 
 
 def test_aggregation_on_micropython_matches_cpython_with_zero_heap() -> None:
-    rep = run_conformance(params=RunParams(behaviour=registry.load("aggregate").module_name,
-                                           ticks=1500), heap_steps=1500)
+    rep = run_conformance(params=RunParams(behaviour="aggregate", ticks=1500), heap_steps=1500)
     assert rep.errors == []
     assert rep.states == ["search", "climb", "stay", "halt"]
     for m in rep.models:

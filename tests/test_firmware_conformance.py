@@ -22,6 +22,7 @@ from bridge.firmware.conformance import (
 from firmware_logic.behaviours.thesis.spec import ANT, FIREFLY
 from firmware_logic.behaviours.thesis.spec import STATES as STATE_NAMES
 from bridge.firmware.subset_check import firmware_files, package_dir
+from firmware_logic import registry
 
 
 @pytest.fixture(scope="module")
@@ -45,11 +46,14 @@ def test_tools_agree_and_every_module_compiles(report: Report) -> None:
     assert report.errors == []
     assert report.mpy_version_cross.split(".")[0] == report.mpy_version_port.split(".")[0]
     assert report.loaded_from == "mpy"
+    # the firmware core as firmware_logic/, the behaviour as the package behaviour/
     root = package_dir()
-    sources = {p.relative_to(root).with_suffix("").as_posix().replace("/", ".")
-               for p in firmware_files(root)}
-    assert "behaviours.thesis.robot" in sources
-    assert set(report.mpy_sizes) == sources
+    core = {p.relative_to(root).with_suffix("").as_posix()
+            for p in firmware_files(root) if "behaviours" not in p.relative_to(root).parts}
+    thesis = registry.load("thesis").folder
+    own = {"behaviour." + p.stem for p in firmware_files(thesis)}
+    assert {"board", "scripted", "messages"} <= core and "behaviour.robot" in own
+    assert set(report.mpy_sizes) == core | own
     assert all(size > 0 for size in report.mpy_sizes.values())
     assert report.mpy_total == sum(report.mpy_sizes.values())
 

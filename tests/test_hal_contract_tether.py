@@ -194,7 +194,10 @@ def test_the_board_ends_a_run_with_stop_and_the_tether_records_it() -> None:
         served.append(tether.applied_ticks)
 
     port.serve = serve
-    hal = board.run(port, NODE, 1, 1, 45, 2, 100, 5, 2)
+    from firmware_logic import registry
+    thesis = registry.load("thesis")
+    robot = thesis.make_robot(NODE, 1, validate({"behaviour": "thesis"}))
+    hal = board.run(port, NODE, robot, thesis.spec, 5, 2)
     assert NODE not in tether.stopped             # written, not yet read by the host
     tether.poll(0.0)
     assert tether.stopped == {NODE: 5} and hal.tick == 5

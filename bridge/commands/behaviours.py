@@ -96,13 +96,16 @@ def cmd_new(args: argparse.Namespace) -> int:
     if dest.exists():
         raise UsageError(f"{str(dest)!r} exists already")
     inside = parent.resolve() == template.folder.parent.resolve()
-    package = f"firmware_logic.behaviours.{name}" if inside else name
+    # the template imports its own modules relatively (docs/writing-a-behaviour.md,
+    # "Imports"), so the copy works under any name and folder: only NAME changes
+    texts = {src.name: src.read_text() for src in template.modules()}
+    if texts["spec.py"].count('NAME = "aggregate"') != 1:
+        raise UsageError(f"the template {template.folder}/spec.py has no line "
+                         'NAME = "aggregate"')
+    texts["spec.py"] = texts["spec.py"].replace('NAME = "aggregate"', f'NAME = "{name}"')
     dest.mkdir()
-    for src in template.modules():
-        text = src.read_text()
-        text = text.replace("firmware_logic.behaviours.aggregate", package)
-        text = text.replace('NAME = "aggregate"', f'NAME = "{name}"')
-        (dest / src.name).write_text(text)
+    for file, text in texts.items():
+        (dest / file).write_text(text)
     print(f"created {dest}/ ({', '.join(p.name for p in sorted(dest.glob('*.py')))})")
     print(f"use it as --behaviour {name if inside else dest}; guide: "
           "docs/writing-a-behaviour.md")

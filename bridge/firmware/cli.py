@@ -17,16 +17,31 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # typ
         description="Tools for the robot firmware in firmware_logic/.")
     fsub = p.add_subparsers(dest="firmware_command", metavar="SUBCOMMAND")
     c = fsub.add_parser(
-        "check", help="subset check, mpy-cross compile, CPython/MicroPython traces, heap",
-        description="Check firmware_logic/*.py against the MicroPython subset rules "
-                    "(docs/subset.md), compile it with mpy-cross, run the same seeded "
-                    "scripted robot under CPython and MicroPython for both movement "
-                    "models and compare the traces, and measure heap bytes per step. "
-                    "Exit status 0 only if everything passes.")
+        "check", help="subset check, mpy-cross, CPython/MicroPython traces, heap",
+        description="Check the firmware core (firmware_logic/*.py) and a behaviour's folder "
+                    "against the MicroPython subset rules (docs/subset.md), compile them with "
+                    "mpy-cross as a board holds them, run the same seeded scripted robot under "
+                    "CPython and MicroPython for each movement model and compare the traces, "
+                    "and measure heap bytes per step. The script sends every down message the "
+                    "behaviour declares; every state in its STATES must be visited (a FAIL "
+                    "line names each one never reached). The robot is built from the "
+                    "behaviour's robot_args over the scenario (--scenario, --set). Exit status "
+                    "0 only if everything passes.",
+        epilog="examples:\n"
+               "  touchswarm firmware check\n"
+               "  touchswarm firmware check --behaviour ./my_behaviours/disperse\n"
+               "  touchswarm firmware check --behaviour aggregate --scenario my.toml --ticks 1500",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
     c.add_argument("--json", action="store_true", help="print one JSON object")
-    c.add_argument("--behaviour", default="thesis",
+    c.add_argument("--behaviour", default=None, metavar="NAME|FOLDER",
                    help="behaviour to check: a name from `touchswarm behaviours` or a folder "
-                        "(default: %(default)s)")
+                        "anywhere (default: the scenario's, thesis)")
+    c.add_argument("--scenario", default="default", metavar="NAME|FILE",
+                   help="the scenario the robot's arguments are read off (default: "
+                        "%(default)s)")
+    c.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scenario key, e.g. the behaviour's own parameters "
+                        "(repeatable)")
     c.add_argument("--seed", type=int, default=12345, help="run seed (default: %(default)s)")
     c.add_argument("--node", type=int, default=3, help="robot node id (default: %(default)s)")
     c.add_argument("--ticks", type=int, default=2000,
@@ -41,25 +56,38 @@ def _help(p: argparse.ArgumentParser) -> int:
     return 2
 
 
+def check_scenario(args: argparse.Namespace):
+    """The scenario of --scenario, --set and --behaviour, validated."""
+    from bridge.commands.run import parse_overrides
+    from bridge.errors import UsageError
+    from sim_backend import scenario
+
+    scenario.check_seed(args.seed, "--seed")
+    sc = scenario.load(getattr(args, "scenario", "default"))
+    changes = parse_overrides(getattr(args, "set", []))
+    ref = getattr(args, "behaviour", None)
+    if ref is not None:
+        if "behaviour" in changes and str(changes["behaviour"]) != str(ref):
+            raise UsageError(f"--behaviour {ref} and --set behaviour={changes['behaviour']} "
+                             "disagree; give one of them")
+        changes["behaviour"] = str(ref)
+    return sc.replace(**changes) if changes else sc
+
+
 def cmd_check(args: argparse.Namespace) -> int:
     from bridge.firmware.conformance import RunParams, run_conformance
-    from bridge.firmware.subset_check import check_package, package_dir
+    from bridge.firmware.subset_check import check_package, check_paths, package_dir
 
     from firmware_logic import registry
 
-    try:
-        b = registry.load(getattr(args, "behaviour", "thesis")).activate()
-    except registry.BehaviourError as err:
-        print(f"touchswarm: {err}", file=sys.stderr)
-        return 2
-    if not str(b.folder).startswith(str(package_dir())):
-        print(f"touchswarm: behaviour {args.behaviour!r} lives outside firmware_logic/; "
-              "copy its folder into firmware_logic/behaviours/ to check it on MicroPython",
-              file=sys.stderr)
-        return 2
+    sc = check_scenario(args)
+    b = registry.load(str(sc.behaviour)).activate()   # its message kinds in use
+    b.robot_args(args.node, args.seed, sc)     # one line when they do not fit the FSM
     violations = check_package()
-    params = RunParams(node=args.node, seed=args.seed, ticks=args.ticks,
-                       behaviour=b.module_name)
+    if not b.folder.is_relative_to(package_dir()):
+        violations = sorted(violations + check_paths([b.folder]))
+    params = RunParams(node=args.node, seed=args.seed, ticks=args.ticks, behaviour=b.ref,
+                       scenario=sc)
     rep = run_conformance(params=params, heap_steps=args.ticks)
     ok = not violations and rep.ok
 
@@ -94,14 +122,20 @@ def cmd_check(args: argparse.Namespace) -> int:
         else:
             trace = "no trace"
         print("%s: %s" % (m.model, trace))
+        print("  robot: %s%r" % (b.robot_class.__name__, tuple(m.robot_args)))
         print("  states visited: %s" % (" ".join(m.states_visited) or "-"))
         if m.heap_steps:
             print("  heap: %d bytes over %d steps = %.2f bytes/step; under heap_lock: %s"
                   % (m.heap_bytes, m.heap_steps, m.heap_per_step,
                      "no allocation" if m.heap_locked_ok
                      else "MemoryError at step %d" % m.heap_locked_failed_step))
+    if rep.down_messages:
+        print("down messages the script sent: %s" % ", ".join(rep.down_messages))
     for e in rep.errors:
         print("error: %s" % e, file=sys.stderr)
+    for state, where in rep.unvisited().items():
+        print("FAIL: state %r was never reached under MicroPython (%s)"
+              % (state, ", ".join(where)))
     print("firmware check: %s" % ("PASS" if ok else "FAIL"))
     return 0 if ok else 1
 

@@ -1,12 +1,19 @@
 """Does the firmware run the same on MicroPython as on CPython?
 
-1. compile every firmware_logic/*.py with mpy-cross into a temporary
-   directory and report the .mpy sizes; check that the unix port of
+1. compile the firmware core (firmware_logic/*.py) and the behaviour's
+   folder with mpy-cross into a temporary directory laid out as a board's
+   (firmware_logic/, behaviour/, main.py, robot_config.py; bridge/serial/
+   deploy.py) and report the .mpy sizes; check that the unix port of
    MicroPython loads them (mpy-cross and the port must agree on the .mpy
    version: a mismatch is reported with both versions);
-2. run one seeded ScriptHal run of a Robot under CPython (in-process) and
-   under `micropython` (bridge/firmware/mp_runner.py as a subprocess) and
-   compare the traces line by line, reporting the first divergence;
+2. run one seeded ScriptHal run of the behaviour's robot under CPython
+   (in-process) and under `micropython` (bridge/firmware/mp_runner.py as a
+   subprocess, the robot built by the board's main.build from ARGS the
+   behaviour's robot_args gave on the host) and compare the traces line by
+   line, reporting the first divergence; one run per movement model when
+   the behaviour has a parameter choosing one of its MODELS. The script
+   sends every down message the behaviour declares (firmware_logic/scripted.py);
+   every state in its STATES must be visited;
 3. under `micropython`, measure the heap bytes allocated per step in steady
    state (gc disabled, gc.mem_alloc() before and after), and run the same
    steps again under micropython.heap_lock(), where any allocation raises.
@@ -31,6 +38,9 @@ from pathlib import Path
 from bridge.errors import BridgeError
 from bridge.firmware import mp_runner
 from bridge.firmware.subset_check import firmware_files, package_dir
+from bridge.serial.board_main import PACKAGE
+from bridge.serial.deploy import BOARD_MAIN, behaviour_source, config_text
+from firmware_logic.messages import DOWN
 
 log = logging.getLogger(__name__)
 
@@ -38,14 +48,6 @@ TIMEOUT_S = 60.0
 RUNNER = Path(__file__).resolve().with_name("mp_runner.py")
 MP_HEAPSIZE = "4M"
 
-THESIS = "firmware_logic.behaviours.thesis"
-
-
-def behaviour_spec(module: str) -> Any:
-    """The spec.py of a behaviour package, by its module name."""
-    import importlib
-
-    return importlib.import_module(module + ".spec")
 SMALL_INT_LIMIT = 1 << 30   # a 32-bit board's small ints are below this
 
 
@@ -63,16 +65,10 @@ class Tools:
 class RunParams:
     node: int = 3
     seed: int = 12345
-    model: int = 1
-    span: int = 45
-    defiance: int = 2
-    power: int = 100
     ticks: int = 2000
-    behaviour: str = THESIS   # the behaviour package's module name
-
-    def argv(self) -> list[str]:
-        return [self.behaviour] + [str(v) for v in (self.node, self.seed, self.model,
-                                                    self.span, self.defiance, self.power)]
+    behaviour: str = "thesis"   # a name (`touchswarm behaviours`) or a folder
+    scenario: Any = None        # the robot's arguments are read off it (None: the
+    #                             behaviour's defaults); its model key is set per run
 
 
 @dataclass
@@ -89,6 +85,7 @@ class Divergence:
 @dataclass
 class ModelResult:
     model: str
+    robot_args: list = field(default_factory=list)   # the FSM's constructor arguments
     trace_lines: int = 0
     actions: int = 0
     states_visited: list[str] = field(default_factory=list)
@@ -116,8 +113,18 @@ class Report:
     loaded_from: str = ""         # "mpy" or "py"
     models: list[ModelResult] = field(default_factory=list)
     errors: list[str] = field(default_factory=list)
-    behaviour: str = THESIS
+    behaviour: str = "thesis"
     states: list[str] = field(default_factory=list)   # every one must be visited
+    down_messages: list[str] = field(default_factory=list)   # the script sent them
+
+    def unvisited(self) -> dict[str, list[str]]:
+        """state -> the runs that never reached it (empty: every state was)."""
+        out: dict[str, list[str]] = {}
+        for m in self.models:
+            for s in self.states:
+                if s not in m.states_visited:
+                    out.setdefault(s, []).append(m.model)
+        return out
 
     @property
     def mpy_total(self) -> int:
@@ -139,6 +146,7 @@ class Report:
     def as_dict(self) -> dict[str, object]:
         d = asdict(self)
         d["mpy_total"] = self.mpy_total
+        d["unvisited"] = self.unvisited()
         d["ok"] = self.ok
         for md, m in zip(d["models"], self.models):  # type: ignore[arg-type]
             md["heap_per_step"] = m.heap_per_step
@@ -203,30 +211,45 @@ def micropython_version(tools: Tools) -> tuple[str, tuple[int, int], int]:
 # -- 1. compile ----------------------------------------------------------------
 
 
-def compile_firmware(tools: Tools, src: Path, out: Path) -> dict[str, int]:
-    """Compile src/*.py into out/firmware_logic/*.mpy; return {module: bytes}.
+def compile_firmware(tools: Tools, src: Path, out: Path,
+                     behaviour_dir: Path | None = None) -> dict[str, int]:
+    """Compile the firmware core src/*.py into out/firmware_logic/*.mpy and
+    the behaviour's folder into out/behaviour/*.mpy, as a board holds them;
+    return {module: bytes} (behaviour modules as behaviour.<name>).
 
-    The embedded source name is `firmware_logic/<file>`, so the sizes do not
-    depend on where the sources or the temporary directory are.
+    The embedded source name is the module's path on the board, so the sizes
+    do not depend on where the sources or the temporary directory are.
     """
     sizes: dict[str, int] = {}
-    for py in firmware_files(src):
-        rel = py.relative_to(src).with_suffix("")
-        target = out / "firmware_logic" / rel.with_suffix(".mpy")
+    jobs = [(py, "firmware_logic", py.relative_to(src).with_suffix(""))
+            for py in core_files(src)]
+    if behaviour_dir is not None:
+        jobs += [(py, PACKAGE, py.relative_to(behaviour_dir).with_suffix(""))
+                 for py in firmware_files(behaviour_dir)]
+    for py, pkg, rel in jobs:
+        target = out / pkg / rel.with_suffix(".mpy")
         target.parent.mkdir(parents=True, exist_ok=True)
-        shown = "firmware_logic/" + rel.as_posix() + ".py"
+        shown = pkg + "/" + rel.as_posix() + ".py"
         r = _run([tools.mpy_cross, "-o", target, "-s", shown, py])
         if r.returncode != 0:
             raise ConformanceError("mpy-cross failed on %s:\n%s" % (py, (r.stdout + r.stderr).strip()))
-        sizes[rel.as_posix().replace("/", ".")] = target.stat().st_size
+        name = rel.as_posix().replace("/", ".")
+        sizes[name if pkg == "firmware_logic" else pkg + "." + name] = target.stat().st_size
     return sizes
+
+
+def core_files(src: Path) -> list[Path]:
+    """The firmware core: firmware_logic's modules but its built-in
+    behaviours (each is checked as its own behaviour)."""
+    return [p for p in firmware_files(src) if "behaviours" not in p.relative_to(src).parts[:-1]]
 
 
 def check_load(tools: Tools, fw_dir: Path, modules: Sequence[str]) -> None:
     """Import every compiled module in micropython; each must come from a .mpy."""
     lines = ["import sys", "sys.path.insert(0, %r)" % str(fw_dir)]
     for mod in modules:
-        name = ("firmware_logic." + mod).replace(".__init__", "")
+        name = mod if mod.split(".")[0] == PACKAGE else "firmware_logic." + mod
+        name = name.replace(".__init__", "")
         if mod == "__init__":
             name = "firmware_logic"
         lines.append("import %s" % name)
@@ -241,32 +264,38 @@ def check_load(tools: Tools, fw_dir: Path, modules: Sequence[str]) -> None:
             raise ConformanceError("micropython loaded %s from %s, not from a .mpy" % (mod, path))
 
 
+def board_files(fw_dir: Path, node: int, seed: int, args: tuple) -> None:
+    """The board's main.py and a robot_config.py for one run in fw_dir."""
+    shutil.copyfile(BOARD_MAIN, fw_dir / "main.py")
+    (fw_dir / "robot_config.py").write_text(
+        config_text({"NODE": node, "SEED": seed, "ARGS": tuple(args)}))
+
+
 # -- 2. traces -----------------------------------------------------------------
 
 
-def trace_cpython(p: RunParams) -> list[str]:
-    """The trace of one run under this interpreter with the installed firmware."""
+def trace_cpython(b: Any, p: RunParams, args: tuple) -> list[str]:
+    """The trace of one run under this interpreter with the installed behaviour."""
     out: list[str] = []
-    mp_runner.run_trace(p.node, p.seed, p.model, p.span, p.defiance, p.power, p.ticks,
-                        out.append, p.behaviour)
+    mp_runner.run_trace(lambda: (b.robot_class(*args), b.spec), p.seed, p.ticks, out.append)
     return out
 
 
 def trace_micropython(tools: Tools, fw_dir: Path, p: RunParams) -> tuple[list[str], str]:
-    """(trace lines, file the robot module was loaded from) under micropython."""
+    """(trace lines, files the behaviour's modules were loaded from) under micropython."""
     r = _run([tools.micropython, "-X", "heapsize=" + MP_HEAPSIZE, RUNNER, fw_dir, "trace",
-              *p.argv(), str(p.ticks)])
+              str(p.ticks)])
     if r.returncode != 0:
         raise ConformanceError("micropython trace run failed (exit %d):\n%s"
                                % (r.returncode, (r.stdout[-2000:] + r.stderr[-2000:]).strip()))
-    module = ""
+    module = []
     lines: list[str] = []
     for line in r.stdout.splitlines():
         if line.startswith("# module "):
-            module = line[len("# module "):]
+            module.append(line[len("# module "):])
         elif not line.startswith("#"):
             lines.append(line)
-    return lines, module
+    return lines, "; ".join(module)
 
 
 def first_divergence(a: Sequence[str], b: Sequence[str]) -> Divergence | None:
@@ -302,22 +331,52 @@ def summarise_trace(lines: Sequence[str],
 # -- 3. heap ---------------------------------------------------------------------
 
 
-def measure_heap(tools: Tools, fw_dir: Path, p: RunParams, warmup: int,
+def measure_heap(tools: Tools, fw_dir: Path, states: Sequence[str], warmup: int,
                  steps: int) -> tuple[int, int, list[str], int]:
     """(bytes allocated, steps, states seen, step that failed under heap_lock or -1)."""
     r = _run([tools.micropython, "-X", "heapsize=" + MP_HEAPSIZE, RUNNER, fw_dir, "heap",
-              *p.argv(), str(warmup), str(steps)])
+              str(warmup), str(steps)])
     for line in r.stdout.splitlines():
         if line.startswith("heap "):
             allocated, n, mask, failed = (int(v) for v in line.split()[1:5])
-            states = [s for i, s in enumerate(behaviour_spec(p.behaviour).STATES)
-                      if mask & (1 << i)]
-            return allocated, n, states, failed
+            seen = [s for i, s in enumerate(states) if mask & (1 << i)]
+            return allocated, n, seen, failed
     raise ConformanceError("micropython heap run failed (exit %d):\n%s"
                            % (r.returncode, (r.stdout[-2000:] + r.stderr[-2000:]).strip()))
 
 
 # -- all of it -------------------------------------------------------------------
+
+
+def model_param(b: Any) -> Any:
+    """The behaviour's parameter that picks one of its MODELS (sim_backend/
+    params.py: a choice among the models' names), or None."""
+    from sim_backend import params
+    for p in params.declared(b.ref):
+        if p.codes:
+            return p
+    return None
+
+
+def runs(b: Any, sc: Any, models: Sequence[int] | None) -> list[tuple[str, Any]]:
+    """(label, scenario) of each conformance run: one per movement model
+    (codes of spec.MODELS; default all) when a parameter picks the model,
+    else one run of the scenario as it is."""
+    mp = model_param(b)
+    if mp is None:
+        if models:
+            raise ConformanceError("behaviour %r has no parameter choosing one of its MODELS; "
+                                   "run it without models" % b.name)
+        return [("run", sc)]
+    names = dict(b.spec.MODELS)
+    codes = list(names) if models is None else list(models)
+    out = []
+    for code in codes:
+        if code not in names:
+            raise ConformanceError("model %r: behaviour %r has models %s"
+                                   % (code, b.name, ", ".join("%d" % c for c in names)))
+        out.append((names[code], sc.replace(**{mp.name: names[code]})))
+    return out
 
 
 def run_conformance(src: Path | None = None, params: RunParams | None = None,
@@ -327,22 +386,31 @@ def run_conformance(src: Path | None = None, params: RunParams | None = None,
     tool problem: it lands in Report.errors.
 
     src: the firmware sources to compile and run under MicroPython (default:
-    the installed firmware_logic). CPython always runs the installed one, so
-    a modified copy shows up as a divergence.
+    the installed firmware_logic; a built-in behaviour is taken from the
+    same place in it). CPython always runs the installed one, so a modified
+    copy shows up as a divergence.
     """
+    from firmware_logic import registry
+    from sim_backend import scenario
+
     base = params or RunParams()
-    spec = behaviour_spec(base.behaviour)
-    rep = Report(behaviour=base.behaviour, states=list(spec.STATES))
-    names = dict(spec.MODELS)
-    models = list(names) if models is None else models
+    b = registry.load(base.behaviour)
+    spec = b.spec
+    rep = Report(behaviour=b.name, states=list(spec.STATES),
+                 down_messages=[m[1] for m in getattr(spec, "MESSAGES", ()) if m[2] == DOWN])
     src = package_dir() if src is None else Path(src)
+    behaviour_dir = behaviour_source(b, src)
     try:
+        sc = base.scenario if base.scenario is not None else \
+            scenario.validate({"behaviour": b.ref})
+        plan = [(label, b.robot_args(base.node, base.seed, s))
+                for label, s in runs(b, sc, models)]
         tools = tools or find_tools()
         rep.mpy_cross_version, cross = mpy_cross_version(tools)
         rep.micropython_version, port, _arch = micropython_version(tools)
         rep.mpy_version_cross = "%d.%d" % cross
         rep.mpy_version_port = "%d.%d" % port
-    except ConformanceError as e:
+    except (ConformanceError, registry.BehaviourError) as e:
         rep.errors.append(str(e))
         return rep
     if cross[0] != port[0]:
@@ -353,7 +421,7 @@ def run_conformance(src: Path | None = None, params: RunParams | None = None,
     with tempfile.TemporaryDirectory(prefix="fw-mpy-") as tmp:
         mpy_dir = Path(tmp) / "mpy"
         try:
-            rep.mpy_sizes = compile_firmware(tools, src, mpy_dir)
+            rep.mpy_sizes = compile_firmware(tools, src, mpy_dir, behaviour_dir)
             check_load(tools, mpy_dir, list(rep.mpy_sizes))
             fw_dir = mpy_dir
             rep.loaded_from = "mpy"
@@ -361,18 +429,19 @@ def run_conformance(src: Path | None = None, params: RunParams | None = None,
             rep.errors.append(str(e))
             # fall back to the sources so the traces still say something
             fw_dir = Path(tmp) / "py"
-            shutil.copytree(src, fw_dir / "firmware_logic",
-                            ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+            ignore = shutil.ignore_patterns("__pycache__", "*.pyc")
+            shutil.copytree(src, fw_dir / "firmware_logic", ignore=ignore)
+            shutil.copytree(behaviour_dir, fw_dir / PACKAGE, ignore=ignore)
             rep.loaded_from = "py"
-        for model in models:
-            p = RunParams(base.node, base.seed, model, base.span, base.defiance,
-                          base.power, base.ticks, base.behaviour)
-            res = ModelResult(names.get(model, str(model)))
+        for label, args in plan:
+            res = ModelResult(label, list(args))
             rep.models.append(res)
+            p = base
             try:
-                cp = trace_cpython(p)
+                board_files(fw_dir, p.node, p.seed, args)
+                cp = trace_cpython(b, p, args)
                 mp, module = trace_micropython(tools, fw_dir, p)
-                log.debug("micropython loaded the robot from %s", module)
+                log.debug("micropython loaded the behaviour from %s", module)
                 res.trace_lines = len(cp)
                 res.actions, res.states_visited, res.max_abs_value = summarise_trace(
                     cp, rep.states)
@@ -380,7 +449,7 @@ def run_conformance(src: Path | None = None, params: RunParams | None = None,
                 res.identical = res.divergence is None
                 (res.heap_bytes, res.heap_steps, res.heap_states,
                  res.heap_locked_failed_step) = measure_heap(
-                    tools, fw_dir, p, heap_warmup, heap_steps)
+                    tools, fw_dir, rep.states, heap_warmup, heap_steps)
                 res.heap_locked_ok = res.heap_locked_failed_step < 0
             except ConformanceError as e:
                 rep.errors.append("%s: %s" % (res.model, e))

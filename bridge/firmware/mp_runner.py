@@ -2,15 +2,17 @@
 
 Under MicroPython (the unix port) it is run as a script:
 
-    micropython mp_runner.py FWDIR trace BEHAVIOUR NODE SEED MODEL SPAN DEFIANCE POWER TICKS
-    micropython mp_runner.py FWDIR heap  BEHAVIOUR NODE SEED MODEL SPAN DEFIANCE POWER WARMUP STEPS
+    micropython mp_runner.py FWDIR trace TICKS
+    micropython mp_runner.py FWDIR heap  WARMUP STEPS
 
-BEHAVIOUR is the behaviour package's module name (its robot.py holds Robot,
-its spec.py the STATES), e.g. firmware_logic.behaviours.thesis.
-FWDIR is put first on sys.path; it holds the package directory
-firmware_logic/ (compiled .mpy files, or .py sources). `trace` prints one
-trace line per HAL call (see firmware_logic/scripted.py) and an `end` line;
-`heap` prints one `heap ...` line. Lines starting with '#' are diagnostics.
+FWDIR is put first on sys.path; it holds what a board holds (bridge/serial/
+deploy.py): the package firmware_logic/ (compiled .mpy files, or .py
+sources), the behaviour's package behaviour/, the board's main.py and a
+robot_config.py with NODE, SEED and ARGS (the FSM's constructor arguments,
+computed on the host by the behaviour's robot_args). The robot is built by
+main.build, as on a board. `trace` prints one trace line per HAL call (see
+firmware_logic/scripted.py) and an `end` line; `heap` prints one `heap ...`
+line. Lines starting with '#' are diagnostics.
 
 This file must stay valid MicroPython: no type hints, no f-strings, no
 imports beyond sys, gc and micropython.
@@ -21,24 +23,19 @@ import sys
 TRACE_CAPACITY = 1024       # ints; one tick's records fit easily
 
 
-BEHAVIOUR = "firmware_logic.behaviours.thesis"
-
-
-def make(node, seed, model, span, defiance, power, horizon, behaviour=None):
+def make_hal(spec, seed, horizon):
+    """The scripted body of a run: it answers with the behaviour's STATES and
+    sends the down messages its spec.MESSAGES declares."""
     from firmware_logic.scripted import ScriptHal
 
-    if behaviour is None:
-        behaviour = BEHAVIOUR
-    robot_mod = __import__(behaviour + ".robot", None, None, ("Robot",))
-    spec = __import__(behaviour + ".spec", None, None, ("STATES",))
-    robot = robot_mod.Robot(node, seed, model, span, defiance, power)
-    hal = ScriptHal(seed, horizon, TRACE_CAPACITY, spec.STATES)
-    return robot, hal
+    return ScriptHal(seed, horizon, TRACE_CAPACITY, spec.STATES, getattr(spec, "MESSAGES", ()))
 
 
-def run_trace(node, seed, model, span, defiance, power, ticks, emit, behaviour=None):
-    """Run `ticks` steps, calling emit(line) for every trace line."""
-    robot, hal = make(node, seed, model, span, defiance, power, ticks, behaviour)
+def run_trace(build, seed, ticks, emit):
+    """Run `ticks` steps of the robot build() -> (robot, spec) makes,
+    calling emit(line) for every trace line."""
+    robot, spec = build()
+    hal = make_hal(spec, seed, ticks)
     i = 0
     while i < ticks:
         robot.step(hal)
@@ -50,7 +47,7 @@ def run_trace(node, seed, model, span, defiance, power, ticks, emit, behaviour=N
         ticks, hal.actions, hal.records, hal.dropped))
 
 
-def run_heap(node, seed, model, span, defiance, power, warmup, steps):
+def run_heap(build, seed, warmup, steps):
     """Heap bytes allocated over `steps` steps after `warmup` steps.
 
     Returns (allocated bytes, steps, bitmask of FSM states seen while
@@ -60,7 +57,8 @@ def run_heap(node, seed, model, span, defiance, power, warmup, steps):
     import gc
     import micropython
 
-    robot, hal = make(node, seed, model, span, defiance, power, warmup + steps)
+    robot, spec = build()
+    hal = make_hal(spec, seed, warmup + steps)
     i = 0
     while i < warmup:
         robot.step(hal)
@@ -82,7 +80,8 @@ def run_heap(node, seed, model, span, defiance, power, warmup, steps):
     gc.enable()
 
     # the same run again with the heap locked: any allocation raises
-    robot, hal = make(node, seed, model, span, defiance, power, warmup + steps)
+    robot, spec = build()
+    hal = make_hal(spec, seed, warmup + steps)
     i = 0
     while i < warmup:
         robot.step(hal)
@@ -104,22 +103,27 @@ def run_heap(node, seed, model, span, defiance, power, warmup, steps):
 
 
 def main(argv):
-    global BEHAVIOUR
     fwdir = argv[1]
     mode = argv[2]
-    BEHAVIOUR = argv[3]
     nums = []
-    for a in argv[4:]:
+    for a in argv[3:]:
         nums.append(int(a))
     sys.path.insert(0, fwdir)
-    robot_mod = __import__(BEHAVIOUR + ".robot", None, None, ("Robot",))
+    import main as board_main     # the board's main.py (bridge/serial/board_main.py)
 
-    print("# module " + str(getattr(robot_mod, "__file__", "?")))
-    node, seed, model, span, defiance, power = nums[0], nums[1], nums[2], nums[3], nums[4], nums[5]
+    c = board_main.config()
+
+    def build():
+        return board_main.build(c)
+
+    build()
+    for name in sys.modules:
+        if name.split(".")[0] == board_main.PACKAGE:
+            print("# module " + name + " " + str(getattr(sys.modules[name], "__file__", "?")))
     if mode == "trace":
-        run_trace(node, seed, model, span, defiance, power, nums[6], print)
+        run_trace(build, c["SEED"], nums[0], print)
     elif mode == "heap":
-        r = run_heap(node, seed, model, span, defiance, power, nums[6], nums[7])
+        r = run_heap(build, c["SEED"], nums[0], nums[1])
         print("heap %d %d %d %d" % r)
     else:
         print("# unknown mode " + mode)

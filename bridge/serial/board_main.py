@@ -1,12 +1,19 @@
 """main.py of a MicroPython robot (deployed by `touchswarm deploy`).
 
 This file runs ON THE BOARD: plain MicroPython, no type hints, no f-strings.
-It picks the board's serial port and starts the firmware's main loop
-(firmware_logic/board.py). The robot's parameters come from `robot_config.py`
-on the device when present (NODE, SEED, MODEL, SPAN, DEFIANCE, POWER,
-MAX_TICKS, LINGER, HEAP_CHECK), else the defaults below. HEAP_CHECK = N runs
-every tick after the first N under heap_lock() and counts the ticks that
-tried to allocate (`main.LAST['guard'].faults`).
+It picks the board's serial port, builds the behaviour's robot and starts the
+firmware's main loop (firmware_logic/board.py). The behaviour is the package
+`behaviour/` beside this file (deploy copies the behaviour's folder there, so
+its relative imports work); `robot_config.py` (deploy writes it) gives:
+
+    NODE        the robot's node id on the link
+    ARGS        the FSM's constructor arguments, computed on the host by the
+                behaviour's robot_args for this node, seed and scenario
+    BEHAVIOUR   the behaviour's name (for people reading the board)
+    MAX_TICKS, LINGER, HEAP_CHECK   the loop's (defaults below)
+
+HEAP_CHECK = N runs every tick after the first N under heap_lock() and counts
+the ticks that tried to allocate (`main.LAST['guard'].faults`).
 
 On boards with USB serial (and on the unix port behind a pty) the link is
 sys.stdin / sys.stdout in binary; nothing else may print on it.
@@ -121,18 +128,35 @@ def _traceback(err):
     return buf.getvalue()
 
 
+PACKAGE = "behaviour"      # the behaviour's folder on the board
+LOOP = {"MAX_TICKS": 0, "LINGER": 4, "HEAP_CHECK": 0}
+
+
 def config():
-    c = {"NODE": 1, "SEED": 1, "MODEL": 1, "SPAN": 45, "DEFIANCE": 2, "POWER": 100,
-         "MAX_TICKS": 0, "LINGER": 4, "HEAP_CHECK": 0,
-         "BEHAVIOUR": "firmware_logic.behaviours.thesis"}
-    try:
-        import robot_config
-        for k in c:
-            if hasattr(robot_config, k):
-                c[k] = getattr(robot_config, k)
-    except ImportError:
-        pass
+    """robot_config.py's keys, the loop's defaults beneath them."""
+    import robot_config
+    c = {}
+    for k in LOOP:
+        c[k] = LOOP[k]
+    for k in ("NODE", "ARGS"):
+        if not hasattr(robot_config, k):
+            raise ValueError("robot_config.py lacks %s: deploy with `touchswarm deploy`" % k)
+    for k in dir(robot_config):
+        if k[:1] != "_":
+            c[k] = getattr(robot_config, k)
     return c
+
+
+def build(c):
+    """(robot, spec): the behaviour's FSM (the class its __init__.py names in
+    ROBOT, "module:Class") built from c["ARGS"], and its spec.py."""
+    pkg = __import__(PACKAGE)
+    parts = pkg.ROBOT.split(":")    # split: str.partition is optional in MicroPython
+    modname, cls = parts[0], parts[1]
+    mod = __import__(PACKAGE + "." + modname, None, None, (cls,))
+    spec = __import__(PACKAGE + ".spec", None, None, ("STATES",))
+    robot_class = getattr(mod, cls)
+    return robot_class(*c["ARGS"]), spec
 
 
 LAST = {}    # the last run's HAL (counters, hal.robot), for inspection over the REPL
@@ -141,13 +165,11 @@ LAST = {}    # the last run's HAL (counters, hal.robot), for inspection over the
 def main():
     from firmware_logic import board
     c = config()
-    # the behaviour robot_config.py names (deploy --behaviour writes it)
-    robot_mod = __import__(c["BEHAVIOUR"] + ".robot", None, None, ("Robot",))
-    spec = __import__(c["BEHAVIOUR"] + ".spec", None, None, ("STATES",))
+    robot, spec = build(c)
     guard = HeapGuard(c["HEAP_CHECK"]) if c["HEAP_CHECK"] else None
     LAST["guard"] = guard
-    LAST["hal"] = board.run(StdioPort(), c["NODE"], c["SEED"], c["MODEL"], c["SPAN"], c["DEFIANCE"],
-                     c["POWER"], c["MAX_TICKS"], c["LINGER"], robot_mod.Robot, spec, guard)
+    LAST["hal"] = board.run(StdioPort(), c["NODE"], robot, spec, c["MAX_TICKS"], c["LINGER"],
+                            guard)
     return LAST["hal"]
 
 

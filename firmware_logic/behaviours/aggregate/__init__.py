@@ -22,6 +22,6 @@ def make_coordinator(sc, journal=None, cells=None, on_reject=None):
     cells (the object's cells) is accepted like the thesis's and unused:
     aggregation has no object. journal, on_reject: the host contract
     (firmware_logic/roster.py)."""
-    from firmware_logic.behaviours.aggregate.coordinator import Coordinator
+    from .coordinator import Coordinator
     return Coordinator(sc.agents, sc.quorum, journal=journal,
                        on_reject=on_reject, world_size=getattr(sc, "worldSize", None))

@@ -10,7 +10,7 @@ whose state is no longer STAY); replaying them in order rebuilds the stops.
 """
 
 from firmware_logic import messages as msg
-from firmware_logic.behaviours.aggregate.spec import LEAVE, MODELS, STAY
+from .spec import LEAVE, MODELS, STAY
 from firmware_logic.roster import Roster
 
 SUBSET_SETUP = ("Stop", "Coordinator")

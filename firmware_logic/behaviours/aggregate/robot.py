@@ -6,7 +6,7 @@ movement request, as docs/tick-semantics.md requires; nothing allocates.
 
 from firmware_logic import fixedpoint as fx
 from firmware_logic import messages as msg
-from firmware_logic.behaviours.aggregate.spec import CLIMB, HALT, LEAVE, SEARCH, STAY, WALK
+from .spec import CLIMB, HALT, LEAVE, SEARCH, STAY, WALK
 from firmware_logic.hal import NOTHING, ROBOT
 from firmware_logic.rng import Rng
 

@@ -98,7 +98,7 @@ def make_coordinator(sc, journal=None, cells=None, on_reject=None):
     next to the robot, not at home). journal, on_reject: the host contract
     (firmware_logic/roster.py).
     """
-    from firmware_logic.behaviours.thesis.coordinator import Coordinator
+    from .coordinator import Coordinator
     netlogo = sc.arrival == "netlogo"
     # the host's map: obstacles and the other objects, all placed at fixed
     # anchors (docs/scenarios.md); None in an open arena of one object

@@ -17,8 +17,8 @@ reason, passed to `on_reject` (the host process logs it) and not ACKed.
 
 from firmware_logic import messages as msg
 from firmware_logic.roster import BAD_HELLO, CHANGED_HELLO, Roster  # noqa: F401 (re-exported)
-from firmware_logic.behaviours.thesis import spec
-from firmware_logic.behaviours.thesis.recognising import Recognising
+from . import spec
+from .recognising import Recognising
 
 RESEND_AFTER = 4   # ticks without progress before a command is sent again
 STALL_TICKS = 2000  # transport ticks without the object moving before the run stops

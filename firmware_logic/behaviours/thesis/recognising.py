@@ -30,7 +30,7 @@ Host-side logic in the firmware subset (integers, no imports beyond the
 package): it runs in every host process unchanged.
 """
 
-from firmware_logic.behaviours.thesis import spec
+from . import spec
 from firmware_logic.roster import Roster
 
 SUBSET_SETUP = ("Recognising",)   # host side: may allocate

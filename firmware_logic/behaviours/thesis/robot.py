@@ -17,11 +17,13 @@ from firmware_logic import fixedpoint as fx
 from firmware_logic import messages as msg
 from firmware_logic.rng import Rng
 
-from firmware_logic.behaviours.thesis.spec import (ANT, CARRY, FIELD, FIREFLY,  # noqa: F401
-                                                   FROG, GRASP, HALT, HOLD, LEVY, MOTH,
-                                                   RELEASE, RELEASE_TICKS, SEARCH, STATES)
 from firmware_logic.hal import (BEACON_LEADER, BEACON_ON, CLAIMED, NOTHING,  # noqa: F401
                                OBJECT, ROBOT, WALL)
+
+# the behaviour's own modules by relative import: the package works under any
+# name (firmware_logic.behaviours.thesis here, `behaviour` on a board)
+from .spec import (ANT, CARRY, FIELD, FIREFLY, FROG, GRASP, HALT, HOLD,  # noqa: F401
+                   LEVY, MOTH, RELEASE, RELEASE_TICKS, SEARCH, STATES)
 
 STATE_NAMES = STATES
 
