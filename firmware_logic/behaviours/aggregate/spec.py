@@ -29,8 +29,9 @@ PARAMS = (
     ("quorum", 80, 1, 100, "percent of the swarm that must have stopped"),
 )
 
-# The behaviour's own message (messages.declare adds it to the link's schema;
-# the codec, the DBC, recordings and replay then know it like any other).
+# The behaviour's own message (checked at load; messages.activate adds it to the
+# link's schema while this behaviour is in use; the codec, the DBC, recordings
+# and replay then know it like any other). Kinds are per behaviour.
 LEAVE = 7    # robot -> host: left its stop; the host drops it from its cluster at once
 MESSAGES = (
     (LEAVE, "LEAVE", UP, "robot -> host: left the stop reported with seq, now at x, y",

@@ -33,7 +33,7 @@ MODELS = ((FIREFLY, "firefly"), (ANT, "ant"), (LEVY, "levy"), (MOTH, "moth"), (F
 # -- messages: the link's own (firmware_logic/messages.py MESSAGES); this
 # behaviour fills HELLO.model with MODELS and HEARTBEAT.state with STATES.
 # The thesis's TOUCH and TRANSPORT kinds are link messages too, since the
-# host process understands them. Its own (messages.declare adds them; the
+# host process understands them. Its own (messages.activate adds them; the
 # codec, the DBC, recordings, replay and the journal derive from this row):
 # A command is at most 4 bytes, so a SecOC-sealed frame (bridge/links/secoc.py)
 # keeps room for its MAC and freshness.
