@@ -83,7 +83,7 @@ def run(scenario: str | Path | Mapping[str, Any] = "default", seed: int = 0,
     """Run one scenario to the end in the reference engine.
 
     scenario: a built-in name (`touchswarm scenarios`), a .toml path or a
-    dict of scenario keys; overrides: scenario keys, e.g. fieldDefiance=4.
+    dict of scenario keys; overrides: scenario keys, e.g. sigRadius=8.
     """
     from sim_backend.engine import Engine
     from sim_backend.scenario import check_seed

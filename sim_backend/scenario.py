@@ -4,7 +4,7 @@ A scenario file is flat TOML; every key is optional (docs/scenarios.md).
 The world's keys (arena, robots, objects, links, faults, activation) are
 the fields of `Scenario`; every other key is a parameter the scenario's
 behaviour declares in its spec.PARAMS, validated against the range declared
-there and read as an attribute like a world key (`sc.quorum`). Unknown keys
+there and read as an attribute like a world key (`sc.<name>`). Unknown keys
 and out-of-range values raise ScenarioError naming the key and the allowed
 range.
 """
@@ -52,7 +52,7 @@ CHOICES: dict[str, tuple[str, ...]] = {
 # tick-start world, conflicts resolved at the tick's end (real robots act in
 # parallel); netlogo: go's `ask robots`, one robot after another in a random
 # order drawn every go iteration, each seeing the moves before it, a robot in
-# a field stepping 1 + fieldDefiance times (docs/tick-semantics.md, Activation)
+# a field stepping 1 + its MULTI_STEP parameter times (docs/tick-semantics.md, Activation)
 CHOICES["activation"] = ("sync", "netlogo")
 
 
@@ -118,7 +118,7 @@ class Scenario:
     # nodes are numbered breed by breed; empty: one breed, the keys above
     breeds: tuple = ()
     # the behaviour's own keys (its spec.PARAMS), ((name, value), ...) in
-    # declaration order; read as attributes: sc.quorum (sim_backend/params.py)
+    # declaration order; read as attributes: sc.<name> (sim_backend/params.py)
     params: tuple = ()
 
     def __post_init__(self) -> None:

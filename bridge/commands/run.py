@@ -23,7 +23,7 @@ def add_scenario_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--robots", type=int, metavar="N",
                    help="number of robots; overrides the scenario's agents")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                   help="override any scenario key, e.g. --set fieldDefiance=4 (repeatable, "
+                   help="override any scenario key, e.g. --set sigRadius=8 (repeatable, "
                         "one per key; `touchswarm scenarios` lists keys and ranges)")
     p.add_argument("--behaviour", metavar="NAME|FOLDER",
                    help="the behaviour to run, by name (`touchswarm behaviours`) or folder; "
@@ -101,7 +101,7 @@ def register(sub) -> None:
         epilog="examples:\n"
                "  touchswarm run                                  # the default scenario\n"
                "  touchswarm run --scenario ant --seed 7 --out ant7/\n"
-               "  touchswarm run --robots 12 --set fieldDefiance=4 --json\n"
+               "  touchswarm run --robots 12 --set sigRadius=8 --json\n"
                "  touchswarm run --link can --record run.blf      # then: touchswarm replay "
                "run.blf",
         formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -288,7 +288,7 @@ def _perception_lines(s: dict) -> list[str]:
 
 
 def _decision_lines(s: dict) -> list[str]:
-    """What the host decided by recognition (scenario recognise = true)."""
+    """What the host decided by recognition (a behaviour's recognition measures)."""
     if "releases" not in s:
         return []
     when = ("never" if s["target_tick"] is None else

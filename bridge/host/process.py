@@ -99,7 +99,7 @@ class HostProcess:
         (sim_backend/scenario.py CHOICES), which the host's coordinator applies.
         scenario: the whole scenario (its arrival wins), for a behaviour whose
         coordinator needs more than the arena and the weight (aggregation: the
-        swarm's size and quorum)."""
+        swarm's size and its own parameters)."""
         self.transport = transport
         self.journal = journal
         self.tick_seconds = tick_seconds

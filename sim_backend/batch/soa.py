@@ -193,7 +193,7 @@ class BatchArrays:
             rt[B.ACT, r] = w.act
             rt[B.ORDER_RNG, r] = w.order_state[0]
             rt[B.FIELD_STATE, r] = w.field_state
-            rt[B.DEFIANCE, r] = w.extra_steps
+            rt[B.EXTRA_STEPS, r] = w.extra_steps
             rt[B.RULES, r] = w.rules
         rt[B.LIVE] = 1
         table = np.zeros((3, max(1, int(tstarts[-1]))), dtype=np.int64)

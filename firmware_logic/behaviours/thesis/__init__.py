@@ -2,6 +2,9 @@
 
 # The wiring the registry reads (firmware_logic/registry.py); host side only.
 ROBOT = "robot:Robot"
+# host libraries that equip its coordinator, as "module:function(coordinator,
+# scenario)": the recogniser's decider (numpy; scenario recognise = true)
+HOST_EQUIP = ("bridge.perception.decide:equip",)
 SUBSET_SETUP = ("robot_args", "make_coordinator", "holders_needed",
                 "summary_values", "_weight_text")  # host side: may allocate
 
