@@ -15,7 +15,11 @@ The steps, in order; a step whose prerequisite failed is not run:
     bus       `robots` behind an SLCAN face on a pty and `host` on it: two
               processes; the host finishes (its coordinator's done()) or
               stops at --ticks, both exit cleanly
-    deploy    `deploy --behaviour` to --port (not run without one)
+    deploy    `deploy --behaviour` to --port (not run without one): the board
+              imports the behaviour as the package behaviour/ and builds its
+              robot
+    mission   `deploy --start` on --port, then `mission --body 1=mpy://PORT`:
+              the board's robot beside simulated ones, one host
 """
 
 from __future__ import annotations
@@ -33,9 +37,9 @@ from pathlib import Path
 log = logging.getLogger(__name__)
 
 EXE = str(Path(sys.executable).with_name("touchswarm"))
-STEPS = ("load", "run", "sweep", "firmware", "can", "dbc", "bus", "deploy")
+STEPS = ("load", "run", "sweep", "firmware", "can", "dbc", "bus", "deploy", "mission")
 NEEDS = {"sweep": "run", "can": "run", "bus": "run", "firmware": "load", "run": "load",
-         "dbc": "load", "deploy": "firmware"}
+         "dbc": "load", "deploy": "firmware", "mission": "deploy"}
 COMPILE_TIMEOUT_S = 1200.0     # a new behaviour's soa compile (1.5-3.5 min, more when busy)
 STEP_TIMEOUT_S = 600.0
 
@@ -144,31 +148,68 @@ class Checker:
 
     def bus(self) -> str:
         import json
+        import signal
         adapter = self.work / "adapter"
-        sc = ["--behaviour", str(self.folder), "--set", f"maxTicks={self.ticks}"]
-        robots = subprocess.Popen([EXE, "robots", "--bus", f"slcan-pty://{adapter}", *sc,
-                                   "--tick-ms", "4", "--linger-ms", "1000", "--json"],
+        # the robots tick from the start, the host joins when it has started
+        # (seconds on a busy machine): they run long enough to meet it, and
+        # the host's HALT (or a SIGTERM once the host gave up) ends them
+        robots = subprocess.Popen([EXE, "robots", "--bus", f"slcan-pty://{adapter}",
+                                   "--behaviour", str(self.folder), "--set",
+                                   f"maxTicks={self.ticks * 50}", "--tick-ms", "4",
+                                   "--linger-ms", "500", "--json"],
                                   stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         try:
             _wait_for_path(adapter, robots, 60.0)
-            out = cli("host", "--bus", f"slcan://{adapter}?settle_ms=0", *sc, "--tick-ms", "4",
-                      "--max-ticks", str(self.ticks), "--json")
+            host = subprocess.run([EXE, "host", "--bus", f"slcan://{adapter}?settle_ms=0",
+                                   *self.sc, "--tick-ms", "4", "--max-ticks", str(self.ticks),
+                                   "--json"], capture_output=True, text=True,
+                                  timeout=STEP_TIMEOUT_S)
+            if robots.poll() is None and host.returncode != 0:
+                robots.send_signal(signal.SIGTERM)     # no HALT came: stop them cleanly
             rout, rerr = robots.communicate(timeout=120)
         finally:
             if robots.poll() is None:
                 robots.kill()
                 robots.wait(10)
-        if robots.returncode != 0:
+        if host.returncode not in (0, 1):            # 1: the goal not reached in --ticks
+            raise StepFailed(f"`touchswarm host` exit {host.returncode}: "
+                             f"{_first_error(host.stderr or host.stdout)}")
+        if robots.returncode not in (0, 1):          # 1: not every robot halted
             raise StepFailed(f"`touchswarm robots` exit {robots.returncode}: "
                              f"{_first_error(rerr)}")
-        h = json.loads(out.strip().splitlines()[-1])
-        return f"host: {h.get('outcome', h.get('delivered'))}, {len(h.get('touches', []))} reports"
+        h = json.loads(host.stdout.strip().splitlines()[-1])
+        r = json.loads(rout.strip().splitlines()[-1])
+        if not h.get("messages"):
+            raise StepFailed("the host heard no robot over the bus")
+        return (f"host: {h['ticks']} ticks, {h['messages']} messages, "
+                f"{'done' if h.get('delivered') else 'not done'}; robots "
+                f"{'all halted' if r['halted'] else 'not all halted'}")
 
     def deploy(self) -> str:
         if self.port is None:
             raise NotRun("give --port PORT (a MicroPython board) to deploy")
         out = cli("deploy", "--behaviour", str(self.folder), "--port", self.port)
-        return out.strip().splitlines()[-1] if out.strip() else "deployed"
+        return _first_line(out, "imported") or out.strip().splitlines()[-1]
+
+    def mission(self) -> str:
+        import json
+        if self.port is None:
+            raise NotRun("give --port PORT (a MicroPython board) for a mission")
+        cli("deploy", "--behaviour", str(self.folder), "--port", self.port, "--config",
+            "NODE=1", "--config", f"MAX_TICKS={self.ticks + 200}", "--config", "LINGER=2",
+            "--start")
+        p = subprocess.run([EXE, "mission", "--body", f"1=mpy://{self.port}", *self.sc,
+                            "--robots", "6", "--tick-ms", "20", "--max-ticks",
+                            str(min(self.ticks, 200)), "--json"],
+                           capture_output=True, text=True, timeout=STEP_TIMEOUT_S)
+        if p.returncode not in (0, 1):       # 1: the behaviour's goal not reached, no error
+            raise StepFailed(f"`touchswarm mission` exit {p.returncode}: "
+                             f"{_first_error(p.stderr or p.stdout)}")
+        s = json.loads(p.stdout.strip().splitlines()[-1])
+        body = s.get("bodies", {}).get("1", "")
+        if not body.startswith("MicroPython robot"):
+            raise StepFailed(f"robot 1 is not the board: {body!r}")
+        return f"{s['ticks']} ticks, robot 1 on the board"
 
 
 class NotRun(Exception):

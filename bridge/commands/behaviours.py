@@ -7,6 +7,7 @@ import argparse
 import keyword
 from pathlib import Path
 
+from bridge.behaviour_check import STEPS
 from bridge.commands.numbers import count
 from bridge.commands.paths import path_arg
 from bridge.errors import UsageError
@@ -45,7 +46,8 @@ def register(sub) -> None:
                           description="Run every step a behaviour must pass, as a user runs "
                                       "it: load, run, sweep (soa == reference), firmware "
                                       "check, run --link can --record + replay, dbc, robots + "
-                                      "host over SLCAN on a pty, deploy (with --port). Prints "
+                                      "host over SLCAN on a pty, and with --port: deploy, and a "
+                                      "mission with the board as robot 1. Prints "
                                       "a table of PASS/FAIL with the first error of each; exit "
                                       "1 when a step failed. A new behaviour's first sweep "
                                       "compiles its soa engine (1.5-3.5 min).")
@@ -54,10 +56,10 @@ def register(sub) -> None:
     chk.add_argument("--ticks", type=count(1, what="ticks"), default=400, metavar="N",
                      help="ticks of each run (default 400)")
     chk.add_argument("--port", default=None, metavar="PORT",
-                     help="a MicroPython board's serial port for the deploy step")
+                     help="a MicroPython board's serial port for the deploy and mission "
+                          "steps")
     chk.add_argument("--only", action="append", default=[], metavar="STEP",
-                     help="run only these steps (repeatable): load, run, sweep, firmware, "
-                          "can, dbc, bus, deploy")
+                     help=f"run only these steps (repeatable): {', '.join(STEPS)}")
     chk.set_defaults(func=cmd_check)
     n.set_defaults(func=lambda args: (n.print_help(), 2)[1])
 
