@@ -20,6 +20,18 @@ from firmware_logic import registry
 from sim_backend import scenario
 
 
+@pytest.fixture(autouse=True)
+def own_schema():
+    """The behaviours here declare message kinds in this process's schema
+    (messages.declare); leave it as it was for the tests after them."""
+    from firmware_logic import messages as msg
+    declared, schema = list(msg.DECLARED), dict(msg.SCHEMA)
+    yield
+    msg.DECLARED[:] = declared
+    msg.SCHEMA.clear()
+    msg.SCHEMA.update(schema)
+
+
 def scaffold(parent: Path, name: str) -> Path:
     assert main(["behaviour", "new", name, "--into", str(parent)]) == 0
     return parent / name
