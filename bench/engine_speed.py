@@ -1,21 +1,20 @@
-"""Robot-ticks per second of the three engines, side by side, one core.
+"""Robot-ticks per second of the two engines, side by side, one core.
 
 Prints one JSON object. Each size runs the same scenario and seeds in the
-per-robot reference engine (the per-agent Python baseline, Mesa-style), the
-batch engine compiled from the behaviour's own source (jitclasses) and the
-struct-of-arrays engine
-transformed from the same source (with its cold and warm start in fresh
-processes), over the same ticks from the same start: the first tick is
-stepped apart (set-up and compilation are excluded from the rates and
-reported apart; every engine includes the host coordinators), the rest in
-ten rounds that step the three engines in turn, so a neighbour slowing the
-shared machine for a while slows all three alike (it moved one engine's
-figure by half between two runs when each ran its ticks in one go). The
-bench checks that all end with identical robot positions, and reports the
-ratios. "20x500" is 500 independent 20-robot
-runs stepped as one batch, the way sweeps use it. (The hand-vectorised
-numpy engine this bench also timed until it was retired has its last
-side-by-side figures in docs/performance.md.)
+per-robot reference engine (the per-agent Python baseline, Mesa-style) and
+the struct-of-arrays batch engine transformed from the behaviour's own
+source (with its cold and warm start in fresh processes), over the same
+ticks from the same start: the first tick is stepped apart (set-up and
+compilation are excluded from the rates and reported apart; both engines
+include the host coordinators), the rest in ten rounds that step the
+engines in turn, so a neighbour slowing the shared machine for a while
+slows both alike (it moved one engine's figure by half between two runs
+when each ran its ticks in one go). The bench checks that both end with
+identical robot positions, and reports the ratio. "20x500" is 500
+independent 20-robot runs stepped as one batch, the way sweeps use it. (The
+hand-vectorised numpy engine and the jitclass engine this bench also timed
+until they were retired have their last side-by-side figures in
+docs/performance.md.)
 
 Rates are robot-ticks per second of this process's CPU time
 (`time.process_time`; every engine runs on one pinned core, numba and
@@ -43,8 +42,6 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 from sim_backend.engine import Engine  # noqa: E402
 from sim_backend.scenario import validate  # noqa: E402
 from sim_backend.batch import body as B  # noqa: E402
-from sim_backend.batch.compiler import twins  # noqa: E402
-from sim_backend.batch.engine import BatchEngine  # noqa: E402
 from sim_backend.batch.soa import SoaEngine  # noqa: E402
 
 # robots -> (worldSize, ticks, runs). Every engine steps the same ticks from the
@@ -77,8 +74,7 @@ class Timed:
         if name == "reference":
             self.engines = [Engine(sc, s) for s in seeds]
         else:
-            self.engines = [{"batch": BatchEngine, "soa": SoaEngine}[name](
-                [(sc, s) for s in seeds])]
+            self.engines = [SoaEngine([(sc, s) for s in seeds])]
         self._step()
         self.setup = time.perf_counter() - t0
 
@@ -109,16 +105,16 @@ class Timed:
 
 
 def time_engines(sc, seeds, ticks):
-    """The three engines over the same ticks 2..ticks, interleaved: ROUNDS
+    """The engines over the same ticks 2..ticks, interleaved: ROUNDS
     rounds, each engine stepping its share in turn (the order rotating), so
-    a neighbour that slows the shared machine for a while slows all three."""
-    engines = [Timed(name, sc, seeds) for name in ("reference", "batch", "soa")]
+    a neighbour that slows the shared machine for a while slows both."""
+    engines = [Timed(name, sc, seeds) for name in ("reference", "soa")]
     left = ticks - 1
     for k in range(ROUNDS):
         share = left // (ROUNDS - k)
         left -= share
-        for j in range(3):
-            engines[(k + j) % 3].steps(share)
+        for j in range(len(engines)):
+            engines[(k + j) % len(engines)].steps(share)
     return {e.name: e for e in engines}
 
 
@@ -151,10 +147,6 @@ def main():
     quick = "--quick" in sys.argv
     res = {"cores": 1, "clock": "process CPU seconds (wall_s: wall seconds)", "sizes": {}}
     res["soa_cold_start_s"], res["soa_warm_start_s"] = soa_starts()
-    t0 = time.perf_counter()
-    BatchEngine([(scenario(20, 18), 1)]).step()
-    res["batch_cold_start_s"] = round(time.perf_counter() - t0, 2)
-    res["batch_compile_s"] = round(twins().compile_seconds, 2)
     SoaEngine([(scenario(20, 18), 1)]).step()      # this process's SoA (cache as it is)
     for name, (world, ticks, runs) in SIZES.items():
         robots = int(name.split("x")[0])
@@ -173,10 +165,8 @@ def main():
                    "setup_s": round(e.setup, 3), "robot_ticks_per_s": round(rate[k])}
                for k, e in eng.items()},
             "ratio_soa_to_reference": round(rate["soa"] / rate["reference"], 2),
-            "ratio_soa_to_batch": round(rate["soa"] / rate["batch"], 2),
-            "ratio_batch_to_reference": round(rate["batch"] / rate["reference"], 2),
-            "identical_positions": all(b is None or b == r for k in ("batch", "soa")
-                                       for r, b in zip(ref, eng[k].positions())),
+            "identical_positions": all(b is None or b == r
+                                       for r, b in zip(ref, eng["soa"].positions())),
         }
     print(json.dumps(res, indent=2))
 

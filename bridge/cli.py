@@ -60,7 +60,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "real robots.",
         epilog="examples:\n"
                "  touchswarm run --scenario ant --seed 7\n"
-               "  touchswarm sweep --grid fieldDefiance=0,2,4 --seeds 50\n"
+               "  touchswarm sweep --grid sigRadius=3,5,8 --seeds 50\n"
                "  touchswarm run --link can --record run.blf && touchswarm replay run.blf\n"
                "\n`touchswarm COMMAND --help` explains each command. Exit status: 0 success, "
                "1 the outcome\nis a failure (not delivered, divergence, device failure), "

@@ -254,12 +254,12 @@ def run(port, node, robot, spec, max_ticks, linger, guard=None):
     ended. Returns the HAL (its counters), with the robot as `hal.robot`.
     robot: the behaviour's FSM, built from its robot_args (main.py builds it
     from robot_config.ARGS, bridge/serial/board_main.py); spec: its spec.py
-    (its own messages are declared here, its STATES name "halt").
+    (its own message kinds are put in use here, its STATES name "halt").
     guard: a heap check (bridge/serial/board_main.py HeapGuard): after
     guard.warmup ticks, guard.tick(robot, hal) runs each whole tick under
     heap_lock() and counts the ticks that tried to allocate."""
     if hasattr(spec, "MESSAGES"):
-        msg.declare(spec.MESSAGES)
+        msg.activate(spec.MESSAGES)
     halt = spec.STATES.index("halt")
     hal = TetherHal(port, node)
     hal.robot = robot

@@ -89,24 +89,47 @@ for _m in MESSAGES:
 
 
 # kind codes a behaviour may give messages of its own (spec.MESSAGES, in the
-# format of MESSAGES); the link's messages above hold the others
-FREE_KINDS = (7, 8, 9, 12, 13, 14, 15)
-DECLARED = []   # rows behaviours declared, in declaration order
+# format of MESSAGES): every 4-bit kind the link's messages above leave free
+LINK_KINDS = []
+for _m in MESSAGES:
+    LINK_KINDS.append(_m[0])
+LINK_KINDS = tuple(LINK_KINDS)
+FREE_KINDS = []
+for _k in range(1, 16):
+    if _k not in LINK_KINDS:
+        FREE_KINDS.append(_k)
+FREE_KINDS = tuple(FREE_KINDS)
+# the messages of the behaviour in use (activate): kinds are per behaviour, so
+# two behaviours may give the same free kind messages of their own
+ACTIVE = []
 
 
-def declare(rows):
-    """Add a behaviour's own messages to the schema (start-up, host and board).
-
-    Each row is in MESSAGES' format; its kind must be one of FREE_KINDS,
-    its direction UP or DOWN, its fields of 1 or 2 bytes, at most 6 of them
-    and 8 bytes in all. Declaring the same row again is a no-op; a kind
-    declared twice differently raises SchemaError naming both.
-    """
+def check(rows):
+    """Refuse a behaviour's own messages that do not fit the link: each row is
+    in MESSAGES' format, its kind one of FREE_KINDS and its name not a link
+    message's, its direction UP or DOWN, its fields of 1 or 2 bytes, at most 6
+    of them and 8 bytes in all; no kind or name twice. SchemaError names the
+    message and what is wrong."""
+    seen = {}
     for m in rows:
         kind = m[0]
+        for link in MESSAGES:
+            if link[0] == kind:
+                raise SchemaError("message %s: kind %d is the link's %s; a behaviour's own "
+                                  "messages use kinds %s" % (m[1], kind, link[1], free_text()))
+            if link[1] == m[1]:
+                raise SchemaError("message %s: the name is the link's (kind %d); pick "
+                                  "another" % (m[1], link[0]))
         if kind not in FREE_KINDS:
-            raise SchemaError("message %s: kind %d is taken by the link; a behaviour's "
-                              "messages use one of 7-9, 12-15" % (m[1], kind))
+            raise SchemaError("message %s: kind %s is not a 4-bit kind the link leaves "
+                              "free (%s)" % (m[1], kind, free_text()))
+        if kind in seen:
+            raise SchemaError("kind %d is declared twice: %s and %s" % (kind, seen[kind], m[1]))
+        for k in seen:
+            if seen[k] == m[1]:
+                raise SchemaError("message %s is declared twice: kinds %d and %d"
+                                  % (m[1], k, kind))
+        seen[kind] = m[1]
         if m[2] != UP and m[2] != DOWN:
             raise SchemaError("message %s: direction must be up or down" % m[1])
         size = 0
@@ -118,24 +141,46 @@ def declare(rows):
         if size > 8 or len(m[4]) > 6:
             raise SchemaError("message %s: %d fields, %d bytes; at most 6 fields in "
                               "8 bytes fit a CAN frame" % (m[1], len(m[4]), size))
-        old = None
-        for d in DECLARED:
-            if d[0] == kind:
-                old = d
-        if old is not None:
-            if old != m:
-                raise SchemaError("kind %d is declared twice: %s and %s" % (kind, old[1], m[1]))
-            continue
-        DECLARED.append(m)
+
+
+def free_text():
+    """FREE_KINDS as runs ("7-9, 12-15"), for messages and the guide."""
+    out = []
+    i = 0
+    while i < len(FREE_KINDS):
+        j = i
+        while j + 1 < len(FREE_KINDS) and FREE_KINDS[j + 1] == FREE_KINDS[j] + 1:
+            j += 1
+        if j == i:
+            out.append("%d" % FREE_KINDS[i])
+        else:
+            out.append("%d-%d" % (FREE_KINDS[i], FREE_KINDS[j]))
+        i = j + 1
+    return ", ".join(out)
+
+
+def activate(rows):
+    """Make `rows` (a behaviour's spec.MESSAGES, checked) the messages of the
+    behaviour in use, beside the link's: pack/unpack, rows() and spec() then
+    know them, and no longer the previous behaviour's (the board does this
+    once at start-up; the host whenever it puts a behaviour to use)."""
+    rows = tuple(rows)
+    if rows == tuple(ACTIVE):
+        return
+    check(rows)
+    while ACTIVE:
+        del SCHEMA[ACTIVE.pop()[0]]
+    for m in rows:
         f = []
         for x in m[4]:
             f.append((x[0], x[1], x[2]))
-        SCHEMA[kind] = (m[1], tuple(f))
+        SCHEMA[m[0]] = (m[1], tuple(f))
+        ACTIVE.append(m)
 
 
 def rows():
-    """Every declared message: the link's, then the behaviours'."""
-    return MESSAGES + tuple(DECLARED)
+    """Every message in use: the link's, then the active behaviour's."""
+    return MESSAGES + tuple(ACTIVE)
 
 
 def spec(kind):
@@ -149,7 +194,7 @@ def spec(kind):
 FIRMWARE_VERSION = 1
 
 # host-side helpers exempt from the step-path allocation rules (docs/subset.md)
-SUBSET_SETUP = ("split_id", "spec", "declare", "rows")
+SUBSET_SETUP = ("split_id", "spec", "check", "free_text", "activate", "rows")
 
 
 class SchemaError(ValueError):

@@ -8,7 +8,8 @@ A behaviour is a package of firmware-subset modules:
                     PARAMS, MEASURES (see behaviours/thesis/spec.py), and
                     optionally REPORTERS ((name, meaning), ...: values its
                     coordinator's reporters() gives at every tick) and MESSAGES, its own message kinds in the
-                    format of messages.MESSAGES (kinds 7-9, 12-15)
+                    format of messages.MESSAGES (kinds messages.FREE_KINDS, checked
+                    at load; per behaviour: Behaviour.activate() puts them in use)
     robot.py        the FSM class named by ROBOT, stepped as `robot.step(hal)`
     coordinator.py  its host-side coordinator (portable, may allocate)
     __init__.py     the wiring: ROBOT = "module:Class", and
@@ -135,12 +136,37 @@ class Behaviour:
         HALT ends a mission in it, and the bus tools wait for it)."""
         return self.spec.STATES.index("halt")
 
+    @property
+    def messages(self) -> tuple:
+        """Its own messages (spec.MESSAGES; none when absent)."""
+        return tuple(getattr(self.spec, "MESSAGES", ()))
+
+    def activate(self) -> "Behaviour":
+        """Make this the behaviour in use: its own message kinds join the
+        link's (messages.activate), replacing those of any behaviour used
+        before in this process; the CAN codec follows (bridge/links/codec.py).
+        Loading never does this, so listing behaviours that give one kind
+        different messages breaks none of them."""
+        from firmware_logic import messages
+        messages.activate(self.messages)
+        global _ACTIVE
+        _ACTIVE = self
+        return self
+
     def model_names(self) -> dict[int, str]:
         return dict(self.spec.MODELS)
 
     def modules(self) -> list[Path]:
         """The behaviour's firmware files (what deploy copies to a board)."""
         return sorted(p for p in self.folder.glob("*.py"))
+
+
+_ACTIVE: Behaviour | None = None
+
+
+def active() -> Behaviour:
+    """The behaviour in use (the last activated; the thesis when none was)."""
+    return _ACTIVE if _ACTIVE is not None else load().activate()
 
 
 def builtin() -> dict[str, str]:
@@ -188,6 +214,10 @@ def _import_folder(path: Path) -> ModuleType:
     if name in sys.modules and Path(getattr(sys.modules[name], "__file__", "")) \
             .resolve() == init.resolve():
         return sys.modules[name]
+    # another folder of the same name was imported before: its modules
+    # (name.spec, name.robot, ...) must not stand in for this one's
+    for key in [k for k in sys.modules if k.startswith(name + ".")]:
+        del sys.modules[key]
     spec = importlib.util.spec_from_file_location(name, init,
                                                   submodule_search_locations=[str(path)])
     if spec is None or spec.loader is None:
@@ -223,7 +253,7 @@ def load(ref: str | Path | None = None) -> Behaviour:
     _check(mod, spec, where)
     from firmware_logic import messages
     try:
-        messages.declare(getattr(spec, "MESSAGES", ()))
+        messages.check(getattr(spec, "MESSAGES", ()))
     except messages.SchemaError as err:
-        raise BehaviourError(f"behaviour {where}: spec.py MESSAGES: {err}") from err
+        raise BehaviourError(f"behaviour {where}: {spec.__file__}: MESSAGES: {err}") from err
     return Behaviour(spec.NAME, mod, spec)

@@ -73,7 +73,7 @@ SCRIPT_NODE = 0          # the script's RNG lane: node 0 is the host
 # the down messages' own lane, so declaring one leaves the rest of the script alone
 DOWN_LANE = 65520
 DOWN_REACTS = 2          # deliveries of each down message in answer to reports
-MAX_FIELDS = 6           # fields of one message (messages.declare)
+MAX_FIELDS = 6           # fields of one message (messages.check)
 
 # how a down message's field is filled (ScriptHal.__init__ reads the row)
 F_SEQ = 0                # the seq of the robot's last report

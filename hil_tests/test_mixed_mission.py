@@ -223,3 +223,22 @@ def test_a_micropython_robot_joins_a_simulated_swarm(micropython_device) -> None
     assert (t.sx, t.sy) in w.object_cells and abs(t.sx - t.rx) + abs(t.sy - t.ry) == 1
     assert w.owner[w.idx(t.sx, t.sy)] == REAL
     assert s["bodies"][str(REAL)].startswith("MicroPython robot on ")
+
+
+def test_mission_cli_with_a_micropython_body_prints_its_summary(micropython_device, capsys):
+    """`touchswarm mission --body 1=mpy://PORT` in text: the tethered board's
+    line (its touches; it has no host-stepped failed ticks) after the
+    summary, not a KeyError."""
+    from bridge.cli import main
+    from bridge.serial.deploy import Deployer
+    dev = micropython_device
+    Deployer(dev.path).deploy({"NODE": REAL, "SEED": SEED, "MODEL": 1, "MAX_TICKS": 5000,
+                               "LINGER": 2})
+    Deployer(dev.path).start()
+    rc = main(["mission", "--body", f"{REAL}=mpy://{dev.path}?x=0&y=0", "--robots", "6",
+               "--seed", str(SEED), "--tick-ms", "20", "--max-ticks", "60"])
+    assert rc in (0, 1)
+    out = capsys.readouterr().out
+    line = [ln for ln in out.splitlines() if ln.startswith(f"  robot {REAL} ")]
+    assert len(line) == 1 and "MicroPython robot on" in line[0] and "touch(es)" in line[0]
+    assert "failed tick" not in line[0]

@@ -3,8 +3,10 @@ MP4 where ffmpeg is on PATH), from the engine's per-tick snapshots.
 
 Each frame shows the field with a colour bar, the object and its held
 segments, every robot's recent trail coloured by its state, the touches
-numbered in order, the perceived shape (blue squares) and the object's
-path home. Frames: the start, then every `every` ticks, then the last tick.
+numbered in order, the perceived shape (blue squares; a behaviour declaring
+spec.SHAPE) and the object's path home; its title the tick and the
+behaviour's reporters (sim_backend/words.py). Frames: the start, then every
+`every` ticks, then the last tick.
 With no `every`, the stride starts at 1 and doubles whenever more than
 MAX_FRAMES frames are kept, so a long run stays a small file.
 """
@@ -62,13 +64,13 @@ class Frame:
     perceived: tuple
     xs: tuple
     ys: tuple
-    power: float
+    reporters: dict
     iou: float
 
 
 def _frame(s: Snapshot) -> Frame:
     return Frame(s.tick, s.field(), s.obj(), s.touches, tuple(s.perceived), s.xs, s.ys,
-                 s.power, s.iou)
+                 dict(s.reporters), s.iou)
 
 
 class Animation:
@@ -77,6 +79,8 @@ class Animation:
     def __init__(self, engine: Any, trails: Trails, every: int | None = None) -> None:
         self.world = engine.world
         self.names = tuple(engine.behaviour.spec.STATES)
+        from sim_backend import words
+        self.words = words.of(engine.behaviour)
         self.trails = trails
         self.fixed = every is not None
         self.every = every or 1
@@ -99,6 +103,12 @@ class Animation:
         if self.last is not None and self.frames[-1].tick != self.last.tick:
             self.frames.append(_frame(self.last))
 
+    def title(self, f: Frame) -> str:
+        """A frame's title: its tick, the behaviour's reporters, the shape's
+        score when the behaviour declares one (sim_backend/words.py)."""
+        from sim_backend import words
+        return words.frame_title(self.words, f.tick, f.reporters, f.iou)
+
     def write(self, path: Path) -> int:
         """Draw every kept frame and the last tick's to path; returns the count."""
         self.finish()
@@ -117,13 +127,20 @@ class Animation:
         seen = ax.scatter([], [], marker="s", s=22, facecolors="none", edgecolors="blue",
                           linewidths=1.0, zorder=2)
         dots = ax.scatter(start_x, start_y, s=18, edgecolors="black", linewidths=0.4, zorder=3)
-        title = ax.set_title("tick 0: 0 touches", fontsize=8)   # sized for tight_layout
-        ax.legend(handles=[Patch(color=rd.OBJECT_RGB, label="object"),
-                           Patch(color=rd.HELD_RGB, label="held segment"),
-                           Line2D([], [], marker="s", mfc="none", mec="blue", ls="",
-                                  label="perceived shape"),
-                           Line2D([], [], ls="--", color="darkcyan", label="object's path"),
-                           *rd.state_legend(self.names, colours)],
+        # sized for tight_layout by the first frame's words
+        title = ax.set_title(self.title(frames[0]), fontsize=8)
+        shape = self.words.shape is not None
+        has_object = bool(self.trails.centre)
+        handles = []
+        if has_object:
+            handles += [Patch(color=rd.OBJECT_RGB, label="object"),
+                        Patch(color=rd.HELD_RGB, label="held segment")]
+        if shape:
+            handles.append(Line2D([], [], marker="s", mfc="none", mec="blue", ls="",
+                                  label="perceived shape"))
+        if has_object:
+            handles.append(Line2D([], [], ls="--", color="darkcyan", label="object's path"))
+        ax.legend(handles=[*handles, *rd.state_legend(self.names, colours)],
                   loc="upper left", fontsize=5, framealpha=0.7)
         fig.tight_layout()
         # blitting: the axes' tick labels and the colour bar are drawn once;
@@ -145,16 +162,16 @@ class Animation:
                 segs, cols = rd.trail_segments(xs, ys, states, colours)
                 trail.set_segments(segs)
                 trail.set_color(cols)
-                centre = np.array(self.trails.centre[:f.tick + 1])
+                centre = np.array(self.trails.centre[:f.tick + 1]).reshape(-1, 2)
                 path_line.set_data(centre[:, 0], centre[:, 1])
-                seen.set_offsets(np.array(f.perceived, dtype=float).reshape(-1, 2))
+                if shape:
+                    seen.set_offsets(np.array(f.perceived, dtype=float).reshape(-1, 2))
                 dots.set_offsets(np.column_stack([f.xs, f.ys]))
                 dots.set_facecolor([colours[s] for s in self.trails.states[f.tick]])
                 for t in labels:
                     t.remove()
                 labels = rd.touch_labels(ax, f.touches, f.xs, f.ys)
-                title.set_text(f"tick {f.tick}: {len(f.touches)} touches, power {f.power:g}, "
-                               f"shape IoU {f.iou:.2f}")
+                title.set_text(self.title(f))
                 fig.canvas.restore_region(background)
                 for a in sorted(dynamic + labels, key=lambda a: a.get_zorder()):
                     ax.draw_artist(a)

@@ -83,7 +83,7 @@ def run(scenario: str | Path | Mapping[str, Any] = "default", seed: int = 0,
     """Run one scenario to the end in the reference engine.
 
     scenario: a built-in name (`touchswarm scenarios`), a .toml path or a
-    dict of scenario keys; overrides: scenario keys, e.g. fieldDefiance=4.
+    dict of scenario keys; overrides: scenario keys, e.g. sigRadius=8.
     """
     from sim_backend.engine import Engine
     from sim_backend.scenario import check_seed
@@ -105,7 +105,7 @@ def sweep(grid: Mapping[str, Iterable[Any]], seeds: int | Iterable[int] = 20,
 
     grid: {scenario key: [values]}, their product is the set of points.
     seeds: a count N (seeds 1..N) or the seeds themselves.
-    engine: auto, soa, batch or reference (sim_backend.sweep.ENGINES).
+    engine: auto, soa or reference (sim_backend.sweep.ENGINES).
     executor: a concurrent.futures.Executor (None: this process).
     overrides: scenario keys for every point, e.g. maxTicks=3000.
     """

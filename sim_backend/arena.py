@@ -270,14 +270,10 @@ def _check_weight(sc: Any, target: Piece, tname: str, taken: dict) -> None:
     w = sc.worldSize
     key = f"{tname}.{'density' if target.density is not None else 'weight'}" \
         if sc.objects else "objectWeight"
-    from sim_backend.scenario import holders_needed
-    needed = holders_needed(sc, round(target.weight * 100))
+    from sim_backend.scenario import holders_within_swarm
+    needed = holders_within_swarm(sc, round(target.weight * 100), key)
     if needed is None:
         return          # the behaviour holds no objects by weight
-    if needed > sc.agents:
-        raise ScenarioError(
-            f"{key}: weight {target.weight:g} needs {needed} robots holding it (behaviour "
-            f"{sc.behaviour!r}), but agents is {sc.agents}; lower the weight or add robots")
     fewest = None
     for ax, ay in anchors(target):
         cs = set(target.placed(ax, ay))

@@ -116,8 +116,8 @@ class RunResult:
         """Convergence in robot moves: the FSM steps (each one move or touch,
         a thesis RandomHead or FollowField) a robot had taken on average.
         Under sync every robot steps once per tick, so it is converged_tick;
-        under netlogo a robot in a field steps 1 + fieldDefiance times per go
-        iteration (docs/tick-semantics.md)."""
+        under netlogo a robot in the behaviour's MULTI_STEP state steps 1 +
+        its parameter's value times per go iteration (docs/tick-semantics.md)."""
         c = self.coordinator.converged_tick
         if c < 0:
             return None
@@ -153,18 +153,17 @@ class RunResult:
             **({"touch_breeds": [self.scenario.breed_name(t.node)
                                   for t in getattr(c, "touches", ())]}
                if self.scenario.breeds else {}),
-            **({"wrong_transport": self.wrong_transport()} if getattr(self.scenario, "recognise", False) else {}),
+            **self.truth_measures(),
             **{k: v for inst in self.instruments for k, v in inst.summary().items()},
         }
 
-    def wrong_transport(self) -> bool:
-        """recognise: whether the transport began on a cluster with no touch
-        on the target (the truth the host was not told)."""
-        c = self.coordinator
-        if c.converged_tick < 0:
-            return False
-        target = set(self.scenario.pieces()[0].placed(self.world.obj_x, self.world.obj_y))
-        return not any((t.sx, t.sy) in target for t in c.touches)
+    def truth_measures(self) -> dict:
+        """The coordinator's measures that need the truth it is not told (the
+        target's cells): its truth_measures(cells), when it has them."""
+        hook = getattr(self.coordinator, "truth_measures", None)
+        if hook is None:
+            return {}
+        return hook(set(self.scenario.pieces()[0].placed(self.world.obj_x, self.world.obj_y)))
 
 
 class Engine:
@@ -178,7 +177,7 @@ class Engine:
         nodes = list(range(1, sc.agents + 1))
         self.link = link if link is not None else InprocLink(nodes)
         # the behaviour seam: robots and coordinator come from the registry
-        self.behaviour = registry.load(sc.behaviour)
+        self.behaviour = registry.load(sc.behaviour).activate()   # its message kinds in use
         self.robots = [self.behaviour.make_robot(n, seed, sc) for n in nodes]
         self.bodies = [SimBody(self.world, i, n, self.link) for i, n in enumerate(nodes)]
         from bridge.perception import host_coordinator

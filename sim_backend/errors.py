@@ -11,3 +11,8 @@ class ScenarioError(SimError, ValueError):
 
 class EngineError(SimError):
     """An engine cannot run what it was given (names what and why)."""
+
+
+class CompileError(EngineError):
+    """Behaviour source the batch engine cannot compile (a construct or an
+    attribute type outside what it transforms): names it and where."""

@@ -17,9 +17,9 @@ way), a probe may miss a segment or see one where none is.
 
 from __future__ import annotations
 
-# only firmware-subset imports here: the batch engine compiles this module's
-# twin (sim_backend/batch/compiler.py) for `draw` and `release`; the planning
-# below is host side and imports what it needs where it runs
+# only firmware-subset imports here: the batch engine transforms and compiles
+# `draw` and `release` (sim_backend/batch/transform.py); the planning below
+# is host side and imports what it needs where it runs
 from sim_backend import kernel
 
 # per-robot flags (bits)

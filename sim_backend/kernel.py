@@ -523,26 +523,27 @@ def draw_order(order, lo, hi, state, r):
     state[r] = s
 
 
-def turn_steps(state, field_state, defiance):
+def turn_steps(state, multi_state, extra):
     """FSM steps of a robot's turn in one go iteration, by its state when the
-    turn starts: 1 + fieldDefiance in a field (go: FollowField, then `repeat
-    fieldDefiance [RandomHead]`, then FindObject), else 1."""
-    if state == field_state:
-        return 1 + defiance
+    turn starts: 1 + the behaviour's MULTI_STEP parameter in its MULTI_STEP
+    state (the thesis's go: FollowField, then `repeat` that many
+    RandomHead, then FindObject), else 1."""
+    if state == multi_state:
+        return 1 + extra
     return 1
 
 
-def turn_length(steps, k, claimed, was, state, field_state, defiance):
+def turn_length(steps, k, claimed, was, state, multi_state, extra):
     """The turn's length after its step k (0-based), which took the robot
     from state `was` to `state`. A claim is a touch: one more step grasps
     (LookForObject holds at once) and the turn ends (go's `if foundObject
-    [ stop ]`); a robot that has just entered a field goes on with a whole
-    field cycle in the same turn (go's second `if`, reached in the same
-    iteration after FindField)."""
+    [ stop ]`); a robot that has just entered the multi-step state goes on with a
+    whole cycle of it in the same turn (the thesis's go: its second `if`,
+    reached in the same iteration after FindField)."""
     if claimed:
         return k + 2
-    if was != field_state and state == field_state:
-        return k + 1 + turn_steps(state, field_state, defiance)
+    if was != multi_state and state == multi_state:
+        return k + 1 + turn_steps(state, multi_state, extra)
     return steps
 
 

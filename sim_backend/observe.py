@@ -122,9 +122,10 @@ class Trails:
         self.xs.append(s.xs)
         self.ys.append(s.ys)
         self.states.append(s.states)
-        cx = sum(c[0] for c in s.object_cells) / len(s.object_cells)
-        cy = sum(c[1] for c in s.object_cells) / len(s.object_cells)
-        self.centre.append((cx, cy))
+        if s.object_cells:          # a world with no object has no centre to follow
+            cx = sum(c[0] for c in s.object_cells) / len(s.object_cells)
+            cy = sum(c[1] for c in s.object_cells) / len(s.object_cells)
+            self.centre.append((cx, cy))
 
     def arrays(self, upto: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """xs, ys, states as (ticks, robots) arrays up to index `upto` (inclusive)."""

@@ -248,41 +248,93 @@ def _delivered(r) -> float:
     return 1.0 if str(r["delivered"]) in ("True", "true", "1") else 0.0
 
 
-PANELS = (("convergence", "convergence tick (converged runs: mean, 95% CI)"),
-          ("delivered", "delivery rate (95% CI)"),
-          ("shape_iou", "shape IoU (mean, 95% CI)"))
+def panels(rows: Sequence[dict]) -> list[tuple[str, str, str]]:
+    """(measure, label, kind) of each panel of a grid figure: the measures the
+    rows' behaviours declare (their spec.PLOTS, else every spec.MEASURES
+    measure with numbers or true/false in the rows; sim_backend/words.py)."""
+    from sim_backend import words
+    from sim_backend.scenario import DEFAULT_BEHAVIOUR
+    behaviours = list(dict.fromkeys(r.get("behaviour") or DEFAULT_BEHAVIOUR for r in rows))
+    names = {k for r in rows for k in r}
+    cols = {k: [_num(r.get(k)) for r in rows] for k in names}
+    return words.plot_panels(behaviours, cols)
 
 
-CATEGORY_LABELS = {"convergence": "convergence tick (converged runs; box: quartiles)",
-                   "delivered": "delivery rate (fraction of runs)",
-                   "shape_iou": "shape IoU (box: quartiles)"}
+def _declares(rows: Sequence[dict], measure: str) -> list[dict]:
+    """The rows whose behaviour declares `measure` (a column another
+    behaviour's rows leave empty is no data, not a run that never got there)."""
+    from sim_backend import words
+    from sim_backend.scenario import DEFAULT_BEHAVIOUR
+    cache: dict[str, bool] = {}
+    out = []
+    for r in rows:
+        b = r.get("behaviour") or DEFAULT_BEHAVIOUR
+        if b not in cache:
+            cache[b] = measure in dict(words.of(b).measures)
+        if cache[b]:
+            out.append(r)
+    return out
 
 
-def _panel_values(rs: list[dict], panel: str) -> list[float]:
-    if panel == "convergence":
-        return [c for c, ok in map(_conv, rs) if ok]
-    if panel == "delivered":
-        return [_delivered(r) for r in rs]
-    return [float(_num(r["shape_iou"])) for r in rs if _num(r["shape_iou"]) is not None]
+def _tick(r, measure: str) -> tuple[float, bool]:
+    """A tick measure's value, or maxTicks (censored) when it never happened."""
+    c = _num(r.get(measure))
+    if c is None:
+        return float(_num(r["maxTicks"])), False
+    return float(c), True
 
 
-def _censored(rs: list[dict]) -> list[float]:
-    """The censoring tick (maxTicks) of every run that never converged."""
-    return [c for c, ok in map(_conv, rs) if not ok]
+def _panel_values(rs: list[dict], panel: tuple[str, str, str]) -> list[float]:
+    measure, _, kind = panel
+    rs = _declares(rs, measure)
+    if kind == "tick":
+        return [c for c, ok in (_tick(r, measure) for r in rs) if ok]
+    vals = [_num(r.get(measure)) for r in rs]
+    return [float(v) for v in vals if v is not None and v != ""]
+
+
+def _censored(rs: list[dict], panel: tuple[str, str, str]) -> list[float]:
+    """The censoring tick (maxTicks) of every run whose tick measure never came."""
+    measure, _, kind = panel
+    if kind != "tick":
+        return []
+    return [c for c, ok in (_tick(r, measure) for r in _declares(rs, measure)) if not ok]
+
+
+# the y axis says the statistic; the panel's title says the measure
+FACTOR_LABELS = {"tick": "tick (runs that got there: mean, 95% CI)",
+                 "rate": "fraction of runs (95% CI)",
+                 "value": "mean, 95% CI"}
+CATEGORY_LABELS = {"tick": "tick (runs that got there; box: quartiles)",
+                   "rate": "fraction of runs",
+                   "value": "box: quartiles"}
+
+
+def _title(rows: Sequence[dict], factor: str, pans: list) -> str:
+    from sim_backend.scenario import DEFAULT_BEHAVIOUR
+    names = ", ".join(dict.fromkeys(r.get("behaviour") or DEFAULT_BEHAVIOUR for r in rows))
+    return f"{factor}: {len(pans)} measure{'s' if len(pans) != 1 else ''} of {names}"
+
+
+def _panel_title(label: str) -> str:
+    import textwrap
+    return textwrap.fill(label, 38)
 
 
 def factor_figure(rows: Sequence[dict], factor: str, others: Sequence[str]):
-    """Convergence, delivery rate and IoU against a numeric factor: one curve
-    per combination of the other factors' levels (never pooled), n per
-    point in each curve's label; runs that never converged are drawn as
-    hollow markers at their censoring tick (maxTicks). Returns the Figure;
-    curves carry gid "curve", censored markers gid "censored"."""
+    """The behaviour's measures against a numeric factor, one panel each
+    (panels()), one curve per combination of the other factors' levels
+    (never pooled), n per point in each curve's label; runs whose tick
+    measure never came are drawn as hollow markers at their censoring tick
+    (maxTicks). Returns the Figure; curves carry gid "curve", censored
+    markers gid "censored"; each panel's title is its measure's label."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    pans = panels(rows)
     groups = _groups(rows, others)
-    fig, axes = plt.subplots(1, len(PANELS), figsize=(4.6 * len(PANELS), 3.8), squeeze=False)
+    fig, axes = plt.subplots(1, len(pans), figsize=(4.6 * len(pans), 3.8), squeeze=False)
     xs_all = sorted(set(_num(r[factor]) for r in rows))
     span = (xs_all[-1] - xs_all[0]) or 1.0
     for gi, (key, rs) in enumerate(groups.items()):
@@ -294,32 +346,32 @@ def factor_figure(rows: Sequence[dict], factor: str, others: Sequence[str]):
         label = f"{_group_label(others, key)} (n={n}/point)"
         # a small sideways shift per curve keeps overlapping points apart
         dx = span * 0.012 * (gi - (len(groups) - 1) / 2)
-        for ax, (panel, _) in zip(axes[0], PANELS):
+        for ax, panel in zip(axes[0], pans):
             stats = [_mean_ci(_panel_values(by_x[x], panel)) for x in xs]
             cont = ax.errorbar([x + dx for x in xs], [m for m, _ in stats],
                                yerr=[ci for _, ci in stats], marker="o", capsize=3,
                                label=label)
             cont.lines[0].set_gid("curve")
             color = cont.lines[0].get_color()
-            if panel == "convergence":
-                cx = [x + dx for x in xs for _ in _censored(by_x[x])]
-                cy = [c for x in xs for c in _censored(by_x[x])]
-                if cx:
-                    sc = ax.scatter(cx, cy, facecolors="none", edgecolors=color, s=36,
-                                    label=f"{_group_label(others, key)}: {len(cx)} censored "
-                                          "at maxTicks")
-                    sc.set_gid("censored")
-    for ax, (panel, ylabel) in zip(axes[0], PANELS):
+            cx = [x + dx for x in xs for _ in _censored(by_x[x], panel)]
+            cy = [c for x in xs for c in _censored(by_x[x], panel)]
+            if cx:
+                sc = ax.scatter(cx, cy, facecolors="none", edgecolors=color, s=36,
+                                label=f"{_group_label(others, key)}: {len(cx)} censored "
+                                      "at maxTicks")
+                sc.set_gid("censored")
+    for ax, (measure, label, kind) in zip(axes[0], pans):
         ax.set_xticks(xs_all)
         ax.set_xlabel(factor)
-        ax.set_ylabel(ylabel, fontsize=8)
-        if panel != "convergence":
+        ax.set_title(_panel_title(label), fontsize=9)
+        ax.set_ylabel(FACTOR_LABELS[kind], fontsize=8)
+        if kind == "rate":
             ax.set_ylim(-0.05, 1.05)
-        else:
+        elif kind == "tick":
             ax.set_ylim(bottom=0)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=6)
-    fig.suptitle(f"{factor}: convergence, delivery and shape "
+    fig.suptitle(f"{_title(rows, factor, pans)} "
                  f"({len(rows)} runs, {len(groups)} curve{'s' if len(groups) > 1 else ''})",
                  fontsize=10)
     fig.tight_layout()
@@ -327,22 +379,25 @@ def factor_figure(rows: Sequence[dict], factor: str, others: Sequence[str]):
 
 
 def category_figure(rows: Sequence[dict], factor: str, others: Sequence[str]):
-    """A categorical factor (object, movementModel, behaviour...): boxes of
-    convergence ticks and IoU and bars of delivery rate per level, one
-    coloured set per combination of the other factors' levels, n under each
-    level; censored runs as hollow markers at maxTicks. Returns the Figure;
-    boxes carry gid "box", bars gid "bar", censored markers gid "censored"."""
+    """A categorical factor (object, movementModel, behaviour...): one panel
+    per measure (panels()), boxes of ticks and values and bars of rates per
+    level, one coloured set per combination of the other factors' levels, n
+    under each level; censored runs as hollow markers at maxTicks. Returns
+    the Figure; boxes carry gid "box", bars gid "bar", censored markers gid
+    "censored"; each panel's title is its measure's label."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    pans = panels(rows)
     levels = _factor_levels(rows, factor)
     groups = _groups(rows, others)
     width = 0.8 / len(groups)
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    fig, axes = plt.subplots(1, len(PANELS), figsize=(max(4.6, 1.4 * len(levels) * len(groups))
-                                                      * len(PANELS) / 2, 3.8), squeeze=False)
+    fig, axes = plt.subplots(1, len(pans), figsize=(max(4.6, 1.4 * len(levels) * len(groups))
+                                                    * len(pans) / 2, 3.8), squeeze=False)
     ns: dict = defaultdict(list)
+    cens_all = 0
     for gi, (key, rs) in enumerate(groups.items()):
         color = colors[gi % len(colors)]
         label = _group_label(others, key)
@@ -352,13 +407,14 @@ def category_figure(rows: Sequence[dict], factor: str, others: Sequence[str]):
                 continue
             ns[level].append(len(at))
             x = li - 0.4 + width * (gi + 0.5)
-            for ax, (panel, _) in zip(axes[0], PANELS):
+            for ax, panel in zip(axes[0], pans):
                 vals = _panel_values(at, panel)
-                if panel == "delivered":
-                    bars = ax.bar([x], [sum(vals) / len(vals)], width * 0.9, color=color,
-                                  label=label if li == 0 else None)
-                    for b in bars:
-                        b.set_gid("bar")
+                if panel[2] == "rate":
+                    if vals:
+                        bars = ax.bar([x], [sum(vals) / len(vals)], width * 0.9, color=color,
+                                      label=label if li == 0 else None)
+                        for b in bars:
+                            b.set_gid("bar")
                     continue
                 if vals:
                     # outliers as small dots: hollow circles mean censored runs here
@@ -372,26 +428,26 @@ def category_figure(rows: Sequence[dict], factor: str, others: Sequence[str]):
                         b.set_alpha(0.6)
                         b.set_gid("box")
                         b.set_label(label if li == 0 else None)
-                if panel == "convergence":
-                    cens = _censored(at)
-                    if cens:
-                        sc = ax.scatter([x] * len(cens), cens, facecolors="none",
-                                        edgecolors=color, s=36)
-                        sc.set_gid("censored")
+                cens = _censored(at, panel)
+                cens_all += len(cens)
+                if cens:
+                    sc = ax.scatter([x] * len(cens), cens, facecolors="none",
+                                    edgecolors=color, s=36)
+                    sc.set_gid("censored")
     ticks = [f"{lv}\n(n={'/'.join(str(n) for n in ns[lv])})" for lv in levels]
-    for ax, (panel, ylabel) in zip(axes[0], PANELS):
+    for ax, (measure, label, kind) in zip(axes[0], pans):
         ax.set_xticks(range(len(levels)), ticks, fontsize=7)
         ax.set_xlabel(factor)
-        ax.set_ylabel(CATEGORY_LABELS[panel], fontsize=8)
-        if panel != "convergence":
+        ax.set_title(_panel_title(label), fontsize=9)
+        ax.set_ylabel(CATEGORY_LABELS[kind], fontsize=8)
+        if kind == "rate":
             ax.set_ylim(-0.05, 1.05)
         ax.grid(alpha=0.3, axis="y")
-        if len(groups) > 1 and panel == "delivered":
+        if len(groups) > 1 and kind == "rate":
             ax.legend(fontsize=6)
-    cens = len(_censored(list(rows)))
-    fig.suptitle(f"{factor}: convergence, delivery and shape per level ({len(rows)} runs"
-                 + (f", {cens} censored at maxTicks: hollow markers" if cens else "") + ")",
-                 fontsize=10)
+    fig.suptitle(f"{_title(rows, factor, pans)} per level ({len(rows)} runs"
+                 + (f", {cens_all} censored at maxTicks: hollow markers" if cens_all else "")
+                 + ")", fontsize=10)
     fig.tight_layout()
     return fig
 

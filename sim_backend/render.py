@@ -1,4 +1,5 @@
-"""PNG of a finished run: the world beside the perceived and the true shape.
+"""PNG of a finished run: the world beside the perceived and the true shape
+(a behaviour declaring spec.SHAPE) or beside its measures and reporters.
 
 The drawing helpers here (field, object, trails, touch numbers) are shared
 with the animation (sim_backend/animate.py), so a frame of the GIF and
@@ -57,7 +58,7 @@ def draw_base(ax: Any, w: Any, field: np.ndarray, vmax: float) -> tuple[Any, Any
     img = ax.imshow(field, origin="lower", extent=ext, cmap=FIELD_CMAP, vmin=0,
                     vmax=max(vmax, 1), alpha=0.7)
     ax.figure.colorbar(img, ax=ax, fraction=0.046, pad=0.02,
-                       label="potential field (sum of lit beacons, thesis eq. 3)")
+                       label="potential field (sum of lit beacons)")
     objimg = ax.imshow(np.zeros(field.shape + (4,)), origin="lower", extent=ext)
     ax.add_patch(Circle((w.sc.homeX, w.sc.homeY), HOME_RADIUS, color="c", alpha=0.4))
     ax.set_xlim(ext[0], ext[1])
@@ -100,17 +101,34 @@ def state_legend(names: tuple[str, ...], colours: list[tuple]) -> list[Any]:
 
 
 def render(result: RunResult, path: Path, trails: Any = None) -> Path:
-    """world.png; with `trails` (observe.Trails) also start positions, every
-    robot's path coloured by state, and the object's path home."""
+    """world.png (figure() drawn and saved)."""
+    fig = figure(result, trails)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=80, metadata={"Software": None})
+    plt.close(fig)
+    return path
+
+
+def figure(result: RunResult, trails: Any = None) -> Any:
+    """world.png's figure: the world at the end, beside the perceived and the
+    true shape when the behaviour declares a shape measure (spec.SHAPE), else
+    beside its measures and reporters with their titles (sim_backend/words.py).
+    With `trails` (observe.Trails) also start positions, every robot's path
+    coloured by state, and the object's path home."""
+    from sim_backend import words
     w = result.world
     snap_field = np.array(w.field, dtype=float).reshape(w.n, w.n)
-    names = tuple(registry.load(result.scenario.behaviour).spec.STATES)
+    behaviour = registry.load(result.scenario.behaviour)
+    said = words.of(behaviour)
+    names = tuple(behaviour.spec.STATES)
     colours = state_colours(names)
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(13, 6), width_ratios=(1.15, 1))
     _, objimg = draw_base(ax1, w, snap_field, snap_field.max())
     objimg.set_data(object_rgba(np.array(w.obj).reshape(w.n, w.n)))
-    handles = [Patch(color=OBJECT_RGB, label="object at the end"),
-               Patch(color=HELD_RGB, label="held segment"), Patch(color="c", label="home")]
+    handles = [Patch(color="c", label="home")]
+    if w.object_cells:
+        handles[:0] = [Patch(color=OBJECT_RGB, label="object at the end"),
+                       Patch(color=HELD_RGB, label="held segment")]
     if w.obstacle_cells:
         handles.append(Patch(color=OBSTACLE_RGB, label="obstacle"))
     if trails is not None:
@@ -118,12 +136,13 @@ def render(result: RunResult, path: Path, trails: Any = None) -> Path:
         segs, cols = trail_segments(xs, ys, states, colours)
         ax1.add_collection(LineCollection(segs, colors=cols, linewidths=0.4, alpha=0.5))
         ax1.plot(xs[0], ys[0], "o", mfc="none", mec="black", ms=5)
-        centre = np.array(trails.centre)
-        ax1.plot(centre[:, 0], centre[:, 1], "--", color="darkcyan", lw=2)
-        handles += [Line2D([], [], marker="o", mfc="none", mec="black", ls="",
-                           label="start position"),
-                    Line2D([], [], ls="--", color="darkcyan", lw=2,
-                           label="object's path (its centre)")]
+        handles.append(Line2D([], [], marker="o", mfc="none", mec="black", ls="",
+                              label="start position"))
+        if trails.centre:
+            centre = np.array(trails.centre)
+            ax1.plot(centre[:, 0], centre[:, 1], "--", color="darkcyan", lw=2)
+            handles.append(Line2D([], [], ls="--", color="darkcyan", lw=2,
+                                  label="object's path (its centre)"))
         handles += state_legend(names, colours)
     xs_now = tuple(x / fx.ONE for x in w.xs)
     ys_now = tuple(y / fx.ONE for y in w.ys)
@@ -135,10 +154,33 @@ def render(result: RunResult, path: Path, trails: Any = None) -> Path:
     handles.append(Line2D([], [], marker="$1$", color="black", ls="",
                           label="touch order (by the robot that made it)"))
     lit = sum(w.beacon_on)
-    ax1.set_title(f"world at tick {result.ticks} (seed {result.seed}, {w.sc.agents} "
-                  f"{w.sc.movementModel} robots)\nfield as the world holds it then: "
+    ax1.set_title(f"world at tick {result.ticks} (seed {result.seed}, {w.sc.agents} robots, "
+                  f"behaviour {said.name})\nfield as the world holds it then: "
                   f"{lit} beacon(s) lit where their robots lit them", fontsize=9)
     ax1.legend(handles=handles, loc="upper left", fontsize=6, framealpha=0.8)
+    if said.shape is not None and result.true_cells():
+        _shape_panel(ax2, result, said.label(said.shape))
+    else:
+        _measures_panel(ax2, result, behaviour, said)
+    fig.tight_layout()
+    return fig
+
+
+def _measures_panel(ax: Any, result: RunResult, behaviour: Any, said: Any) -> None:
+    """The behaviour's measures and reporters at the end, each with its title."""
+    from sim_backend import words
+    values = words.summary_values(behaviour, result.summary(), result.coordinator)
+    ax.axis("off")
+    ax.set_title(f"{said.name}: measures and reporters at tick {result.ticks}", fontsize=9)
+    rows = words.shown_values(said, values)
+    for i, r in enumerate(rows):
+        ax.text(0.0, 1.0 - (i + 0.5) / max(len(rows) + 1, 12), f"{r['title']}: "
+                f"{words.named_text(r['name'], r['value'])}", transform=ax.transAxes, fontsize=8,
+                va="center", wrap=True)
+
+
+def _shape_panel(ax2: Any, result: RunResult, label: str) -> None:
+    """The perceived shape (touched cells) against the true one."""
     truth = set(result.true_cells())
     seen = result.perceived_cells()
     pts = truth | seen
@@ -155,9 +197,4 @@ def render(result: RunResult, path: Path, trails: Any = None) -> Path:
     ax2.set_xlabel("x (patches)")
     ax2.set_ylabel("y (patches)")
     ax2.set_title(f"perceived (blue outline, x = touched, numbered in order) vs true "
-                  f"(yellow): IoU {result.shape_iou():.2f}", fontsize=9)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=80, metadata={"Software": None})
-    plt.close(fig)
-    return path
+                  f"(yellow): {label} {result.shape_iou():.2f}", fontsize=9)

@@ -4,7 +4,7 @@ A scenario file is flat TOML; every key is optional (docs/scenarios.md).
 The world's keys (arena, robots, objects, links, faults, activation) are
 the fields of `Scenario`; every other key is a parameter the scenario's
 behaviour declares in its spec.PARAMS, validated against the range declared
-there and read as an attribute like a world key (`sc.quorum`). Unknown keys
+there and read as an attribute like a world key (`sc.<name>`). Unknown keys
 and out-of-range values raise ScenarioError naming the key and the allowed
 range.
 """
@@ -52,7 +52,7 @@ CHOICES: dict[str, tuple[str, ...]] = {
 # tick-start world, conflicts resolved at the tick's end (real robots act in
 # parallel); netlogo: go's `ask robots`, one robot after another in a random
 # order drawn every go iteration, each seeing the moves before it, a robot in
-# a field stepping 1 + fieldDefiance times (docs/tick-semantics.md, Activation)
+# a field stepping 1 + its MULTI_STEP parameter times (docs/tick-semantics.md, Activation)
 CHOICES["activation"] = ("sync", "netlogo")
 
 
@@ -118,7 +118,7 @@ class Scenario:
     # nodes are numbered breed by breed; empty: one breed, the keys above
     breeds: tuple = ()
     # the behaviour's own keys (its spec.PARAMS), ((name, value), ...) in
-    # declaration order; read as attributes: sc.quorum (sim_backend/params.py)
+    # declaration order; read as attributes: sc.<name> (sim_backend/params.py)
     params: tuple = ()
 
     def __post_init__(self) -> None:
@@ -168,9 +168,8 @@ class Scenario:
 
     def to_dict(self) -> dict[str, Any]:
         """Every key: the world's, then the behaviour's (flat, as a file sets them)."""
-        d = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)
-             if f.name != "params"}
-        d.update(self.params)
+        d = dataclasses.asdict(self)        # pieces and obstacles as tables, too
+        d.update(d.pop("params"))
         return d
 
     def replace(self, **changes: Any) -> "Scenario":
@@ -249,10 +248,13 @@ def _behaviour(value: Any) -> Any:
     """The behaviour (firmware_logic.registry.Behaviour) a scenario names."""
     from firmware_logic import registry
 
+    from sim_backend import words
     try:
-        return registry.load(str(value))
+        beh = registry.load(str(value))
+        words.of(beh)          # its outputs' words, checked before any run
     except registry.BehaviourError as err:
         raise ScenarioError(f"behaviour: {err}") from err
+    return beh
 
 
 def validate(raw: dict[str, Any], source: str = "scenario") -> Scenario:
@@ -361,6 +363,17 @@ def holders_needed(sc: Scenario, weight_centi: int) -> int | None:
     return None if rule is None else int(rule(sc, weight_centi))
 
 
+def holders_within_swarm(sc: Scenario, weight_centi: int, key: str) -> int | None:
+    """holders_needed, refused in one line naming `key` when the whole swarm
+    together cannot hold the weight."""
+    needed = holders_needed(sc, weight_centi)
+    if needed is not None and needed > sc.agents:
+        raise ScenarioError(
+            f"{key}: weight {weight_centi / 100:g} is more than all {sc.agents} robots can hold "
+            f"together (behaviour {sc.behaviour!r}); lower the weight or add robots")
+    return needed
+
+
 def _check_consistency(sc: Scenario) -> None:
     shares = (sc.deathRate + sc.ignoreFieldRate + sc.ignoreHostRate + sc.randomRate)
     if shares > 1.0 + 1e-9:
@@ -394,14 +407,9 @@ def _check_consistency(sc: Scenario) -> None:
                         f"{ay[0]}..{ay[1]} may come within 4 patches of home "
                         f"({sc.homeX}, {sc.homeY}); it must stay at least 4 patches away: "
                         "move objectX/objectY or homeX/homeY")
-    needed = holders_needed(sc, sc.weight_centi)
+    needed = holders_within_swarm(sc, sc.weight_centi, "objectWeight")
     if needed is not None:
         reach = objects.touchable(sc.object)
-        if needed > sc.agents:
-            raise ScenarioError(
-                f"objectWeight: {sc.objectWeight} needs {needed} robots holding it "
-                f"(behaviour {sc.behaviour!r}), but agents is {sc.agents}; lower objectWeight "
-                "or add robots")
         if needed > reach:
             raise ScenarioError(
                 f"objectWeight: {sc.objectWeight} needs {needed} robots holding, but "

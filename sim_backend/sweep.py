@@ -32,10 +32,9 @@ log = logging.getLogger(__name__)
 # how long to wait for a dask scheduler to answer before calling it unreachable
 CONNECT_TIMEOUT_S = 5.0
 
-# auto: the struct-of-arrays engine (sim_backend/batch/soa.py), the fastest at
-# every size and cached on disk (docs/performance.md); batch: the jitclass
-# engine, compiled in every process; reference: one Engine per run
-ENGINES = ("auto", "soa", "batch", "reference")
+# auto: the struct-of-arrays engine (sim_backend/batch/soa.py), compiled and
+# cached on disk (docs/performance.md); reference: one Engine per run
+ENGINES = ("auto", "soa", "reference")
 # how long the soa engine's first compile of a behaviour takes on a 2-core
 # machine (docs/performance.md: aggregate 80-95 s, thesis 142-206 s)
 SOA_COLD_COMPILE = "1.5-3.5 min"
@@ -117,6 +116,13 @@ THESIS_MAX_TICKS = 5000
 THESIS_UNTIL = "converged"
 
 
+def base_dict(base: Scenario | None, overrides: dict[str, Any] | None) -> dict[str, Any]:
+    """The keys every point starts from: the base scenario's with the --set
+    overrides over them (an override naming another behaviour leaves the base
+    behaviour's own parameters behind: scenario.merge)."""
+    return merge((base or Scenario()).to_dict(), dict(overrides or {}))
+
+
 def _scenario(base: dict[str, Any], point: dict[str, Any]) -> Scenario:
     behaviour = str(point.get("behaviour", base.get("behaviour", DEFAULT_BEHAVIOUR)))
     for key in point:
@@ -161,13 +167,9 @@ def run_chunk(jobs: Sequence[tuple[dict, dict, int]], engine: str = "auto",
     scs = [_scenario(b, p) for b, p, _ in jobs]
     seeds = [s for _, _, s in jobs]
     engine = pick_engine(engine)
-    if engine == "batch":
-        from sim_backend.batch.engine import run_batch as run_compiled
-        return run_compiled(scs, seeds, until=until, progress=report)
     if engine == "soa":     # the struct-of-arrays transform, cached on disk
-        from sim_backend.batch.engine import run_batch as run_compiled
-        from sim_backend.batch.soa import SoaEngine
-        return run_compiled(scs, seeds, until=until, progress=report, engine=SoaEngine)
+        from sim_backend.batch.soa import run_batch
+        return run_batch(scs, seeds, until=until, progress=report)
     if engine != "reference":
         raise ValueError(f"engine: expected one of {ENGINES}, got {engine!r}")
     from sim_backend.engine import Engine, RunResult
@@ -265,8 +267,7 @@ def validate_points(points: Sequence[Point], base: Scenario | None = None,
     """ScenarioError for the first point that is not a valid scenario."""
     if not points:
         raise ScenarioError("sweep: no grid points; expected at least one")
-    base_d = (base or Scenario()).to_dict()
-    base_d.update(overrides or {})
+    base_d = base_dict(base, overrides)
     for pt in points:
         sc = _scenario(base_d, pt.as_dict())
         if link_faults(sc):
@@ -321,8 +322,7 @@ def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None =
     check_seeds(seeds)
     if not points:
         raise ScenarioError("sweep: no grid points; expected at least one")
-    base_d = (base or Scenario()).to_dict()
-    base_d.update(overrides or {})
+    base_d = base_dict(base, overrides)
     skip = check_done(done, points, seeds, base_d, until)
     jobs: list[tuple[dict, dict, int]] = []
     meta: list[tuple[Point, Scenario, int]] = []
@@ -472,8 +472,7 @@ def columns(behaviours: Iterable[str]) -> list[str]:
 def point_scenarios(points: Sequence[Point], base: Scenario | None = None,
                     overrides: dict[str, Any] | None = None) -> list[Scenario]:
     """The scenario of every point, in order."""
-    base_d = (base or Scenario()).to_dict()
-    base_d.update(overrides or {})
+    base_d = base_dict(base, overrides)
     return [_scenario(base_d, pt.as_dict()) for pt in points]
 
 

@@ -1,11 +1,11 @@
-"""The differential harness every batch engine is held to: the reference
-engine's summary, every robot's pose and FSM state at every tick and the
-final world, bit for bit."""
+"""The differential harness the batch engine (sim_backend/batch/soa.py) is
+held to: the reference engine's summary, every robot's pose and FSM state at
+every tick and the final world, bit for bit."""
 
 import random
 
 from sim_backend import objects
-from sim_backend.batch.engine import run_batch_results
+from sim_backend.batch.soa import run_batch_results
 from sim_backend.engine import Engine, RunResult
 from sim_backend.errors import ScenarioError
 from sim_backend.scenario import validate
@@ -21,10 +21,10 @@ def reference(sc, seed, until="delivered"):
                      e.states, e.conv_steps)
 
 
-def assert_same(scs, seeds, until="delivered", engine=None, states=True):
-    """Run the batch in `engine` (default: the compiled batch engine) and
-    compare every run with the reference; return the batch's RunResults."""
-    got = run_batch_results(scs, seeds, record_trajectories=True, until=until, engine=engine)
+def assert_same(scs, seeds, until="delivered", states=True):
+    """Run the batch in the batch engine and compare every run with the
+    reference; return the batch's RunResults."""
+    got = run_batch_results(scs, seeds, record_trajectories=True, until=until)
     assert len(got) == len(seeds)
     for sc, seed, b in zip(scs, seeds, got):
         r = reference(sc, seed, until)
@@ -109,7 +109,7 @@ def wrap_scenarios():
 def count_pushes(monkeypatch) -> list[int]:
     """Record every push along the crowd (kernel._chain, crowd "yield") the
     Python kernel makes from now on: the free cell it ended at, -1 none.
-    The compiled engines read the real kernel: patch only around Python runs."""
+    The compiled engine reads the real kernel: patch only around Python runs."""
     from sim_backend import kernel
     pushes: list[int] = []
     chain = kernel._chain

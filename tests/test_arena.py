@@ -75,14 +75,14 @@ BAD = [
       "obstacles": [{"art": "#", "at": [-15, -15]}]}, "obstacles[0].at: 'obstacle0' covers home"),
     ({"objects": [{"shape": "bar", "at": [-14, -12]}]}, "within 4 patches of home"),
     ({"objects": [{"shape": "bar", "at": [0, 0], "weight": 30}]},
-     "needs 30 robots of rPower 1, but agents is 20"),
+     "objects[0].weight: weight 30 is more than all 20 robots can hold together"),
     # a single cell: at most one robot at a time can hold it, thesis 6.1.5
     ({"objects": [{"cells": [[0, 0]], "at": [0, 0], "weight": 2}]},
      "only 1 can surround"),
     # a square walled in on three sides: only the four on its open side can hold it
     ({"objects": [{"shape": "square", "at": [0, 0], "density": 0.5}],
       "obstacles": [{"art": "#....#\n#....#\n#....#\n#....#\n#....#\n######", "at": [0, 0]}],
-      "agents": 30}, "objects[0].density: weight 8 needs 8 robots of rPower 1 holding, but "
+      "agents": 30}, "objects[0].density: weight 8 needs 8 robots holding, but "
                      "only 4 can surround"),
     ({"objects": [{"shape": "bar", "at": [0, 0]}],
       "obstacles": [{"art": "#" * 37, "at": [-18, -2]}]}, "objects[0].at: 'object0' has no way home"),
@@ -311,13 +311,12 @@ def test_the_crowd_rule_cannot_change_a_run_until_convergence():
     """crowd acts only on the carried object, so the thesis's figures (runs
     stopped at convergence, `sweep --thesis`) are the same under either
     rule; after convergence the rules part (200 robots: block stalls)."""
-    from sim_backend.batch.engine import run_batch_results
-    from sim_backend.batch.soa import SoaEngine
+    from sim_backend.batch.soa import run_batch_results
     runs = {}
     for crowd in ("yield", "block"):
         sc = validate({"agents": 150, "crowd": crowd, "maxTicks": 1500})
         got = run_batch_results([sc] * 3, [1, 2, 3], record_trajectories=True,
-                                until="converged", engine=SoaEngine)
+                                until="converged")
         assert all(r.coordinator.converged_tick > 0 for r in got)
         runs[crowd] = [(r.coordinator.converged_tick, r.summary()["touches"], r.trajectories)
                        for r in got]
@@ -326,5 +325,5 @@ def test_the_crowd_rule_cannot_change_a_run_until_convergence():
     for crowd in ("yield", "block"):
         sc = validate({"agents": 200, "crowd": crowd, "maxTicks": 2500})
         delivered[crowd] = sum(r.delivered for r in run_batch_results(
-            [sc] * 3, [1, 2, 3], engine=SoaEngine))
+            [sc] * 3, [1, 2, 3]))
     assert delivered == {"yield": 3, "block": 0}

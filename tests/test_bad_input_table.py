@@ -52,7 +52,7 @@ ROWS = [
     (["sweep", "--grid", "starts=netlogo,random", "--seeds", "1"],
      "starts: expected one of redraw, netlogo"),
     (["run", "--set", "object=blob"], "object: expected 1-4 or one of"),
-    (["run", "--set", "movementModel=6"], "movementModel: expected 'firefly'"),
+    (["run", "--set", "movementModel=6"], "movementModel: expected one of 'firefly' (1)"),
     (["run", "--set", "agents=1e9"], "agents: 1000000000 is outside"),
     (["run", "--scenario", "{T}/bad.toml"], "bad.toml: not valid TOML"),
     (["run", "--scenario", "{T}/badkey.toml"], "unknown key 'colour'"),
@@ -118,7 +118,6 @@ ROWS = [
     (["replay", "{T}/adir.log"], "adir.log is a directory"),
     (["replay", ""], "argument FILE: an empty path"),
     # sweep
-    (["sweep", "--seeds", "2"], "give at least one --grid"),
     (["sweep", "--grid", "sigRadius=3,4", "--seeds", "0"], "--seeds 0: a count must be"),
     (["sweep", "--grid", "sigRadius=3,4", "--seeds", "5-2"], "the range is empty"),
     (["sweep", "--grid", "sigRadius=3,4", "--seeds", "1,1"], "seed 1 is listed twice"),
@@ -129,8 +128,8 @@ ROWS = [
     (["sweep", "--grid", "sigRadius=3,4", "--executor", "processes:0"], "N >= 1 worker"),
     (["sweep", "--grid", "sigRadius=3,4", "--out", "{T}/plainfile"], "is a file; expected a dir"),
     (["sweep", "--grid", "sigRadius=3,4", "--out", ""], "argument --out: an empty path"),
-    (["sweep", "--grid", "sigRadius=3,4", "--engine", "vector"],      # retired: one line
-     "invalid choice: 'vector' (choose from 'auto', 'soa', 'batch', 'reference')"),
+    (["sweep", "--grid", "sigRadius=3,4", "--engine", "batch"],       # retired: one line
+     "invalid choice: 'batch' (choose from 'auto', 'soa', 'reference')"),
     (["sweep", "--grid", "nokey=1,2"], "--grid nokey: unknown scenario key"),
     (["sweep", "--grid", "sigRadius"], "expected KEY=V1,V2,..."),
     (["sweep", "--grid", "sigRadius=1,1"], "value 1 is listed twice"),

@@ -1,5 +1,5 @@
-"""The batch engine runs the behaviour's own source, compiled, and equals the
-reference engine bit for bit.
+"""The batch engine (sim_backend/batch/soa.py) runs the behaviour's own
+source, transformed and compiled, and equals the reference engine bit for bit.
 
 The differential harness runs every registered behaviour, both movement
 models and every object: every robot's pose and FSM state at every tick and
@@ -15,8 +15,7 @@ import pytest
 
 from firmware_logic import registry
 from sim_backend import objects
-from sim_backend.batch.engine import BatchEngine, run_batch
-from sim_backend.batch.soa import SoaEngine
+from sim_backend.batch.soa import SoaEngine, run_batch
 from sim_backend.errors import EngineError
 from sim_backend.scenario import validate
 from tests.harness import (arena_scenarios, assert_same, count_pushes, mixed_scenarios,
@@ -24,16 +23,11 @@ from tests.harness import (arena_scenarios, assert_same, count_pushes, mixed_sce
 
 THESIS_DIR = Path(registry.load("thesis").folder)
 
-# the jitclass engine and the struct-of-arrays transform of the same source
-# (sim_backend/batch/soa.py): each must equal the reference bit for bit
-ENGINES = pytest.mark.parametrize("engine", [BatchEngine, SoaEngine], ids=["jitclass", "soa"])
-
 
 @pytest.mark.parametrize("behaviour", sorted(registry.names()))
 @pytest.mark.parametrize("model", ["firefly", "ant"])
 @pytest.mark.parametrize("activation", ["sync", "netlogo"])
-@ENGINES
-def test_every_behaviour_model_and_object_identical(behaviour, model, activation, engine):
+def test_every_behaviour_model_and_object_identical(behaviour, model, activation):
     scs, seeds = [], []
     for obj in sorted(objects.SHAPES):
         sc = validate({"behaviour": behaviour, "movementModel": model, "object": obj,
@@ -41,7 +35,7 @@ def test_every_behaviour_model_and_object_identical(behaviour, model, activation
         for seed in (1, 2):
             scs.append(sc)
             seeds.append(seed)
-    got = assert_same(scs, seeds, engine=engine)
+    got = assert_same(scs, seeds)
     assert any(r.delivered for r in got), "no run reached its goal: a weak comparison"
 
 
@@ -54,48 +48,43 @@ def test_every_behaviour_model_and_object_identical(behaviour, model, activation
                 {"count": 8, "movementModel": "ant", "antBlocked": "turn"},
                 {"count": 6, "movementModel": "moth", "mothNoise": 60}]},
 ], ids=lambda d: ",".join(f"{k}={v}" for k, v in d.items()))
-@ENGINES
-def test_the_issue12_models_and_options_identical(extra, engine):
+def test_the_issue12_models_and_options_identical(extra):
     """The thesis behaviour's extra movement models and antBlocked (issue 12)."""
     scs, seeds = [], []
     for obj in ("bar", "L"):
         for seed in (1, 2):
             scs.append(validate({**extra, "object": obj, "maxTicks": 1500}))
             seeds.append(seed)
-    got = assert_same(scs, seeds, engine=engine)
+    got = assert_same(scs, seeds)
     assert any(r.coordinator.converged_tick >= 0 for r in got), "nothing converged"
 
 
-@ENGINES
-def test_many_seeds_and_mixed_parameters_in_one_batch(engine):
+def test_many_seeds_and_mixed_parameters_in_one_batch():
     """Runs of one batch stop at different ticks (delivered or at maxTicks)
     while the others go on."""
     scs, seeds = mixed_scenarios()
-    got = assert_same(scs, seeds, engine=engine)
+    got = assert_same(scs, seeds)
     assert len({r.ticks for r in got}) > 5
 
 
-@ENGINES
-def test_obstacles_several_objects_and_the_dynamic_field_identical(engine):
+def test_obstacles_several_objects_and_the_dynamic_field_identical():
     scs, seeds = arena_scenarios()
-    got = assert_same(scs, seeds, engine=engine)
+    got = assert_same(scs, seeds)
     assert sum(r.delivered for r in got) >= len(got) // 2, "few deliveries: a weak comparison"
     moved = [r for r in got if r.delivered and r.scenario.field == "dynamic"]
     assert moved, "no dynamic-field run delivered"
 
 
-@ENGINES
-def test_a_wrapping_world_identical(engine):
+def test_a_wrapping_world_identical():
     """wrap = true: moves, probes, claims, uphill and the field on the torus."""
     scs, seeds = wrap_scenarios()
-    got = assert_same(scs, seeds, engine=engine)
+    got = assert_same(scs, seeds)
     assert sum(r.delivered for r in got) >= len(got) // 2, "few deliveries: a weak comparison"
 
 
-@ENGINES
-def test_until_converged_stops_where_the_reference_stops(engine):
+def test_until_converged_stops_where_the_reference_stops():
     sc = validate({"movementModel": "ant"})
-    got = assert_same([sc] * 4, [5, 6, 7, 8], until="converged", engine=engine)
+    got = assert_same([sc] * 4, [5, 6, 7, 8], until="converged")
     assert all(r.coordinator.converged_tick == r.ticks for r in got if r.ticks < sc.maxTicks)
 
 
@@ -110,14 +99,12 @@ def test_summaries_of_run_batch_keep_input_order_across_behaviours():
 
 def test_bad_batches_get_a_named_error():
     with pytest.raises(EngineError, match="at least one run"):
-        BatchEngine([])
+        SoaEngine([])
     with pytest.raises(EngineError, match="one behaviour"):
-        BatchEngine([(validate({}), 1), (validate({"behaviour": "aggregate"}), 1)])
+        SoaEngine([(validate({}), 1), (validate({"behaviour": "aggregate"}), 1)])
 
 
-@ENGINES
-def test_one_rule_changed_in_the_source_changes_both_engines_identically(tmp_path, engine,
-                                                                         monkeypatch):
+def test_one_rule_changed_in_the_source_changes_both_engines_identically(tmp_path, monkeypatch):
     """Single source: a copy of the thesis behaviour whose random heading is
     drawn from 0..179 instead of 0..359. Both engines must follow the copy."""
     # the soa engine's inlining is held by the harness runs of the registered
@@ -135,39 +122,21 @@ def test_one_rule_changed_in_the_source_changes_both_engines_identically(tmp_pat
     original = validate({"maxTicks": 400})
     changed = validate({"behaviour": str(mutant), "maxTicks": 400})
     seeds = [1, 2]
-    got = assert_same([changed] * 2, seeds, engine=engine)           # batch == reference on the copy
+    got = assert_same([changed] * 2, seeds)           # batch == reference on the copy
     for seed, b in zip(seeds, got):
         before = reference(original, seed)
         assert b.trajectories != before.trajectories[:len(b.trajectories)], seed
 
 
-def test_a_behaviour_outside_the_compiled_subset_is_named(tmp_path):
-    """A robot attribute the batch engine cannot compile (a float) gets a
-    one-line CompileError naming the attribute, before any run starts."""
-    from sim_backend.batch.compiler import CompileError
-    agg = registry.load("aggregate")
-    copy = tmp_path / "aggregate_float"
-    shutil.copytree(agg.folder, copy, ignore=shutil.ignore_patterns("__pycache__"))
-    robot = copy / "robot.py"
-    src = robot.read_text()
-    anchor = "        self.rxbuf = [0, 0, 0, 0, 0, 0]\n"
-    assert anchor in src
-    robot.write_text(src.replace(anchor, anchor + "        self.gain = 0.5\n"))
-    sc = validate({"behaviour": str(copy)})
-    with pytest.raises(CompileError, match=r"Robot\.gain: a float"):
-        BatchEngine([(sc, 1)])
-
-
-@ENGINES
-def test_a_push_along_the_crowd_identical(engine, monkeypatch):
+def test_a_push_along_the_crowd_identical(monkeypatch):
     """300 robots in the default arena: robots in the carried object's way
     with no free neighbour are pushed along the crowd (kernel._chain, crowd
-    "yield"); the compiled engines push them as the reference does."""
+    "yield"); the batch engine pushes them as the reference does."""
     from sim_backend.engine import Engine
     sc = validate({"agents": 300, "maxTicks": 400})
-    with monkeypatch.context() as m:             # the compilers read the real kernel
+    with monkeypatch.context() as m:             # the transform reads the real kernel
         pushes = count_pushes(m)
         Engine(sc, 5).run()
     assert any(k >= 0 for k in pushes)             # the reference pushed
-    got = assert_same([sc, sc], [5, 6], engine=engine)
+    got = assert_same([sc, sc], [5, 6])
     assert all(r.delivered for r in got)

@@ -83,13 +83,13 @@ def test_a_behaviours_own_message_travels_and_counts() -> None:
     and the coordinator drops that stop (and only that one) at once."""
     from bridge.links import codec
     from firmware_logic import messages as msg
-    agg = registry.load("aggregate")
+    agg = registry.load("aggregate").activate()
     leave = agg.spec.LEAVE
     assert msg.fields(leave) == (("seq", 1, 0), ("x", 2, 1), ("y", 2, 1))
     frame = codec.encode(4, leave, (3, 512, -256))
     assert codec.Decoder("host").decode(frame) == (4, leave, (3, 512, -256))
     assert codec.Decoder("robot").decode(frame) is None      # a report, not a command
-    c = agg.coordinator(load("default"))
+    c = agg.coordinator(load("default").replace(behaviour="aggregate"))
     c.on_message(4, msg.HELLO, (1, 100, 1), 1)
     c.on_message(4, msg.TOUCH, (3, 0, 0, 1, 0, 100), 2)
     c.on_message(4, leave, (2, 0, 0), 3)                     # a stale seq: ignored

@@ -96,7 +96,7 @@ def test_a_behaviours_own_message_is_in_its_dbc_with_units():
     """aggregate declares LEAVE (kind 7) in its spec.py: its DBC decodes it
     with physical values; the thesis's DBC does not carry it."""
     from firmware_logic import registry
-    agg = registry.load("aggregate")
+    agg = registry.load("aggregate").activate()     # its kinds in use: pack knows LEAVE
     leave = agg.spec.LEAVE
     db = dbc.build(max_node=8, behaviour=agg)
     m = db.get_message_by_frame_id(msg.can_id(leave, 3))
@@ -111,12 +111,17 @@ def test_a_behaviours_own_message_is_in_its_dbc_with_units():
 
 
 def test_declared_messages_are_checked():
-    bad = [((1, "X", msg.UP, "", (("a", 1, 0, 1, "", None, None, ""),)), "taken by the link"),
+    bad = [((1, "X", msg.UP, "", (("a", 1, 0, 1, "", None, None, ""),)), "kind 1 is the link's HALT"),
+           ((9, "TOUCH", msg.UP, "", ()), "the name is the link's"),
+           ((0, "X", msg.UP, "", ()), "not a 4-bit kind the link leaves free"),
            ((9, "X", msg.UP, "", (("a", 4, 0, 1, "", None, None, ""),)), "1 or 2"),
            ((9, "X", msg.CAPTURE, "", ()), "direction"),
            ((9, "X", msg.UP, "", tuple(("a%d" % i, 2, 0, 1, "", None, None, "")
                                        for i in range(5))), "8 bytes")]
     for row, words in bad:
         with pytest.raises(msg.SchemaError, match=words):
-            msg.declare([row])
+            msg.activate([row])
     assert 9 not in msg.SCHEMA
+    twice = ((9, "A", msg.UP, "", ()), (9, "B", msg.DOWN, "", ()))
+    with pytest.raises(msg.SchemaError, match="kind 9 is declared twice: A and B"):
+        msg.check(twice)

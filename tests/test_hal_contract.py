@@ -6,7 +6,7 @@ given, never skips silently.
 
 Bodies here: the simulated body (SimBody over a World), the batch engine's
 body (BatchBody over flat arrays, here run by CPython: the batch engine
-compiles this very class), the scripted body (the conformance fixture that
+transforms and compiles this very class), the scripted body (the conformance fixture that
 also runs on MicroPython). The serial bodies
 (Khepera II, GoGo Board) on their emulators behind ptys:
 hil_tests/test_hal_contract_serial.py.
@@ -25,7 +25,7 @@ from firmware_logic import hal as H
 from firmware_logic import messages as msg
 from firmware_logic.scripted import ScriptHal
 from sim_backend.batch.body import BatchBody
-from sim_backend.batch.engine import BatchArrays
+from sim_backend.batch.soa import BatchArrays
 from sim_backend.engine import Engine
 from sim_backend.scenario import validate
 from sim_backend.world import World

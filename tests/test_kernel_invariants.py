@@ -1,6 +1,6 @@
 """Invariants of the world's state that sim_backend/kernel.py relies on,
 checked at every tick of whole runs in the reference engine (the batch
-engines are held equal to it by tests/harness.py).
+engine is held equal to it by tests/harness.py).
 
 Holder and cell agree: a robot's `held` cell is owned by that robot's node,
 and an owned cell is its owner's `held` cell. kernel._carrier finds the

@@ -37,10 +37,11 @@ def test_the_scenario_models_are_the_specs():
     ({"frogPause": 0}, "frogPause"),
     ({"frogJump": 31}, "frogJump"),
     ({"frogJump": 2.5}, "frogJump"),
-    ({"antBlocked": "spin"}, "antBlocked: expected one of random, turn"),
-    ({"movementModel": "bee"}, "movementModel: expected 'firefly' (1)"),
+    ({"antBlocked": "spin"}, "antBlocked: expected one of 'random', 'turn', got 'spin'"),
+    ({"movementModel": "bee"}, "movementModel: expected one of 'firefly' (1)"),
     ({"movementModel": 6}, "movementModel"),
-    ({"movementModel": "moth", "behaviour": "aggregate"}, "not a model of behaviour"),
+    ({"movementModel": "moth", "behaviour": "aggregate"},
+     "movementModel: expected one of 'firefly' (1), 'ant' (2), got 'moth'"),
 ])
 def test_new_keys_out_of_range_get_one_line_errors(raw, needle):
     with pytest.raises(ScenarioError) as err:
@@ -214,10 +215,10 @@ def test_the_host_and_the_records_know_each_robots_breed():
     ({"breeds": [{"count": 3, "levyMu": 9}]}, "levyMu: 9 is outside"),
     ({"breeds": {"count": 3}}, "breeds: expected a list of tables"),
     ({"breeds": [{"count": 3}, {"count": 4}], "agents": 8}, "agents: 8 differs"),
-    ({"breeds": [{"count": 4, "rPower": 0.5}]}, "objectWeight: 5.0 exceeds"),
+    ({"breeds": [{"count": 4, "rPower": 0.5}]}, "objectWeight: weight 5 is more than all 4 robots can hold together"),
     ({"behaviour": "aggregate", "breeds": [{"count": 4, "movementModel": "levy"}]},
-     "not a model of behaviour"),
-    ({"behaviour": "aggregate", "breeds": [{"count": 8}]}, "breeds: behaviour 'aggregate'"),
+     "movementModel: expected one of 'firefly' (1), 'ant' (2), got 'levy'"),
+    ({"behaviour": "aggregate", "breeds": [{"count": 8, "antBlocked": "turn"}]}, "antBlocked"),
 ])
 def test_bad_breeds_get_one_line_errors(raw, needle):
     with pytest.raises(ScenarioError) as err:

@@ -30,7 +30,7 @@ def test_recognition_is_off_by_default_and_its_keys_are_checked():
                       ({"confidence": 1.0}, "confidence: 1.0 is outside the allowed range"),
                       ({"confidence": "high"}, "confidence: expected float"),
                       ({"recognise": True, "behaviour": "aggregate"},
-                       "recognise: behaviour 'aggregate' has no object to recognise")):
+                       "scenario: unknown key 'recognise'; .*behaviour 'aggregate''s: ")):
         with pytest.raises(ScenarioError, match=text):
             validate(bad)
 
@@ -39,7 +39,8 @@ def test_scenarios_lists_the_keys(capsys):
     from bridge.cli import main
     assert main(["scenarios"]) == 0
     out = capsys.readouterr().out
-    assert "recognise        False" in out and "confidence       0.9        0.5..0.999" in out
+    assert "recognise        false      true | false" in out
+    assert "confidence       0.9        0.5..0.999" in out
 
 
 def test_bad_keys_on_the_command_line_are_one_line_errors(capsys):

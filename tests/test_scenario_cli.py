@@ -27,10 +27,10 @@ def test_builtin_scenarios_load_with_thesis_names():
     ({"colour": 1}, "unknown key 'colour'"),
     ({"fieldDefiance": -1}, "fieldDefiance: -1 is outside the allowed range 0..50"),
     ({"agents": 2.5}, "agents: expected int"),
-    ({"movementModel": "bee"}, "movementModel: expected 'firefly' (1) or 'ant' (2)"),
+    ({"movementModel": "bee"}, "movementModel: expected one of 'firefly' (1), 'ant' (2)"),
     ({"object": 9}, "object: expected 1-4"),
     ({"objectX": 12}, "does not fit the arena"),
-    ({"objectWeight": 30.0}, "allowed objectWeight <= agents * rPower"),
+    ({"objectWeight": 30.0}, "objectWeight: weight 30 is more than all 20 robots"),
     ({"objectWeight": 19.0, "agents": 24, "object": "square"}, "reachable segments"),
 ])
 def test_bad_scenarios_name_the_key_and_the_allowed_values(raw, needle):
@@ -119,7 +119,7 @@ def test_real_links_refuse_more_robots_than_node_ids():
     (["deploy", "--port", "/dev/ttyACM97"], "--port /dev/ttyACM97: no such device"),
     (["deploy", "--port", "/dev/null", "--behaviour", "nope"], "--behaviour: behaviour 'nope'"),
     (["run", "--set", "behaviour=nope"], "behaviour 'nope': not an installed behaviour"),
-    (["sweep", "--grid", "sigRadius=3", "--engine", "batch", "--set", "behaviour=nope"],
+    (["sweep", "--grid", "sigRadius=3", "--engine", "soa", "--set", "behaviour=nope"],
      "behaviour 'nope'"),
 ])
 def test_more_bad_commands_are_one_line_exit_2(args, needle):

@@ -1,10 +1,10 @@
 """The struct-of-arrays batch engine (sim_backend/batch/soa.py) runs the
 behaviour's own source through the transform (sim_backend/batch/transform.py).
-tests/test_batch_engine.py holds it to the differential harness with the
-jitclass engine (every behaviour, model, object, mixed batches, the
-single-source test); here: faults, both crowd rules, the robots written
-back, named errors for constructs outside the transform, and a warm start
-from the on-disk cache in a second process.
+tests/test_batch_engine.py holds it to the differential harness (every
+behaviour, model, object, mixed batches, the single-source test); here:
+faults, both crowd rules, the robots written back, named errors for
+constructs outside the transform, and a warm start from the on-disk cache in
+a second process.
 """
 
 import json
@@ -17,8 +17,8 @@ from pathlib import Path
 import pytest
 
 from firmware_logic import registry
-from sim_backend.batch.compiler import CompileError
 from sim_backend.batch.soa import SoaEngine
+from sim_backend.errors import CompileError
 from sim_backend.scenario import validate
 from tests.harness import assert_same, reference
 
@@ -29,7 +29,7 @@ def test_faults_identical():
     sc = validate({"maxTicks": 1500, "deathRate": 0.2, "deadlockRate": 0.1,
                    "ignoreFieldRate": 0.1, "ignoreHostRate": 0.1, "randomRate": 0.1,
                    "probeMiss": 0.1, "probeGhost": 0.02, "fieldNoise": 2})
-    assert_same([sc] * 3, [1, 2, 3], engine=SoaEngine)
+    assert_same([sc] * 3, [1, 2, 3])
 
 
 @pytest.mark.parametrize("crowd", ["yield", "block"])
@@ -37,7 +37,7 @@ def test_both_crowd_rules_identical_in_a_dense_swarm(crowd):
     """crowd "yield" (the default) and "block": 150 robots crowd the object,
     so robots stand in the carried group's way and (yield) step aside."""
     sc = validate({"agents": 150, "crowd": crowd, "maxTicks": 1500})
-    got = assert_same([sc, sc.replace(movementModel="ant")], [1, 2], engine=SoaEngine)
+    got = assert_same([sc, sc.replace(movementModel="ant")], [1, 2])
     if crowd == "yield":
         assert all(r.delivered for r in got)
 
@@ -45,7 +45,7 @@ def test_both_crowd_rules_identical_in_a_dense_swarm(crowd):
 def test_final_robots_are_the_reference_robots():
     """At a run's end the arrays are written back into the CPython robots."""
     sc = validate({"maxTicks": 600})
-    got = assert_same([sc], [4], engine=SoaEngine)[0]
+    got = assert_same([sc], [4])[0]
     ref = reference(sc, 4)
     for a, b in zip(ref.robots, got.robots):
         va, vb = dict(vars(a)), dict(vars(b))

@@ -74,7 +74,7 @@ def test_cli_thesis_preset_small(tmp_path):
 
 
 def test_cli_usage_errors(capsys):
-    assert main(["sweep"]) == 2
+    assert main(["sweep", "--grid", "agents="]) == 2          # a key without values
     assert main(["sweep", "--grid", "nope=1,2"]) == 2
     assert main(["sweep", "--grid", "agents=5", "--seeds", "x"]) == 2
 

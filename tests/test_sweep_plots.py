@@ -47,7 +47,10 @@ def test_two_numeric_factors_give_one_curve_per_level_of_the_other():
         assert labels(ax) == ["sigRadius=3 (n=5/point)", "sigRadius=5 (n=5/point)"]
         legend = [t.get_text() for t in ax.get_legend().get_texts()]
         assert legend[:2] == labels(ax)
-    assert "delivery rate" in deliv.get_ylabel() and "IoU" in iou.get_ylabel()
+    # each panel is one of the thesis's declared PLOTS, titled by its label
+    assert [ax.get_title() for ax in (conv, deliv, iou)] == ["convergence tick",
+                                                              "delivery rate", "shape IoU"]
+    assert "fraction of runs" in deliv.get_ylabel() and "mean" in iou.get_ylabel()
     assert all(list(c.get_ydata()) == [1.0, 1.0] for c in curves(deliv))
 
 

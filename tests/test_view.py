@@ -228,7 +228,8 @@ def test_page_shows_a_touch_as_it_is_journalled(journal_server, browser):
         j.add_report(3, msg.TOUCH, (1, 2, 3, 3, 3, 100), 17)
     wait_for(browser, lambda d: text(d, "touch-count") == "1")
     assert text(browser, "touches").startswith("robot 3 at tick 17, segment (3, 3)")
-    assert text(browser, "power") == "1.00" and text(browser, "weight") == "5.00"
+    assert text(browser, "held") == "1.00" and text(browser, "need") == "5.00"
+    assert text(browser, "held-word") == "power" and text(browser, "need-word") == "weight"
 
 
 # -- the command's bad input: one line, exit 2 ---------------------------------------
@@ -296,3 +297,59 @@ def test_screenshot_option_saves_the_page_at_the_tick(capsys, tmp_path):
     assert main(["view", "--screenshot", str(out), "--at-tick", "5", "--port", "0"]) == 0
     assert capsys.readouterr().out.strip() == f"live view at tick 5 saved to {out}"
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+# -- the behaviour's own words (issue 26 item 6) ---------------------------------------
+
+THESIS_WORDS = ("power", "weight", "IoU", "perceived", "hold the object", "delivered",
+                "converged")
+
+
+def test_an_aggregate_run_shows_its_own_measures_and_no_thesis_words():
+    server = ViewServer(SimSource(scenario.load("default").replace(behaviour="aggregate"), SEED),
+                        port=0).start()
+    try:
+        info = get(server, "/info.json")
+        assert info["load"] is None and info["shape"] is False
+        assert ["clusters", "groups of stopped robots touching each other (8-neighbours)"] \
+            in info["measures"]
+        post(server, "/control/step", {"ticks": 100})      # past the quorum (tick 54)
+        st = get(server, "/state.json")
+        assert st["finished"] and "tick 54: DONE" in st["events"]
+    finally:
+        server.stop()
+    titles = {m["name"]: m["title"] for m in st["measures"]}
+    assert titles["stopped"] == "robots that stopped" and "largest" in titles
+    assert st["measures"][[m["name"] for m in st["measures"]].index("stopped")]["value"] \
+        == len(st["touches"])
+    # every text the page shows: titles, status, events, the info's words
+    said = json.dumps([st["measures"], st["status"], st["events"], info])
+    for word in THESIS_WORDS:
+        assert word not in said, word
+    assert "perceived" not in st and "power" not in st and "iou" not in st
+
+
+def test_the_thesis_run_shows_its_load_and_shape(sim):
+    info = get(sim, "/info.json")
+    assert info["load"] == ["power", "weight"] and info["shape"] is True
+    st = get(sim, "/state.json")
+    assert {"shape_iou", "holders"} <= {m["name"] for m in st["measures"]}
+    assert "perceived" in st and "iou" in st
+
+
+def test_page_of_aggregation_lists_its_measures_and_hides_the_load_bar(browser):
+    server = ViewServer(SimSource(scenario.load("default").replace(behaviour="aggregate"), SEED),
+                        port=0).start()
+    try:
+        post(server, "/control/step", {"ticks": 30})
+        browser.get(server.url)
+        wait_for(browser, lambda d: d.execute_script("return document.body.dataset.tick") == "30")
+        wait_for(browser, lambda d: "robots that stopped" in text(d, "measures"))
+        shown = text(browser, "measures")
+        assert "robots in the largest cluster" in shown and "tick the first robot stopped" in shown
+        assert not browser.find_element("id", "load").is_displayed()
+        page = browser.find_element("tag name", "body").text
+        for word in THESIS_WORDS:
+            assert word not in page, word
+    finally:
+        server.stop()

@@ -74,6 +74,9 @@ def cmd_list(args: argparse.Namespace) -> int:
         print(f"{name:12s} {b.spec.TITLE}")
         print(f"{'':12s} states: {', '.join(b.spec.STATES)}; models: "
               f"{', '.join(n for _, n in b.spec.MODELS)}; module {module}")
+        if b.messages:
+            print(f"{'':12s} own messages (kinds are per behaviour): "
+                  + ", ".join(f"{m[1]} (kind {m[0]}, {m[2]})" for m in b.messages))
     return 0
 
 

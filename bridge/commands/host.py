@@ -165,13 +165,23 @@ def cmd_host(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(summary, sort_keys=True), flush=True)
     else:
-        print(f"{'DELIVERED' if summary['delivered'] else 'NOT delivered'}: "
-              f"{len(summary['touches'])} touches, power {summary['power']:g}, "
-              f"leader {summary['leader']}, home at tick {summary['home_tick']}, "
-              f"{summary['duplicates']} duplicates ignored, bad frames {summary['bad_frames']}")
+        print(host_line(host.behaviour, summary))
     if summary["gave_up"]:
         limit = {"bus": "--bus-timeout", "node": "--node-timeout"}[summary["gave_up_on"]]
         print(f"touchswarm: host gave up at tick {summary['ticks']}: {summary['gave_up']} "
               f"({limit})", file=sys.stderr, flush=True)
         return EXIT_SILENT
     return 0 if summary["delivered"] else 1
+
+
+def host_line(behaviour, summary: dict) -> str:
+    """The host's one-line result in the behaviour's words (sim_backend/words.py):
+    its RESULT word, the touches, its load when it declares one (the thesis:
+    power), the leader, the end tick, duplicates and bad frames."""
+    from sim_backend import words
+    w = words.of(behaviour)
+    key, yes, no = w.result
+    load = f", {w.load[0]} {summary[w.load[0]]:g}" if w.load and w.load[0] in summary else ""
+    return (f"{yes if summary[key] else no}: {len(summary['touches'])} touches{load}, "
+            f"leader {summary['leader']}, ended at tick {summary['home_tick']}, "
+            f"{summary['duplicates']} duplicates ignored, bad frames {summary['bad_frames']}")

@@ -68,7 +68,7 @@ def parse_bodies(items: list[str]) -> dict:
 
 
 def cmd_mission(args: argparse.Namespace) -> int:
-    from bridge.commands.run import format_summary, power_at_convergence
+    from bridge.commands.run import format_summary
     from bridge.mission import MixedMission
 
     bodies = parse_bodies(args.body)
@@ -81,13 +81,15 @@ def cmd_mission(args: argparse.Namespace) -> int:
                   f"facing {h:g} degrees", file=sys.stderr, flush=True)
         result = m.run(max_ticks=args.max_ticks)
         summary = m.summary(result)
-        converged_power = power_at_convergence(result.coordinator)
     if args.json:
         print(json.dumps(summary, sort_keys=True))
     else:
-        print(format_summary(summary, converged_power))
+        print(format_summary(summary, sc.behaviour, result.coordinator))
         for node, text in summary["bodies"].items():
             if node in summary["real_touches"]:
-                print(f"  robot {node:<11} {text}: {summary['real_touches'][node]} touch(es), "
-                      f"{summary['real_failed_ticks'][node]} failed tick(s)")
+                # a body the host steps counts its failed ticks; a tethered
+                # board (mpy://) ticks on its own and has none to count
+                failed = summary["real_failed_ticks"].get(node)
+                print(f"  robot {node:<11} {text}: {summary['real_touches'][node]} touch(es)"
+                      + ("" if failed is None else f", {failed} failed tick(s)"))
     return 0 if summary["delivered"] else 1

@@ -32,13 +32,16 @@ def register(sub) -> None:
                         "sidecar FILE.json beside it" % ", ".join(FORMATS))
     p.add_argument("--realtime", action="store_true",
                    help="pace by the recorded timestamps (default: as fast as possible)")
+    p.add_argument("--behaviour", type=path_arg, default=None, metavar="DIR",
+                   help="the folder of the behaviour the recording ran, when it is not "
+                        "where the sidecar says (a path relative to the recording's folder)")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     p.set_defaults(func=cmd_replay)
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
     from bridge.record.replay import replay
-    s = replay(args.file, realtime=args.realtime)
+    s = replay(args.file, realtime=args.realtime, folder=args.behaviour)
     for w in s["warnings"]:
         print(f"touchswarm: warning: {w}", file=sys.stderr)
     if args.json:

@@ -23,7 +23,7 @@ def add_scenario_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--robots", type=int, metavar="N",
                    help="number of robots; overrides the scenario's agents")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                   help="override any scenario key, e.g. --set fieldDefiance=4 (repeatable, "
+                   help="override any scenario key, e.g. --set sigRadius=8 (repeatable, "
                         "one per key; `touchswarm scenarios` lists keys and ranges)")
     p.add_argument("--behaviour", metavar="NAME|FOLDER",
                    help="the behaviour to run, by name (`touchswarm behaviours`) or folder; "
@@ -91,14 +91,17 @@ def register(sub) -> None:
     from sim_backend.animate import MAX_FRAMES
     p = sub.add_parser(
         "run", help="run the whole mission in the simulated world",
-        description="Run one scenario to the end with no hardware: robots search, touch, "
-                    "converge, and carry the object home. Prints a summary. Exit status 0 "
-                    "when the object was delivered home, 1 when it was not, 2 on bad input "
-                    "(checked before the run starts, output paths included).",
+        description="Run one scenario to the end with no hardware: the behaviour's robots "
+                    "and its host coordinator (the thesis's search, touch, converge and "
+                    "carry the object home). Prints a summary in the behaviour's words: "
+                    "its measures and reporters (docs/outputs.md). Exit status 0 when the "
+                    "mission ended (the coordinator's delivered_tick; the thesis: the "
+                    "object delivered home), 1 when it did not, 2 on bad input (checked "
+                    "before the run starts, output paths included).",
         epilog="examples:\n"
                "  touchswarm run                                  # the default scenario\n"
                "  touchswarm run --scenario ant --seed 7 --out ant7/\n"
-               "  touchswarm run --robots 12 --set fieldDefiance=4 --json\n"
+               "  touchswarm run --robots 12 --set sigRadius=8 --json\n"
                "  touchswarm run --link can --record run.blf      # then: touchswarm replay "
                "run.blf",
         formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -121,8 +124,9 @@ def register(sub) -> None:
                         "suffix picks the format: .csv or .parquet")
     p.add_argument("--animate", type=path_arg, metavar="FILE",
                    help="draw the run over time to FILE.gif (or .mp4 when ffmpeg is on PATH): "
-                        "trails coloured by state, the field, touches in order, the perceived "
-                        "shape, the path home. Frames: the start, every --frame-every ticks "
+                        "trails coloured by state, the field, touches in order, the "
+                        "behaviour's reporters in the title (the thesis: also the perceived "
+                        "shape and the path home). Frames: the start, every --frame-every ticks "
                         f"and the last tick; by default the stride doubles until at most "
                         f"{MAX_FRAMES} frames are kept (the default scenario: 87 frames, "
                         "about 1.3 MB)")
@@ -133,11 +137,30 @@ def register(sub) -> None:
 
 
 def check_outputs(args: argparse.Namespace) -> None:
-    """Refuse unusable --out and --record paths before the run, not after it."""
-    from bridge.commands.paths import check_out_dir, check_out_file
+    """Refuse unusable --out and --record paths before the run, not after it.
+    --out is created first, so --trace/--record/--animate may name files in
+    it; it is removed again (when still empty) if another path is refused."""
+    from bridge.commands.paths import check_out_dir
+    if args.out is None:
+        _check_files(args)
+        return
+    check_out_dir(args.out, "--out")
+    created = [d for d in (args.out, *args.out.parents) if not d.exists()]
+    args.out.mkdir(parents=True, exist_ok=True)
+    try:
+        _check_files(args)
+    except UsageError:
+        for d in created:
+            try:
+                d.rmdir()
+            except OSError:
+                break           # not empty: something else wrote there meanwhile
+        raise
+
+
+def _check_files(args: argparse.Namespace) -> None:
+    from bridge.commands.paths import check_out_file
     from bridge.record.formats import meta_path, record_format
-    if args.out is not None:
-        check_out_dir(args.out, "--out")
     if args.record is not None:
         record_format(args.record)
         check_out_file(args.record, "--record", "run.blf")
@@ -226,7 +249,6 @@ def _run(args: argparse.Namespace, sc, engine, recorder) -> int:
     summary = result.summary()
     if recorder is not None:
         recorder.close(summary)
-    converged_power = power_at_convergence(result.coordinator)
     if args.out:
         from sim_backend.records import write_records
         from sim_backend.render import render
@@ -239,7 +261,7 @@ def _run(args: argparse.Namespace, sc, engine, recorder) -> int:
     if args.json:
         print(json.dumps(summary, sort_keys=True))
     else:
-        print(format_summary(summary, converged_power))
+        print(format_summary(summary, engine.behaviour, result.coordinator))
         if args.out:
             print(f"records and world.png written to {args.out}/")
         if args.record:
@@ -250,14 +272,6 @@ def _run(args: argparse.Namespace, sc, engine, recorder) -> int:
             print(f"animation written to {args.animate} ({frames} frames, one every "
                   f"{anim.every} ticks)")
     return 0 if summary["delivered"] else 1
-
-
-def power_at_convergence(coord) -> float | None:
-    """The power held when the holders first matched the weight: the summary's
-    power is the final one, which later touches may have raised."""
-    if coord.converged_tick < 0:
-        return None
-    return sum(t.power for t in coord.touches if t.tick <= coord.converged_tick) / 100
 
 
 def _perception_lines(s: dict) -> list[str]:
@@ -274,7 +288,7 @@ def _perception_lines(s: dict) -> list[str]:
 
 
 def _decision_lines(s: dict) -> list[str]:
-    """What the host decided by recognition (scenario recognise = true)."""
+    """What the host decided by recognition (a behaviour's recognition measures)."""
     if "releases" not in s:
         return []
     when = ("never" if s["target_tick"] is None else
@@ -283,29 +297,13 @@ def _decision_lines(s: dict) -> list[str]:
     return [f"  target           recognised {when}; {s['releases']} decoy releases; {wrong}"]
 
 
-def format_summary(s: dict, converged_power: float | None = None) -> str:
-    def t(v):
-        return "never" if v is None else f"tick {v}"
-    if s["converged_tick"] is None:
-        held = f"(power {s['power']:g} held at the end)"
-    elif converged_power is None:
-        held = ""
-    else:
-        held = f"(power {converged_power:g} held then)"
-    lines = [
-        f"scenario {s['scenario']}: {s['robots']} {s['movementModel']} robots, "
-        f"object {s['object']}, seed {s['seed']}",
-        f"  first touch      {t(s['found_tick'])}",
-        f"  converged        {t(s['converged_tick'])}  {held}".rstrip(),
-        f"  delivered home   {t(s['home_tick'])}",
-        f"  leader           robot {s['leader']}",
-        f"  touches          {len(s['touches'])} robots hold the object, power "
-        f"{s['power']:g}",
-        f"  shape IoU        {s['shape_iou']:.3f}",
-        *_perception_lines(s),
-        *_decision_lines(s),
-        f"  result           {'DELIVERED' if s['delivered'] else 'NOT delivered'}"
-        f" after {s['ticks']} ticks"
-        + ("" if s["delivered"] or not s.get("outcome") else f" ({s['outcome']})"),
-    ]
-    return "\n".join(lines)
+def format_summary(s: dict, behaviour=None, coordinator=None) -> str:
+    """The text summary in the behaviour's own words (sim_backend/words.py):
+    its header and measure lines, the new estimate and recognition when
+    measured, the result line."""
+    from firmware_logic import registry
+    from sim_backend import words
+    b = registry.load(behaviour) if behaviour is None or isinstance(behaviour, str) \
+        else behaviour
+    return "\n".join([*words.summary_lines(b, s, coordinator), *_perception_lines(s),
+                      *_decision_lines(s), words.result_line(b, s)])

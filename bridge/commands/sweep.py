@@ -39,7 +39,8 @@ def register(sub) -> None:
                    help="base scenario every point starts from (default: default)")
     p.add_argument("--grid", action="append", default=[], metavar="KEY=V1,V2,...",
                    help="a scenario key and its distinct values (repeatable, once per key; "
-                        "the grid is their product)")
+                        "the grid is their product; none: one point, the scenario with "
+                        "its --set keys)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scenario key for every point (repeatable, once per key, "
                         "not a --grid key)")
@@ -68,12 +69,11 @@ def register(sub) -> None:
                         "its weight (default: delivered; --thesis: converged)")
     p.add_argument("--engine", choices=ENGINES, default=None,
                    help="auto (default) or soa: the struct-of-arrays transform of the "
-                        "behaviour's own source, the fastest; compiled once per machine and "
-                        f"behaviour source ({SOA_COLD_COMPILE}, said on stderr; "
-                        "TOUCHSWARM_SOA_INLINE=0 halves it, for slower runs) and cached on disk "
-                        "(~/.cache/touchswarm or $TOUCHSWARM_CACHE); batch: the jitclass "
-                        "engine, compiled in every process (1-2 min); reference: the "
-                        "per-robot engine (docs/performance.md)")
+                        "behaviour's own source, compiled once per machine and behaviour "
+                        f"source ({SOA_COLD_COMPILE}, said on stderr; TOUCHSWARM_SOA_INLINE=0 "
+                        "halves it, for slower runs) and cached on disk (~/.cache/touchswarm "
+                        "or $TOUCHSWARM_CACHE); reference: the per-robot engine, bit-identical "
+                        "and over 100x slower at 10,000 robots (docs/performance.md)")
     p.add_argument("--executor", default=None, metavar="SPEC",
                    help="processes[:N] (default: one per core), inline, or dask://HOST:PORT "
                         "(a dask.distributed scheduler)")
@@ -252,10 +252,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         until = cfg.get("until") or sweep.THESIS_UNTIL
         overrides.setdefault("maxTicks", sweep.THESIS_MAX_TICKS)
     else:
-        if not cfg.get("grid"):
-            raise UsageError("give at least one --grid KEY=V1,V2,... (or --thesis, or an "
-                             "experiment file)")
-        grid = cfg["grid"]
+        # no --grid: one point, the scenario with --set, over the seeds
+        grid = cfg.get("grid") or {}
         both = sorted(set(grid) & set(overrides))
         if both:
             raise UsageError(f"--set {both[0]} and --grid {both[0]} both given; the grid "
@@ -276,7 +274,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     done: list[dict] = []
     if args.resume:
         done = sweep.read_done(csv_path)
-        base_d = {**base.to_dict(), **overrides}
+        base_d = sweep.base_dict(base, overrides)
         sweep.check_done(done, points, seeds, base_d, until)
     elif csv_path.exists() and not args.overwrite and sweep.read_done(csv_path):
         raise UsageError(f"--out {out}: sweep.csv already holds {len(sweep.read_done(csv_path))}"

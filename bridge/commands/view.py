@@ -18,10 +18,12 @@ def register(sub) -> None:
         "view", help="watch a mission live in the browser (a simulated run or a host journal)",
         description="Serve a page on 127.0.0.1 that shows a mission as it happens: the arena "
                     "with the object, the field, robots coloured by state, touches numbered "
-                    "in order, the perceived shape, power against weight, bad frames and an "
-                    "event log. Without --journal it runs the scenario in the reference "
-                    "engine with play / pause / step / speed controls; with --journal it "
-                    "follows a `touchswarm host` journal read-only (give the host's "
+                    "in order, the behaviour's measures and reporters with their titles (and, "
+                    "when it declares them, the perceived shape and its load, e.g. the "
+                    "thesis's power against weight), bad frames and an event log. "
+                    "Without --journal it runs the scenario in the reference engine with "
+                    "play / pause / step / speed controls; with --journal it follows a "
+                    "`touchswarm host` journal read-only (give the host's "
                     "--scenario/--set so the arena matches). Runs until Ctrl-C.",
         epilog="examples:\n"
                "  touchswarm view --scenario ant --seed 7          # then open the URL\n"

@@ -81,7 +81,7 @@ def cmd_check(args: argparse.Namespace) -> int:
     from firmware_logic import registry
 
     sc = check_scenario(args)
-    b = registry.load(str(sc.behaviour))
+    b = registry.load(str(sc.behaviour)).activate()   # its message kinds in use
     b.robot_args(args.node, args.seed, sc)     # one line when they do not fit the FSM
     violations = check_package()
     if not b.folder.is_relative_to(package_dir()):

@@ -40,7 +40,7 @@ from firmware_logic import messages as msg
 
 DEFAULT_BEHAVIOUR = "thesis"
 VERSION = 2
-MAX_FIELDS = 6          # messages.declare: at most 6 fields fit a frame
+MAX_FIELDS = 6          # messages.check: at most 6 fields fit a frame
 FIELD_COLUMNS = tuple("f%d" % (i + 1) for i in range(MAX_FIELDS))
 
 SCHEMA = """

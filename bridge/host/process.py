@@ -66,7 +66,7 @@ def host_behaviour(name: str | None, sc: Any = None) -> registry.Behaviour:
     contract; UsageError (one line) for an unknown one or one whose
     coordinator does not, before any port or journal is touched."""
     try:
-        b = registry.load(name)
+        b = registry.load(name).activate()
     except registry.BehaviourError as err:
         raise UsageError(f"host: {err}") from None
     params = inspect.signature(b.package.make_coordinator).parameters
@@ -99,7 +99,7 @@ class HostProcess:
         (sim_backend/scenario.py CHOICES), which the host's coordinator applies.
         scenario: the whole scenario (its arrival wins), for a behaviour whose
         coordinator needs more than the arena and the weight (aggregation: the
-        swarm's size and quorum)."""
+        swarm's size and its own parameters)."""
         self.transport = transport
         self.journal = journal
         self.tick_seconds = tick_seconds

@@ -15,14 +15,14 @@ from typing import Any, Callable
 
 import can
 
-from firmware_logic import hal
+from firmware_logic import hal, registry
 from firmware_logic import messages as msg
 
 log = logging.getLogger(__name__)
 
 Message = tuple[int, int, tuple]   # (node, kind, fields)
 
-# by direction; grown by refresh() when a behaviour declares messages
+# by direction, for the behaviour in use (activate() keeps them in step)
 HOST_KINDS: set[int] = set()
 ROBOT_KINDS: set[int] = set()
 CAPTURE_KINDS: set[int] = set()
@@ -43,10 +43,8 @@ FAULTS = (EXTENDED, REMOTE, ERROR, FD, UNKNOWN_ID, WRONG_DLC, OUT_OF_RANGE,
 
 def value_tables(behaviour: Any = None) -> dict[str, dict[int, str]]:
     """Value tables by the names messages.MESSAGES uses: the behaviour's states
-    and models (default: the thesis) and the HAL's query/action codes."""
-    from firmware_logic import registry
-
-    b = behaviour if behaviour is not None else registry.load()
+    and models (default: the one in use) and the HAL's query/action codes."""
+    b = behaviour if behaviour is not None else registry.active()
     return {
         "states": dict(enumerate(b.spec.STATES)),
         "models": dict(b.spec.MODELS),
@@ -55,11 +53,12 @@ def value_tables(behaviour: Any = None) -> dict[str, dict[int, str]]:
     }
 
 
-def field_checks(kind: int, tables: dict[str, dict[int, str]]) -> list[tuple[int, Any, Any, Any]]:
-    """(index, lo, hi, allowed values) for every field of `kind` that the
-    declaration bounds beyond its byte size."""
+def field_checks(row: tuple, tables: dict[str, dict[int, str]]) -> list[tuple[int, Any, Any, Any]]:
+    """(index, lo, hi, allowed values) for every field of the message `row`
+    (a row of messages.MESSAGES or a spec.MESSAGES) that the declaration
+    bounds beyond its byte size."""
     out = []
-    for i, (_name, _size, _signed, _div, _unit, lo, hi, values) in enumerate(msg.spec(kind)[4]):
+    for i, (_name, _size, _signed, _div, _unit, lo, hi, values) in enumerate(row[4]):
         allowed = frozenset(tables[values]) if values else None
         if lo is not None or hi is not None or allowed is not None:
             out.append((i, lo, hi, allowed))
@@ -71,9 +70,9 @@ def _adjacent(f: tuple) -> bool:
     return -1 <= f[3] - f[1] <= 1 and -1 <= f[4] - f[2] <= 1
 
 
-def validator(kind: int, tables: dict[str, dict[int, str]]) -> Callable[[tuple], bool]:
-    checks = field_checks(kind, tables)
-    extra = _adjacent if kind == msg.TOUCH else None
+def validator(row: tuple, tables: dict[str, dict[int, str]]) -> Callable[[tuple], bool]:
+    checks = field_checks(row, tables)
+    extra = _adjacent if row[0] == msg.TOUCH else None
 
     def ok(f: tuple) -> bool:
         for i, lo, hi, allowed in checks:
@@ -86,37 +85,92 @@ def validator(kind: int, tables: dict[str, dict[int, str]]) -> Callable[[tuple],
 
 
 # field ranges beyond what the byte sizes already bound (docs/protocol.md),
-# derived from messages.rows() and the default behaviour's value tables
+# of the behaviour in use (activate() keeps it in step)
 VALID: dict[int, Callable[[tuple], bool]] = {}
 
 
-def struct_for(kind: int) -> struct.Struct:
+def struct_for(row: tuple) -> struct.Struct:
     codes = {(1, 0): "B", (1, 1): "b", (2, 0): "H", (2, 1): "h"}
-    return struct.Struct("<" + "".join(codes[(size, signed)]
-                                       for _, size, signed in msg.fields(kind)))
+    return struct.Struct("<" + "".join(codes[(f[1], f[2])] for f in row[4]))
 
 
-_STRUCTS: dict[int, struct.Struct] = {}
-_DLC: dict[int, int] = {}
-# arbitration id -> (node, kind, Struct, dlc)
-_TABLE: dict[int, tuple[int, int, struct.Struct, int]] = {}
+class Schema:
+    """One behaviour's view of the bus: the link's messages and its own
+    (spec.MESSAGES), validated against its own states and models. Kinds are
+    per behaviour: two behaviours may give one free kind different messages."""
+
+    def __init__(self, behaviour: Any) -> None:
+        self.behaviour = behaviour
+        self.rows = msg.MESSAGES + behaviour.messages
+        tables = value_tables(behaviour)
+        self.by_direction = {msg.DOWN: set(), msg.UP: set(), msg.CAPTURE: set()}
+        self.valid: dict[int, Callable[[tuple], bool]] = {}
+        self.names: dict[int, str] = {}
+        # arbitration id -> (node, kind, Struct, dlc)
+        self.table: dict[int, tuple[int, int, struct.Struct, int]] = {}
+        for row in self.rows:
+            k = row[0]
+            self.by_direction[row[2]].add(k)
+            self.valid[k] = validator(row, tables)
+            self.names[k] = row[1]
+            st = struct_for(row)
+            for n in range(msg.MAX_NODE + 1):
+                self.table[msg.can_id(k, n)] = (n, k, st, st.size)
+
+    @property
+    def host_kinds(self) -> set[int]:
+        return self.by_direction[msg.DOWN]
+
+    @property
+    def robot_kinds(self) -> set[int]:
+        return self.by_direction[msg.UP]
+
+    @property
+    def capture_kinds(self) -> set[int]:
+        return self.by_direction[msg.CAPTURE]
+
+
+_SCHEMAS: dict[str, Schema] = {}
+
+
+def schema(behaviour: Any = None) -> Schema:
+    """The schema of `behaviour` (default: the one in use), built once."""
+    b = behaviour if behaviour is not None else registry.active()
+    key = b.module_name
+    got = _SCHEMAS.get(key)
+    if got is None or got.behaviour.spec is not b.spec:
+        got = _SCHEMAS[key] = Schema(b)
+    return got
+
+
+_CURRENT: list[Schema] = []
+
+
+def current() -> Schema:
+    """The schema of the behaviour in use; the module's HOST_KINDS,
+    ROBOT_KINDS, CAPTURE_KINDS and VALID follow it."""
+    s = schema()
+    if not _CURRENT or _CURRENT[0] is not s:
+        _CURRENT[:] = [s]
+        for mine, theirs in ((HOST_KINDS, s.host_kinds), (ROBOT_KINDS, s.robot_kinds),
+                             (CAPTURE_KINDS, s.capture_kinds)):
+            mine.clear()
+            mine.update(theirs)
+        VALID.clear()
+        VALID.update(s.valid)
+    return s
+
+
+def activate(behaviour: Any) -> Schema:
+    """Put `behaviour` in use (registry.Behaviour.activate) and return its schema."""
+    behaviour.activate()
+    return current()
 
 
 def refresh() -> None:
-    """Take in every kind of messages.rows() not known yet: the link's at
-    import, a behaviour's once it declared them (registry.load does)."""
-    tables = None
-    for m in msg.rows():
-        k = m[0]
-        if k in _STRUCTS:
-            continue
-        tables = tables or value_tables()
-        {msg.DOWN: HOST_KINDS, msg.UP: ROBOT_KINDS, msg.CAPTURE: CAPTURE_KINDS}[m[2]].add(k)
-        VALID[k] = validator(k, tables)
-        _STRUCTS[k] = struct_for(k)
-        _DLC[k] = msg.dlc(k)
-        for n in range(msg.MAX_NODE + 1):
-            _TABLE[msg.can_id(k, n)] = (n, k, _STRUCTS[k], _DLC[k])
+    """Follow the behaviour in use (kept for callers that only need the
+    module-level tables in step)."""
+    current()
 
 
 refresh()
@@ -157,19 +211,35 @@ class Decoder:
     command seen by the host is counted as a bad frame (wrong direction).
     """
 
-    def __init__(self, side: str, bad: BadFrames | None = None) -> None:
-        refresh()
+    def __init__(self, side: str, bad: BadFrames | None = None, behaviour: Any = None) -> None:
         if side not in ("host", "robot"):
             raise ValueError(f"side must be 'host' or 'robot', not {side!r}")
         self.side = side
-        self.accept = ROBOT_KINDS if side == "host" else HOST_KINDS
         self.bad = bad if bad is not None else BadFrames(side)
+        # a decoder made for one behaviour keeps its schema; otherwise it
+        # follows the behaviour in use (a link is often made before the
+        # engine that activates its behaviour)
+        self.fixed = schema(behaviour) if behaviour is not None else None
+        self.schema: Schema | None = None
+        self.bound: Any = None      # the behaviour in use when it last bound
+        self.fast: dict[int, tuple] = {}
+        self._bind()
+
+    def _bind(self) -> None:
+        s = self.fixed if self.fixed is not None else current()
+        self.bound = registry._ACTIVE
+        if s is self.schema:
+            return
+        self.schema = s
+        self.accept = s.robot_kinds if self.side == "host" else s.host_kinds
         # fast path: id -> (node, kind, unpack, dlc, valid) for what this side accepts
-        self.fast = {i: (n, k, st.unpack, dlc, VALID[k]) for i, (n, k, st, dlc) in _TABLE.items()
-                     if k in self.accept and not (k in ROBOT_KINDS and n == msg.HOST)}
+        self.fast = {i: (n, k, st.unpack, dlc, s.valid[k]) for i, (n, k, st, dlc) in s.table.items()
+                     if k in self.accept and not (k in s.robot_kinds and n == msg.HOST)}
 
     def decode(self, frame: can.Message) -> Message | None:
         """The message in `frame`, or None when it is bad or not for this side."""
+        if self.bound is not registry._ACTIVE and self.fixed is None:
+            self._bind()
         if not (frame.is_error_frame or frame.is_extended_id or frame.is_remote_frame
                 or frame.is_fd):
             entry = self.fast.get(frame.arbitration_id)
@@ -196,12 +266,13 @@ class Decoder:
         if frame.is_fd:
             bad.add(FD, frame)
             return None
-        entry = _TABLE.get(frame.arbitration_id)
+        s = self.schema
+        entry = s.table.get(frame.arbitration_id)
         if entry is None:
             bad.add(UNKNOWN_ID, frame)
             return None
         node, kind, st, dlc = entry
-        if kind in CAPTURE_KINDS or (self.side == "robot" and kind in ROBOT_KINDS):
+        if kind in s.capture_kinds or (self.side == "robot" and kind in s.robot_kinds):
             return None
         if kind not in self.accept:
             bad.add(WRONG_DIRECTION, frame)
@@ -211,14 +282,16 @@ class Decoder:
             bad.add(WRONG_DLC, frame)
             return None
         f = st.unpack(data)
-        if (kind in ROBOT_KINDS and node == msg.HOST) or not VALID[kind](f):
+        if (kind in s.robot_kinds and node == msg.HOST) or not s.valid[kind](f):
             bad.add(OUT_OF_RANGE, frame)
             return None
         return node, kind, f
 
     def decode_capture(self, frame: can.Message) -> Message | None:
         """Any well-formed frame of the schema, capture frames included (replay)."""
-        entry = _TABLE.get(frame.arbitration_id)
+        if self.bound is not registry._ACTIVE and self.fixed is None:
+            self._bind()
+        entry = self.schema.table.get(frame.arbitration_id)
         if entry is None or frame.is_extended_id or frame.is_remote_frame:
             self.bad.add(UNKNOWN_ID, frame)
             return None

@@ -13,22 +13,22 @@ from typing import Any
 
 from firmware_logic import messages as msg
 
-from bridge.links.codec import HOST_KINDS, refresh, value_tables
+from bridge.links.codec import schema, value_tables
+
 
 def build(max_node: int = msg.MAX_NODE, behaviour: Any = None):
     """A cantools Database of the link's messages and the behaviour's own: physical
     units and scaling, value tables (the behaviour's states and models,
-    default the thesis's), comments."""
+    default the thesis's), comments. Never another behaviour's messages:
+    kinds are per behaviour."""
     from cantools.database.can import Database, Message, Node, Signal
     from cantools.database.conversion import BaseConversion
 
     from firmware_logic import registry
     b = behaviour if behaviour is not None else registry.load()
     tables = value_tables(b)
-    refresh()                     # the behaviour's own messages, if it declares any
-    # the link's messages and this behaviour's own: never what other behaviours
-    # loaded in the same process declared
-    rows = msg.MESSAGES + tuple(getattr(b.spec, "MESSAGES", ()))
+    s = schema(b)                 # the link's messages and this behaviour's own
+    rows = s.rows
 
     if not 1 <= max_node <= msg.MAX_NODE:
         raise ValueError(f"max_node must be 1..{msg.MAX_NODE}, not {max_node}")
@@ -36,7 +36,7 @@ def build(max_node: int = msg.MAX_NODE, behaviour: Any = None):
     nodes = [Node(name, comment=None) for name in names]
     messages = []
     for kind, kname, _direction, comment, spec in sorted(rows):
-        first = 0 if kind in HOST_KINDS else 1
+        first = 0 if kind in s.host_kinds else 1
         for node in range(first, max_node + 1):
             signals = []
             pos = 0
@@ -54,20 +54,21 @@ def build(max_node: int = msg.MAX_NODE, behaviour: Any = None):
                                       conversion=conv, minimum=lo / divisor,
                                       maximum=hi / divisor, unit=unit or None))
                 pos += size
-            sender = "HOST" if kind in HOST_KINDS else f"R{node}"
+            sender = "HOST" if kind in s.host_kinds else f"R{node}"
             messages.append(Message(frame_id=msg.can_id(kind, node), name=f"{kname}_{node}",
                                     length=pos, signals=signals, senders=[sender],
                                     comment=comment, is_extended_frame=False))
     return Database(messages=messages, nodes=nodes, version=str(msg.FIRMWARE_VERSION))
 
 
-def dbc_text(max_node: int = msg.MAX_NODE) -> str:
-    return build(max_node).as_dbc_string()
+def dbc_text(max_node: int = msg.MAX_NODE, behaviour: Any = None) -> str:
+    return build(max_node, behaviour).as_dbc_string()
 
 
-def write(path: Path, max_node: int = msg.MAX_NODE) -> int:
-    """Write the DBC to `path`; return the number of messages."""
-    db = build(max_node)
+def write(path: Path, max_node: int = msg.MAX_NODE, behaviour: Any = None) -> int:
+    """Write the DBC of `behaviour` (default: the thesis) to `path`; return the
+    number of messages."""
+    db = build(max_node, behaviour)
     with open(path, "w", newline="") as f:
         f.write(db.as_dbc_string())
     return len(db.messages)

@@ -4,17 +4,18 @@ recognition against a shape library. numpy is fine here; nothing in
 firmware_logic imports this package (docs/perception.md).
 """
 
+import importlib
 from typing import Any
 
 
 def host_coordinator(behaviour: Any, sc: Any, **kw: Any) -> Any:
     """The behaviour's coordinator for scenario `sc` as every host runs it
-    (the engines, the host process, replay): with `recognise`, equipped with
-    the recogniser's decider (`decide.equip`), which is host code (numpy)
-    the subset coordinator cannot import. kw: the registry's `coordinator`
-    arguments (cells, journal, on_reject)."""
+    (the engines, the host process, replay), equipped by the host libraries
+    its package names in HOST_EQUIP (e.g. the recogniser's decider,
+    `decide.equip`: host code, numpy, the subset coordinator cannot import).
+    kw: the registry's `coordinator` arguments (cells, journal, on_reject)."""
     c = behaviour.coordinator(sc, **kw)
-    if getattr(sc, "recognise", False):
-        from bridge.perception.decide import equip
-        equip(c, sc)
+    for ref in getattr(behaviour.package, "HOST_EQUIP", ()):
+        module, name = ref.split(":")
+        getattr(importlib.import_module(module), name)(c, sc)
     return c

@@ -1,4 +1,4 @@
-"""The host's decider for scenario `recognise = true` (issue 13 §2): is a
+"""The host's decider for a recognising coordinator (issue 13 §2): is a
 cluster of touches the target, and how sure is the host?
 
 The thesis coordinator (firmware_logic/behaviours/thesis/recognising.py) is
@@ -85,7 +85,9 @@ class Decider:
 
 
 def equip(coordinator: Any, sc: Any) -> Any:
-    """Give a recognising coordinator its decider (a no-op otherwise)."""
-    if getattr(coordinator, "recognise", 0) and getattr(coordinator, "decider", 0) is None:
+    """Give a coordinator that wants one (its wants_decider()) a decider;
+    a no-op otherwise."""
+    wants = getattr(coordinator, "wants_decider", None)
+    if wants is not None and wants():
         coordinator.decider = Decider(sc)
     return coordinator

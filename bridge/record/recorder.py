@@ -89,6 +89,21 @@ def _taped(body: Any, method: str, query: int):
     return wrapped
 
 
+def portable_behaviour(ref: str, path: Path) -> tuple[str, str]:
+    """(how a recording names its behaviour, the behaviour's NAME): an
+    installed behaviour by its name; a folder by its path relative to the
+    recording's own folder (both may move together; `replay --behaviour DIR`
+    points at it otherwise), never an absolute path."""
+    import os
+
+    from firmware_logic import registry
+    b = registry.load(ref)
+    if str(ref) in registry.names():
+        return str(ref), b.name
+    rel = os.path.relpath(b.folder, Path(path).resolve().parent)
+    return Path(rel).as_posix(), b.name
+
+
 class Recorder:
     """Writes one run, tick by tick, to a python-can log file (by suffix)."""
 
@@ -97,9 +112,13 @@ class Recorder:
         record_format(path)
         self.path = path
         # the behaviour is also inside the scenario; written at the top level so
-        # a reader of the sidecar sees at once which firmware made the frames
-        self.meta = {"scenario": scenario.to_dict(), "seed": seed, "link": link,
-                     "behaviour": scenario.behaviour,
+        # a reader of the sidecar sees at once which firmware made the frames;
+        # portable: see portable_behaviour
+        ref, name = portable_behaviour(scenario.behaviour, path)
+        sc = scenario.to_dict()
+        sc["behaviour"] = ref
+        self.meta = {"scenario": sc, "seed": seed, "link": link,
+                     "behaviour": ref, "behaviour_name": name,
                      "tick_seconds": TICK_SECONDS, "epoch": EPOCH, "format": FORMAT}
         try:
             self.writer = can.Logger(str(path))

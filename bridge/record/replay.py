@@ -22,7 +22,7 @@ from pathlib import Path
 import can
 
 from bridge.errors import UsageError
-from bridge.links.codec import HOST_KINDS, BadFrames, Decoder, Message
+from bridge.links.codec import BadFrames, Decoder, Message
 from bridge.record.formats import meta_path, record_format
 from bridge.record.recorder import Q_RECV, Q_X, Q_Y
 from firmware_logic import messages as msg
@@ -108,17 +108,45 @@ def _quiet_python_can():
         lg.setLevel(old)
 
 
-def behaviour(meta: dict, path: Path) -> registry.Behaviour:
-    """The behaviour the recorded run ran (the sidecar's scenario names it;
-    recordings made before behaviours existed ran the thesis)."""
-    name = meta["scenario"].get("behaviour", "thesis")
+def behaviour(meta: dict, path: Path, folder: Path | None = None) -> registry.Behaviour:
+    """The behaviour the recorded run ran, put in use: `folder` when given
+    (`replay --behaviour DIR`), else the sidecar's: an installed one by name,
+    a folder by its path relative to the recording's folder (an absolute
+    path, as older recordings wrote, as it is). Recordings made before
+    behaviours existed ran the thesis."""
+    ref = str(meta["scenario"].get("behaviour", "thesis"))
+    name = meta.get("behaviour_name")
+    where = f"replay: sidecar {meta_path(path)}"
+    if folder is not None:
+        try:
+            b = registry.load(str(folder))
+        except registry.BehaviourError as err:
+            raise UsageError(f"replay: --behaviour: {err}") from None
+        if name is not None and b.name != name:
+            raise UsageError(f"replay: --behaviour {folder} is behaviour {b.name!r}; "
+                             f"{path.name} was recorded with {name!r}")
+        return b.activate()
+    if ref not in registry.names():
+        beside = Path(path).resolve().parent / ref
+        # older recordings: the path as given to `run` (relative to where it ran)
+        ref = str(beside) if beside.is_dir() or not Path(ref).is_dir() else ref
+        if not Path(ref).is_dir():
+            raise UsageError(f"{where}: behaviour {meta['scenario'].get('behaviour')!r}"
+                             f"{' (' + repr(name) + ')' if name else ''} is not a folder "
+                             f"relative to {Path(path).parent or '.'} nor installed; point at its "
+                             f"folder with `touchswarm replay --behaviour DIR {path}`")
     try:
-        return registry.load(name)
+        return registry.load(ref).activate()
     except registry.BehaviourError as err:
-        raise UsageError(f"replay: sidecar {meta_path(path)}: {err}") from None
+        raise UsageError(f"{where}: {err}") from None
 
 
-def load(path: Path) -> Recording:
+def behaviour_ref(b: registry.Behaviour) -> str:
+    """How the replayed scenario names `b`: its name when installed, else its folder."""
+    return b.name if registry.names().get(b.name) == b.module_name else str(b.folder)
+
+
+def load(path: Path, folder: Path | None = None) -> Recording:
     """Read a recording and its sidecar. UsageError (bad input: the CLI exits 2)
     for a missing, unreadable, corrupt, truncated or mismatched recording."""
     path = Path(path)
@@ -132,8 +160,9 @@ def load(path: Path) -> Recording:
         raise UsageError(f"replay: {path} is empty (0 bytes); expected a recording made by "
                          "`touchswarm run --record`")
     rec = Recording(meta=_sidecar(path))
-    behaviour(rec.meta, path)            # its own message kinds, before any frame is read
-    dec = Decoder("host", BadFrames("replay"))
+    b = behaviour(rec.meta, path, folder)   # its own message kinds, before any frame is read
+    rec.meta["scenario"]["behaviour"] = behaviour_ref(b)
+    dec = Decoder("host", BadFrames("replay"), behaviour=b)
     tick = 0
     try:
         with _quiet_python_can():
@@ -153,7 +182,7 @@ def load(path: Path) -> Recording:
                         rec.stamps[t] = frame.timestamp
                     table = rec.sensors if kind == msg.SENSOR else rec.actions
                     table[node].setdefault(t, []).append(tuple(f[2:]))
-                elif kind in HOST_KINDS:
+                elif kind in dec.schema.host_kinds:
                     rec.down[tick].append((node, kind, tuple(f)))
                 else:
                     rec.up[tick].append((node, kind, tuple(f)))
@@ -269,15 +298,17 @@ def _fmt(m: Message) -> str:
     return "%s_%d%s" % (msg.SCHEMA[kind][0], node, tuple(f))
 
 
-def replay(path: Path, realtime: bool = False, limit: int = 50) -> dict:
-    """Replay a recording; return a summary with a list of divergences."""
+def replay(path: Path, realtime: bool = False, limit: int = 50,
+           folder: Path | None = None) -> dict:
+    """Replay a recording; return a summary with a list of divergences.
+    `folder`: the behaviour's folder when the sidecar's path does not reach it."""
     from sim_backend.scenario import validate
 
-    rec = load(path)
+    rec = load(path, folder)
     sc = validate(dict(rec.meta["scenario"]), source=str(meta_path(Path(path))))
     seed = int(rec.meta["seed"])
     nodes = sorted(set(rec.sensors) | set(rec.actions))
-    beh = behaviour(rec.meta, Path(path))
+    beh = behaviour(rec.meta, Path(path), folder)
     robots = {n: beh.make_robot(n, seed, sc) for n in nodes}
     inbox = {n: deque() for n in nodes}
     hals = {n: ReplayHal(n, inbox[n]) for n in nodes}

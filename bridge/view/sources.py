@@ -6,7 +6,9 @@ paused (no busy loop); `step` advances exactly the ticks asked for.
 `JournalSource` follows a `touchswarm host` journal read-only: on each poll
 it replays the journal into a fresh host coordinator (the host's own
 `resume`), so touches, power, state and the perceived shape are what a
-resumed host would hold; poses and bad frames come from the journal's live
+resumed host would hold; the behaviour's measures and reporters with their
+titles, and its perceived shape and load only when it declares them
+(sim_backend/words.py); poses and bad frames come from the journal's live
 view (bridge/host/process.py writes it every LIVE_EVERY host ticks).
 
 Both give the page the same JSON: `info()` once, `state()` on every poll.
@@ -42,23 +44,57 @@ def hex_colours(names: tuple[str, ...]) -> list[str]:
     return [to_hex(c) for c in state_colours(names)]
 
 
-def coordinator_view(coord: Any) -> dict[str, Any]:
+def words_info(behaviour: Any) -> dict[str, Any]:
+    """What the page is told once about the behaviour's words
+    (sim_backend/words.py): its measures' and reporters' titles, whether it
+    draws a perceived shape, and the words of its load bar (or none)."""
+    from sim_backend import words
+    w = words.of(behaviour)
+    return {"behaviour": w.name, "measures": [list(m) for m in w.shown()],
+            "shape": w.shape is not None, "load": list(w.load) if w.load else None}
+
+
+def coordinator_view(coord: Any, behaviour: Any, values: dict[str, Any] | None = None
+                     ) -> dict[str, Any]:
     """What the page draws from the host coordinator: touches numbered in
-    order where their segments are now, the perceived shape, power, status."""
+    order where their segments are now, status, the behaviour's measures and
+    reporters with their titles (`values`: the run's measures so far, when
+    known; the coordinator's own measures and reporters are added), and only
+    when the behaviour declares them the perceived shape (spec.SHAPE) and
+    its load (spec.LOAD: e.g. power of weight, coordinator attributes in
+    hundredths)."""
+    from sim_backend import words
+    w = words.of(behaviour)
     mx, my = getattr(coord, "moved_x", 0), getattr(coord, "moved_y", 0)
     touches = [{"n": i + 1, "node": t.node, "tick": t.tick,
                 "rx": t.rx + mx, "ry": t.ry + my,
                 "sx": getattr(t, "sx", t.rx) + mx, "sy": getattr(t, "sy", t.ry) + my}
                for i, t in enumerate(coord.touches)]
-    perceived = sorted(perception.outline_cells(coord.segments_now())) \
-        if hasattr(coord, "segments_now") else []
-    return {"touches": touches, "perceived": [list(c) for c in perceived],
-            "power": coord.power / 100, "weight": coord.weight / 100,
-            "status": coord.status(),
-            "found_tick": _tick_or_none(getattr(coord, "found_tick", -1)),
-            "converged_tick": _tick_or_none(getattr(coord, "converged_tick", -1)),
-            "home_tick": _tick_or_none(getattr(coord, "delivered_tick", -1)),
-            "delivered": coord.delivered_tick >= 0}
+    values = {**(values or {}), **(coord.measures() if hasattr(coord, "measures") else {}),
+              **behaviour.report(coord)}
+    out = {"touches": touches, "status": coord.status(),
+           "measures": words.shown_values(w, values),
+           "found_tick": _tick_or_none(getattr(coord, "found_tick", -1)),
+           "converged_tick": _tick_or_none(getattr(coord, "converged_tick", -1)),
+           "home_tick": _tick_or_none(getattr(coord, "delivered_tick", -1)),
+           "delivered": coord.delivered_tick >= 0}
+    if w.shape is not None and hasattr(coord, "segments_now"):
+        out["perceived"] = [list(c) for c in
+                            sorted(perception.outline_cells(coord.segments_now()))]
+    if w.load is not None:
+        for name in w.load:
+            out[name] = getattr(coord, name) / 100
+    return out
+
+
+def load_text(behaviour: Any, coord: Any) -> str:
+    """" (power 1 of 5)" after a touch event when the behaviour declares a load."""
+    from sim_backend import words
+    load = words.of(behaviour).load
+    if load is None:
+        return ""
+    held, need = (getattr(coord, name) / 100 for name in load)
+    return f" ({load[0]} {held:g} of {need:g})"
 
 
 def _tick_or_none(t: int) -> int | None:
@@ -94,6 +130,11 @@ class SimSource:
         self.bad_frames = 0
         self.events: list[str] = [f"tick 0: {sc.agents} robots, scenario {sc.name}, seed {seed}"]
         self._seen = {"touches": 0, "converged": False, "delivered": False}
+        from sim_backend import words
+        said = words.of(self.engine.behaviour)
+        self.done_word = said.result[1]                 # e.g. DELIVERED
+        # convergence is an event only for a behaviour that measures it
+        self._seen["converged"] = "converged_tick" not in dict(said.measures)
         self.snap = self.engine.snapshot()
         self.engine.observe(self._observe)
         self.runner = threading.Thread(target=self._run, name="view-sim", daemon=True)
@@ -106,15 +147,15 @@ class SimSource:
         self.bad_frames += snap.bad_frames
         c = self.engine.coordinator
         for i in range(self._seen["touches"], len(c.touches)):
-            self.events.append(f"tick {snap.tick}: touch {i + 1} by robot {c.touches[i].node} "
-                               f"(power {c.power / 100:g} of {c.weight / 100:g})")
+            self.events.append(f"tick {snap.tick}: touch {i + 1} by robot {c.touches[i].node}"
+                               + load_text(self.engine.behaviour, c))
         self._seen["touches"] = len(c.touches)
         if getattr(c, "converged_tick", -1) >= 0 and not self._seen["converged"]:
             self._seen["converged"] = True
             self.events.append(f"tick {snap.tick}: converged, leader robot {c.leader}")
         if c.delivered_tick >= 0 and not self._seen["delivered"]:
             self._seen["delivered"] = True
-            self.events.append(f"tick {snap.tick}: delivered home")
+            self.events.append(f"tick {snap.tick}: {self.done_word}")
 
     # -- the runner: steps while playing, waits while paused -----------------
 
@@ -166,9 +207,20 @@ class SimSource:
 
     def _summary(self) -> dict[str, Any]:
         c = self.engine.coordinator
-        return {"tick": self.engine.tick, "playing": self.playing, "speed": self.speed,
-                "finished": self.engine.finished(), "touches": len(c.touches),
-                "power": c.power / 100, "delivered": c.delivered_tick >= 0}
+        out = {"tick": self.engine.tick, "playing": self.playing, "speed": self.speed,
+               "finished": self.engine.finished(), "touches": len(c.touches),
+               "delivered": c.delivered_tick >= 0}
+        load = words_info(self.engine.behaviour)["load"]
+        if load:
+            out[load[0]] = getattr(c, load[0]) / 100
+        return out
+
+    def _values(self) -> dict[str, Any]:
+        """The run's measures so far (its summary at this tick)."""
+        from sim_backend.engine import RunResult
+        e = self.engine
+        return RunResult(e.sc, e.seed, e.tick, e.world, e.coordinator, e.robots,
+                         instruments=e.instruments).summary()
 
     # -- what the page reads ------------------------------------------------------
 
@@ -177,21 +229,25 @@ class SimSource:
         names = tuple(self.engine.behaviour.spec.STATES)
         return {"source": self.kind, "title": f"scenario {self.sc.name}, seed {self.engine.seed}",
                 "world": w.w, "home": [self.sc.homeX, self.sc.homeY],
-                "states": list(names), "colours": hex_colours(names), "controls": True}
+                "states": list(names), "colours": hex_colours(names), "controls": True,
+                **words_info(self.engine.behaviour)}
 
     def state(self) -> dict[str, Any]:
         with self.lock:
             s = self.snap
             field = s.field()
+            view = coordinator_view(self.engine.coordinator, self.engine.behaviour,
+                                    self._values())
             out = {
                 **self._summary(),
-                **coordinator_view(self.engine.coordinator),
+                **view,
                 "robots": [{"node": i + 1, "x": x, "y": y, "state": st}
                            for i, (x, y, st) in enumerate(zip(s.xs, s.ys, s.states))],
                 "object": [list(c) for c in s.object_cells],
                 "field": {"n": int(field.shape[0]), "max": int(field.max()),
                           "cells": field.ravel().tolist()},
-                "iou": s.iou, "bad_frames": {"link": self.bad_frames} if self.bad_frames else {},
+                **({"iou": s.iou} if "perceived" in view else {}),
+                "bad_frames": {"link": self.bad_frames} if self.bad_frames else {},
                 "events": self.events[-EVENTS_SHOWN:],
             }
         return out
@@ -230,7 +286,8 @@ class JournalSource:
         names = tuple(registry.load(self.sc.behaviour).spec.STATES)
         return {"source": self.kind, "title": f"host journal {self.path}",
                 "world": self.sc.worldSize, "home": [self.sc.homeX, self.sc.homeY],
-                "states": list(names), "colours": hex_colours(names), "controls": False}
+                "states": list(names), "colours": hex_colours(names), "controls": False,
+                **words_info(registry.load(self.sc.behaviour))}
 
     def state(self) -> dict[str, Any]:
         from bridge.host.journal import Journal, JournalError
@@ -252,6 +309,7 @@ class JournalSource:
         return out
 
     def _read(self, j: Any, entries: list[Any], live: dict[str, Any] | None) -> dict[str, Any]:
+        from firmware_logic import registry
         from bridge.host.journal import Report
         from bridge.host.process import HostProcess
         host = HostProcess(None, self.sc.weight_centi, self.sc.homeX, self.sc.homeY,  # type: ignore[arg-type]
@@ -268,7 +326,7 @@ class JournalSource:
                 events.append(f"tick {e.tick}: decision {e.kind}")
         tick = max(host.tick, int(live["tick"]) if live else 0)
         return {"tick": tick, "playing": False, "finished": host.coord.done(),
-                **coordinator_view(host.coord),
+                **coordinator_view(host.coord, registry.load(self.sc.behaviour)),
                 "robots": poses(live), "object": None, "field": None,
                 "bad_frames": (live or {}).get("bad_frames", {}),
                 "live": live is not None,

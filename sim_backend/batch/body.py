@@ -3,10 +3,11 @@
 `BatchBody` implements firmware_logic/hal.py for robot `i` (set before each
 step) by calling the world's rules in sim_backend/kernel.py, the same
 functions the reference engine's SimBody calls; `tick_all` steps every live
-robot's FSM and applies the intents run by run. The batch engine compiles
-this file, the kernel and the behaviour's firmware modules with numba
-(sim_backend/batch/compiler.py); it stays plain Python so it can be read,
-and run uncompiled, like the rest.
+robot's FSM and applies the intents run by run. The batch engine transforms
+this file, the kernel and the behaviour's firmware modules into array
+functions and compiles them with numba (sim_backend/batch/transform.py,
+soa.py); it stays plain Python so it can be read, and run uncompiled, like
+the rest.
 """
 
 from firmware_logic import messages as msg
@@ -55,7 +56,7 @@ TIES = 12       # uphillTies (kernel.ORDERED, AT_RANDOM)
 ACT = 13        # activation (kernel.SYNC, SEQUENTIAL)
 ORDER_RNG = 14  # activation netlogo: the order stream (kernel.order_seed)
 FIELD_STATE = 15  # the behaviour's field state (World.field_state)
-DEFIANCE = 16   # fieldDefiance
+EXTRA_STEPS = 16   # world.extra_steps: the MULTI_STEP parameter's value
 STEPS = 17      # activation netlogo: FSM steps of the run's robots so far
 RULES = 18      # the arena's rules (kernel.DYNAMIC, YIELD flags)
 FAULTY = 19     # 1 if the run injects faults (faults.active)
@@ -137,7 +138,7 @@ class BatchBody:
         self.act = runs[ACT]
         self.order_rng = runs[ORDER_RNG]
         self.field_state = runs[FIELD_STATE]
-        self.defiance = runs[DEFIANCE]
+        self.extra_steps = runs[EXTRA_STEPS]
         self.steps = runs[STEPS]
         self.rules = runs[RULES]
         self.cx = cells[0]
@@ -350,7 +351,7 @@ def go_iteration(robots, body, r, tick):
     lo = body.lo[r]
     hi = body.hi[r]
     fs = body.field_state[r]
-    fd = body.defiance[r]
+    fd = body.extra_steps[r]
     for i in range(lo, hi):
         body.beacon_set[i] = -1
     kernel.draw_order(body.order, lo, hi, body.order_rng, r)

@@ -1,18 +1,27 @@
-"""The struct-of-arrays batch engine: the batch engine's runs, robots and
-rules, with the firmware source transformed into array functions
-(sim_backend/batch/transform.py) instead of jitclasses.
+"""The batch engine: many runs stepped together by the behaviour's own
+firmware source, transformed into struct-of-arrays functions and compiled.
 
 The robots are built by their CPython constructors, packed into one array
 per field, and stepped by `tick_all` of sim_backend/batch/body.py,
-transformed along with every method and function it reaches. The generated
-module is written to a cache directory keyed by a hash of its own text
-(`$TOUCHSWARM_CACHE` or `~/.cache/touchswarm`, then `soa/<hash>/`) and
-compiled with `njit(cache=True)`: a second process with the same sources
-loads the machine code from disk instead of compiling it. A changed
-behaviour source is a different text, so a different directory.
+transformed (sim_backend/batch/transform.py) along with every method and
+function it reaches; the world's rules are sim_backend/kernel.py, the
+functions the reference engine runs. The generated module is written to a
+cache directory keyed by a hash of its own text (`$TOUCHSWARM_CACHE` or
+`~/.cache/touchswarm`, then `soa/<hash>/`) and compiled with
+`njit(cache=True)`: a second process with the same sources loads the
+machine code from disk instead of compiling it. A changed behaviour source
+is a different text, so a different directory.
 
-At a run's end the robots' fields are written back into their CPython
-objects, so a RunResult holds the very robots the reference engine holds.
+One compiled call steps a tick of every live run; the host coordinators stay
+the behaviour's Python objects, fed the same messages in the same order as
+the reference engine's in-process link feeds them, and asked to tick when
+they received a message or are not `quiet()` (a coordinator without `quiet`
+is asked every tick). A run stops where `Engine.run` stops it: delivered
+(or, with until="converged", converged) or at its maxTicks. At a run's end
+the robots' fields are written back into their CPython objects and the
+run's final state into a World, so a RunResult holds the very robots and
+world the reference engine holds, and every summary, record and picture is
+the reference's.
 """
 
 from __future__ import annotations
@@ -26,18 +35,28 @@ import sys
 import threading
 import time
 import traceback
+from collections import defaultdict
 from pathlib import Path
 from types import ModuleType
-from typing import Any, Callable, Iterable
+from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 
+from firmware_logic import messages as msg
+from firmware_logic import registry
+from sim_backend import faults
 from sim_backend.batch import body as B
 from sim_backend.batch import transform as T
-from sim_backend.batch.engine import BatchEngine
+from sim_backend.engine import RunResult
+from sim_backend.errors import EngineError
+from sim_backend.scenario import Scenario
+from sim_backend.world import World
 
 log = logging.getLogger(__name__)
 
+UNTIL = ("delivered", "converged")
+INBOX = 16            # messages a robot may have waiting (the host sends a few per tick)
+SENDS_PER_ROBOT = 8   # messages a robot may send in one tick
 PREFIX = "_touchswarm_soa_"
 
 
@@ -139,12 +158,152 @@ def _compile_batch(robots: list[Any], body: Any) -> tuple[T.Layout, Compiled, di
     return layout, comp, T.state_arrays(layout)
 
 
-class SoaEngine(BatchEngine):
-    """BatchEngine with the struct-of-arrays transform in place of jitclasses."""
+def _nfields() -> list[int]:
+    top = max(msg.SCHEMA) + 1
+    return [len(msg.fields(k)) if k in msg.SCHEMA else 0 for k in range(top)]
+
+
+class BatchArrays:
+    """The flat arrays of a batch of worlds (sim_backend/batch/body.py's
+    layout), filled from each World's start; what a BatchBody is made of."""
+
+    def __init__(self, worlds: Sequence[World]) -> None:
+        nr = len(worlds)
+        agents = [len(w.xs) for w in worlds]
+        self.starts = np.concatenate([[0], np.cumsum(agents)]).astype(np.int64)
+        starts = self.starts
+        nrob = int(starts[-1])
+        self.stride = max(w.n * w.n for w in worlds)
+        rt = np.zeros((B.RUN_ROWS, nr), dtype=np.int64)
+        tables = [(w.tdx, w.tdy, w.tv) for w in worlds]
+        tstarts = np.concatenate([[0], np.cumsum([len(t[0]) for t in tables])])
+        cells = [w.cell_arrays() for w in worlds]
+        cstarts = np.concatenate([[0], np.cumsum([len(c[0]) for c in cells])])
+        for r, w in enumerate(worlds):
+            rt[B.BASE, r] = r * self.stride
+            rt[B.W, r] = w.w
+            rt[B.N, r] = w.n
+            rt[B.LO, r] = starts[r]
+            rt[B.HI, r] = starts[r + 1]
+            rt[B.T0, r], rt[B.T1, r] = tstarts[r], tstarts[r + 1]
+            rt[B.C0, r], rt[B.C1, r] = cstarts[r], cstarts[r + 1]
+            rt[B.SIGMODE, r] = w.sigmode
+            rt[B.RADIUS, r] = w.sc.sigRadius
+            rt[B.TIES, r] = w.ties
+            rt[B.ACT, r] = w.act
+            rt[B.ORDER_RNG, r] = w.order_state[0]
+            rt[B.FIELD_STATE, r] = w.field_state
+            rt[B.EXTRA_STEPS, r] = w.extra_steps
+            rt[B.RULES, r] = w.rules
+        rt[B.LIVE] = 1
+        table = np.zeros((3, max(1, int(tstarts[-1]))), dtype=np.int64)
+        cell = np.zeros((4, max(1, int(cstarts[-1]))), dtype=np.int64)
+        if max(agents) > np.iinfo(B.GRID_TYPES[B.OCC]).max:
+            raise EngineError(f"{max(agents)} robots in one run overflow the batch "
+                              f"engine's occupancy grid ({B.GRID_TYPES[B.OCC]})")
+        grids = tuple(np.zeros(nr * self.stride, dtype=t) for t in B.GRID_TYPES)
+        grids[B.STAMP][:] = -1
+        rb = np.zeros((B.ROBOT_ROWS, nrob), dtype=np.int64)
+        for r, w in enumerate(worlds):
+            a, b = int(rt[B.T0, r]), int(rt[B.T1, r])
+            table[:, a:b] = tables[r]
+            a, b = int(rt[B.C0, r]), int(rt[B.C1, r])
+            cell[:2, a:b] = cells[r][:2]
+            base, size = r * self.stride, w.n * w.n
+            for row, grid in ((B.OBJ, w.obj), (B.OWNER, w.owner), (B.FIELD, w.field),
+                              (B.OCC, w.occ)):
+                grids[row][base:base + size] = grid
+            lo, hi = int(starts[r]), int(starts[r + 1])
+            rb[B.XS, lo:hi] = w.xs
+            rb[B.YS, lo:hi] = w.ys
+            rb[B.RUN, lo:hi] = r
+            rb[B.TIE, lo:hi] = w.tie
+        for r, w in enumerate(worlds):
+            # faults (sim_backend/faults.py): the plan the reference body reads
+            if faults.active(w.sc):
+                die, s0, s1, flags = faults.plan(w.sc, w.seed)
+                lo, hi = int(starts[r]), int(starts[r + 1])
+                rb[B.DIE, lo:hi], rb[B.STUCK0, lo:hi] = die, s0
+                rb[B.STUCK1, lo:hi], rb[B.FLAGS, lo:hi] = s1, flags
+                rt[B.FAULTY, r] = 1
+                rt[B.FSEED, r], rt[B.MISS, r], rt[B.GHOST, r], rt[B.NOISE, r] = \
+                    faults.per_run(w.sc, w.seed)
+        rb[B.HELD] = -1
+        rb[B.CLAIM] = -1
+        rb[B.BEACON_SET] = -1
+        self.rt, self.rb, self.grids, self.cells, self.table = rt, rb, grids, cell, table
+        cap = SENDS_PER_ROBOT * nrob + 16
+        self.out_i = np.zeros(cap, dtype=np.int64)
+        self.out_kind = np.zeros(cap, dtype=np.int64)
+        self.out_f = np.zeros((cap, B.FIELDS), dtype=np.int64)
+        self.out_n = np.zeros(2, dtype=np.int64)
+        self.in_kind = np.zeros((nrob, INBOX), dtype=np.int64)
+        self.in_nf = np.zeros((nrob, INBOX), dtype=np.int64)
+        self.in_f = np.zeros((nrob, INBOX, B.FIELDS), dtype=np.int64)
+
+    def body_args(self) -> tuple:
+        """BatchBody's constructor arguments (the arrays are shared, not copied)."""
+        return (self.grids, self.rb, self.rt, self.cells, self.table, self.out_i,
+                self.out_kind, self.out_f, self.out_n, self.in_kind, self.in_nf, self.in_f)
+
+
+class SoaEngine:
+    """A batch of independent runs (scenario, seed) of one behaviour."""
 
     compile_seconds = 0.0            # this process's, all SoaEngines together
 
+    def __init__(self, runs: Sequence[tuple[Scenario, int]], record_trajectories: bool = False,
+                 until: str = "delivered") -> None:
+        if until not in UNTIL:
+            raise ValueError(f"until: expected one of {UNTIL}, got {until!r}")
+        self.runs = list(runs)
+        if not self.runs:
+            raise EngineError("a batch needs at least one run")
+        names = {sc.behaviour for sc, _ in self.runs}
+        if len(names) != 1:
+            raise EngineError(f"a batch runs one behaviour, got {sorted(map(str, names))}")
+        self.behaviour = registry.load(names.pop()).activate()   # its message kinds in use
+        self.until = until
+        self.record = record_trajectories
+        self.tick = 0
+        self.nfields = _nfields()
+        t0 = time.perf_counter()
+        self._build()
+        self.setup_seconds = time.perf_counter() - t0
+
+    # -- set-up -------------------------------------------------------------------------
+
+    def _build(self) -> None:
+        runs = self.runs
+        nr = len(runs)
+        self.worlds = [World(sc, seed) for sc, seed in runs]
+        arrays = BatchArrays(self.worlds)
+        self.stride = arrays.stride
+        self.rt, self.rb, self.grids, self.cells = arrays.rt, arrays.rb, arrays.grids, arrays.cells
+        self.out_i, self.out_kind, self.out_f, self.out_n = \
+            arrays.out_i, arrays.out_kind, arrays.out_f, arrays.out_n
+        self.in_kind, self.in_nf, self.in_f = arrays.in_kind, arrays.in_nf, arrays.in_f
+        args = arrays.body_args()
+        starts = arrays.starts
+        rb = self.rb
+
+        self._compile(args)
+        beh = self.behaviour
+        from bridge.perception import host_coordinator
+        self.coords = [host_coordinator(beh, sc, cells=list(w.object_cells))
+                       for (sc, _), w in zip(runs, self.worlds)]
+        self.busy = np.array([not _quiet(c) for c in self.coords], dtype=bool)
+        self.lo = starts[:-1].tolist()
+        self.run_of = rb[B.RUN].tolist()
+        self.max_ticks = np.array([sc.maxTicks for sc, _ in runs], dtype=np.int64)
+        self.conv_steps = [-1] * nr      # rt[STEPS] when the run converged
+        self.results: list[RunResult | None] = [None] * nr
+        self.frames: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        self._step_once_compiled = False
+
     def _compile(self, args: tuple) -> None:
+        """The robots (built by their CPython constructors) and the body as
+        arrays, and the compiled step (generated, or found in this process)."""
         c0 = time.perf_counter()
         beh = self.behaviour
         self.robot_objs = [beh.make_robot(node, seed, sc)
@@ -164,20 +323,190 @@ class SoaEngine(BatchEngine):
         self._states_fn(*self._states_args, out)
 
     def _first_tick(self, t: int) -> None:
-        # the calls that load the step from the disk cache, or compile it
+        """The first tick: the calls that load the step from the disk cache,
+        or compile it."""
         self.compiled.first_call(self._tick_fn, self._tick_args + (0, t))
         if self.record:
             out = np.zeros(len(self.robot_objs), dtype=np.int64)
             self.compiled.first_call(self._states_fn, self._states_args + (out,))
 
-    def _note_compile(self, seconds: float) -> None:
-        SoaEngine.compile_seconds += seconds
+    # -- one tick ---------------------------------------------------------------------------
+
+    def step(self) -> None:
+        self.tick += 1
+        t = self.tick
+        if not self._step_once_compiled:
+            c0 = time.perf_counter()
+            self._first_tick(t)
+            SoaEngine.compile_seconds += time.perf_counter() - c0
+            self._step_once_compiled = True
+        else:
+            self._tick(t)
+        if self.out_n[1]:
+            raise EngineError(f"tick {t}: a robot sent more than {SENDS_PER_ROBOT} messages "
+                              "in one tick (the batch engine's outbox is full)")
+        if self.record:
+            st = np.zeros(len(self.robot_objs), dtype=np.int64)
+            self._states(st)
+            self.frames.append((self.rb[B.XS].copy(), self.rb[B.YS].copy(), st))
+        called = self._exchange(t)
+        self._finish(t, called)
+
+    def _exchange(self, t: int) -> set[int]:
+        n = int(self.out_n[0])
+        called: set[int] = set()
+        coords = self.coords
+        if n:
+            senders = self.out_i[:n].tolist()
+            kinds = self.out_kind[:n].tolist()
+            fields = self.out_f[:n].tolist()
+            for j in range(n):
+                i = senders[j]
+                r = self.run_of[i]
+                kind = kinds[j]
+                coords[r].on_message(i - self.lo[r] + 1, kind,
+                                     tuple(fields[j][:self.nfields[kind]]), t)
+                called.add(r)
+        live = self.rt[B.LIVE]
+        for r in np.flatnonzero(self.busy & (live == 1)).tolist():
+            called.add(r)
+        for r in sorted(called):
+            c = coords[r]
+            out = c.tick(t)
+            if out:
+                self._deliver(r, out)
+            self.busy[r] = not _quiet(c)
+            if self.conv_steps[r] < 0 and c.converged_tick >= 0:
+                self.conv_steps[r] = int(self.rt[B.STEPS, r])
+        return called
+
+    def _deliver(self, r: int, out: Iterable[tuple[int, int, tuple]]) -> None:
+        lo = self.lo[r]
+        agents = int(self.rt[B.HI, r]) - lo
+        head, tail = self.rb[B.IN_HEAD], self.rb[B.IN_TAIL]
+        for node, kind, fields in out:
+            if node == msg.HOST:
+                targets = range(lo, lo + agents)
+            elif 1 <= node <= agents:
+                targets = (lo + node - 1,)
+            else:
+                raise EngineError(f"run {r}: the coordinator addressed node {node}, "
+                                  f"which is not one of its {agents} robots")
+            for i in targets:
+                if tail[i] - head[i] >= INBOX:
+                    raise EngineError(f"run {r}: robot {i - lo + 1} has {INBOX} unread messages")
+                slot = tail[i] % INBOX
+                self.in_kind[i, slot] = kind
+                self.in_nf[i, slot] = len(fields)
+                self.in_f[i, slot, :len(fields)] = fields
+                tail[i] += 1
+
+    # -- run ends -----------------------------------------------------------------------------
+
+    def _finish(self, t: int, called: set[int]) -> None:
+        live = self.rt[B.LIVE]
+        done = set(np.flatnonzero((live == 1) & (self.max_ticks <= t)).tolist())
+        for r in called:
+            c = self.coords[r]
+            if (c.done() if self.until == "delivered" else c.converged_tick >= 0
+                    or c.done()):
+                done.add(r)
+        for r in sorted(done):
+            if live[r] == 1:
+                self._result(r, t)
+                live[r] = 0
 
     def _result(self, r: int, t: int) -> None:
+        """The run's robots back into their CPython objects and its final
+        state into its World, as the reference engine leaves them."""
+        sc, seed = self.runs[r]
+        w = self.worlds[r]
         lo, hi = int(self.rt[B.LO, r]), int(self.rt[B.HI, r])
         for robot in self.robot_objs[lo:hi]:
             T.unpack(self.layout, self.arrays, robot)
-        super()._result(r, t)
+        base, size = r * self.stride, w.n * w.n
+        for row, name in ((B.OBJ, "obj"), (B.OWNER, "owner"), (B.FIELD, "field"),
+                          (B.OCC, "occ"), (B.STAMP, "stamp")):
+            getattr(w, name)[:] = self.grids[row][base:base + size].tolist()
+        w.xs[:] = self.rb[B.XS, lo:hi].tolist()
+        w.ys[:] = self.rb[B.YS, lo:hi].tolist()
+        w.held[:] = self.rb[B.HELD, lo:hi].tolist()
+        c0, c1 = int(self.rt[B.C0, r]), int(self.rt[B.C1, r])
+        w.object_cells = list(zip(self.cells[0, c0:c1].tolist(), self.cells[1, c0:c1].tolist()))
+        traj, states = [], []
+        for xs, ys, st in self.frames[:t]:
+            traj.append((xs[lo:hi].tolist(), ys[lo:hi].tolist()))
+            states.append(st[lo:hi].tolist())
+        res = RunResult(sc, seed, t, w, self.coords[r], self.robot_objs[lo:hi], traj,
+                        conv_steps=self.conv_steps[r])
+        res.states = states
+        self.results[r] = res
+
+    # -- a whole batch ----------------------------------------------------------------------------
+
+    def finished(self) -> bool:
+        return not bool(self.rt[B.LIVE].any())
+
+    def run(self, progress: Callable[[int], None] | None = None) -> list[RunResult]:
+        while not self.finished():
+            self.step()
+            if progress is not None:
+                progress(int((self.rt[B.LIVE] == 0).sum()))
+        return list(self.results)  # type: ignore[arg-type]
+
+
+def _quiet(c: Any) -> bool:
+    q = getattr(c, "quiet", None)
+    return bool(q()) if q is not None else False
+
+
+def _pairs(scenarios: Scenario | Sequence[Scenario], seeds: Iterable[int]
+           ) -> list[tuple[Scenario, int]]:
+    if isinstance(scenarios, Scenario):
+        return [(scenarios, int(s)) for s in seeds]
+    scs = list(scenarios)
+    sds = list(seeds)
+    if len(scs) != len(sds):
+        raise ValueError("run_batch: a list of scenarios needs one seed per scenario")
+    return [(sc, int(s)) for sc, s in zip(scs, sds)]
+
+
+def run_batch_results(scenarios: Scenario | Sequence[Scenario], seeds: Iterable[int],
+                      record_trajectories: bool = False, until: str = "delivered",
+                      progress: Callable[[int], None] | None = None) -> list[RunResult]:
+    """RunResults in input order: one scenario for every seed, or one scenario
+    per seed; runs of different behaviours go in one batch each."""
+    pairs = _pairs(scenarios, seeds)
+    groups: dict[str, list[int]] = defaultdict(list)
+    for j, (sc, _) in enumerate(pairs):
+        groups[str(sc.behaviour)].append(j)
+    out: list[RunResult | None] = [None] * len(pairs)
+    done = 0
+    for idx in groups.values():
+        eng = SoaEngine([pairs[j] for j in idx], record_trajectories=record_trajectories,
+                   until=until)
+        base = done
+        res = eng.run(None if progress is None else (lambda k: progress(base + k)))
+        for j, rr in zip(idx, res):
+            out[j] = rr
+        done += len(idx)
+    return out  # type: ignore[return-value]
+
+
+def run_batch(scenarios: Scenario | Sequence[Scenario], seeds: Iterable[int],
+              trajectories: bool = False, until: str = "delivered",
+              progress: Callable[[int], None] | None = None):
+    """Summaries identical to RunResult.summary() of the reference engine.
+
+    With trajectories=True returns (summaries, trajectories), each trajectory a
+    list per tick of (xs, ys) as Engine(record_trajectories=True) records it.
+    """
+    res = run_batch_results(scenarios, seeds, record_trajectories=trajectories, until=until,
+                            progress=progress)
+    sums = [r.summary() for r in res]
+    if trajectories:
+        return sums, [r.trajectories for r in res]
+    return sums
 
 
 def warm(scenarios: Iterable[Any], on_compile: Callable[[str, Path], None] | None = None

@@ -1,9 +1,9 @@
 """Source transform of firmware-subset code into struct-of-arrays functions.
 
-The jitclass batch engine (compiler.py) runs every robot as a numba
-jitclass instance; numba reference-counts those instances on every method
-call and attribute read (most of a step's time) and cannot cache them on
-disk. This module rewrites the same unmodified source instead:
+The batch engine does not compile the robots' classes as they are (numba
+jitclass instances are reference-counted on every method call and attribute
+read, and cannot be cached on disk); this module rewrites the same
+unmodified source instead:
 
 - every class becomes one array per field over all its instances
   (ints -> int64[n], bools -> bool[n], lists of ints -> int64[n, len],
@@ -42,7 +42,7 @@ from typing import Any
 
 import numpy as np
 
-from sim_backend.batch.compiler import CompileError
+from sim_backend.errors import CompileError
 
 STATE = "_soa"                      # the state placeholder of every function
 # part of the generated text, so a new borrow or inlining rule is a new cache entry
@@ -90,8 +90,7 @@ class ClassLayout:
 
     def finish(self) -> None:
         """Where each field lives: ints, bools and object indices in one
-        int64[n, columns] table (one instance's fields side by side, as its
-        jitclass held them); an array field that is row k of a bigger array
+        int64[n, columns] table (one instance's fields side by side); an array field that is row k of a bigger array
         as (that array, k), so a function takes the few base arrays, not
         dozens of rows."""
         self.columns.clear()

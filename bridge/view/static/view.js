@@ -76,6 +76,21 @@ function draw(st) {
   for (const t of st.touches || []) ctx.fillText(String(t.n), g.px(t.sx) + g.s / 2, g.py(t.sy) - g.s / 2);
 }
 
+// the behaviour's measures and reporters, each with its title
+function measures(rows) {
+  const table = $("measures");
+  const html = rows.map((m) => `<tr><td class="value" id="m-${m.name}">${valueText(m)}</td>` +
+                               `<td>${m.title}</td></tr>`).join("");
+  if (table.innerHTML !== html) table.innerHTML = html;
+}
+
+function valueText(m) {
+  if (m.value === null || m.value === undefined) return m.name.endsWith("_tick") ? "never" : "-";
+  if (m.name.endsWith("_tick")) return "tick " + m.value;
+  if (Array.isArray(m.value)) return String(m.value.length);
+  return String(m.value);
+}
+
 function panel(st) {
   $("tick").textContent = st.tick;
   $("playing").textContent = info.controls ? (st.finished ? "finished" : st.playing ? "playing" : "paused")
@@ -93,12 +108,15 @@ function panel(st) {
     li.textContent = `robot ${t.node} at tick ${t.tick}, segment (${t.sx}, ${t.sy})`;
     ol.appendChild(li);
   }
-  const power = st.power || 0, weight = st.weight || 0;
-  $("power").textContent = power.toFixed(2);
-  $("weight").textContent = weight.toFixed(2);
-  const full = Math.max(power, weight, 1e-9) * 1.25;
-  $("power-fill").style.width = (100 * power / full) + "%";
-  $("weight-mark").style.left = (100 * weight / full) + "%";
+  if (info.load) {                               // the behaviour's load, e.g. power of weight
+    const held = st[info.load[0]] || 0, need = st[info.load[1]] || 0;
+    $("held").textContent = held.toFixed(2);
+    $("need").textContent = need.toFixed(2);
+    const full = Math.max(held, need, 1e-9) * 1.25;
+    $("held-fill").style.width = (100 * held / full) + "%";
+    $("need-mark").style.left = (100 * need / full) + "%";
+  }
+  measures(st.measures || []);
   const bad = st.bad_frames || {};
   const total = Object.values(bad).reduce((a, b) => a + b, 0);
   $("bad-frames").textContent = total + (total ? " (" + Object.entries(bad).map(([k, v]) => `${k} ${v}`).join(", ") + ")" : "");
@@ -124,6 +142,11 @@ async function start() {
   $("title").textContent = info.title;
   setupControls();
   legend();
+  if (info.load) {
+    $("load").hidden = false;
+    $("held-word").textContent = info.load[0];
+    $("need-word").textContent = info.load[1];
+  }
   poll();
 }
 

@@ -29,7 +29,7 @@ PARAMS = (
     ("quorum", 80, 1, 100, "percent of the swarm that must have stopped"),
 )
 
-# The behaviour's own message (messages.declare adds it to the link's schema;
+# The behaviour's own message (messages.activate puts it beside the link's messages;
 # the codec, the DBC, recordings and replay then know it like any other).
 LEAVE = 7    # robot -> host: left its stop; the host drops it from its cluster at once
 MESSAGES = (

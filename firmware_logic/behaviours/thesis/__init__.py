@@ -2,7 +2,11 @@
 
 # The wiring the registry reads (firmware_logic/registry.py); host side only.
 ROBOT = "robot:Robot"
-SUBSET_SETUP = ("robot_args", "make_coordinator", "holders_needed")  # host side: may allocate
+# host libraries that equip its coordinator, as "module:function(coordinator,
+# scenario)": the recogniser's decider (numpy; scenario recognise = true)
+HOST_EQUIP = ("bridge.perception.decide:equip",)
+SUBSET_SETUP = ("robot_args", "make_coordinator", "holders_needed",
+                "summary_values", "_weight_text")  # host side: may allocate
 
 
 # Under NetLogo's sequential activation a robot in this state takes 1 + the
@@ -63,6 +67,29 @@ def check(sc):
     if sc.recognise and sc.lostAfter:
         # both change which holders' power counts; their interplay is not built
         raise ValueError("recognise: not built together with lostAfter; set one of them")
+
+
+def _weight_text(centi):
+    """Hundredths as weight units, the way %g prints them: 5, 2.5, 0.16."""
+    whole, frac = centi // 100, centi % 100
+    if frac == 0:
+        return "%d" % whole
+    if frac % 10 == 0:
+        return "%d.%d" % (whole, frac // 10)
+    return "%d.%02d" % (whole, frac)
+
+
+def summary_values(coord):
+    """The text summary's own values (spec.SUMMARY `held`): the power held
+    when the holders first matched the weight; the summary's power is the
+    final one, which later touches may have raised."""
+    if coord.converged_tick < 0:
+        return {"held": "(power %s held at the end)" % _weight_text(coord.power)}
+    held = 0
+    for t in coord.touches:
+        if t.tick <= coord.converged_tick:
+            held += t.power
+    return {"held": "(power %s held then)" % _weight_text(held)}
 
 
 def make_coordinator(sc, journal=None, cells=None, on_reject=None):

@@ -104,6 +104,25 @@ class Recognising:
             return
         Roster.replay(self, node, kind, f, tick)
 
+    def wants_decider(self):
+        """Whether the host must give this coordinator its decider
+        (bridge/perception/decide.py equip, named by HOST_EQUIP)."""
+        return self.recognise and self.decider is None
+
+    def truth_measures(self, target):
+        """What only the simulator can measure (it knows the target's cells,
+        the host is not told them): whether the transport began on a cluster
+        with no touch on the target."""
+        if not self.recognise:
+            return {}
+        wrong = False
+        if self.converged_tick >= 0:
+            wrong = True
+            for t in self.touches:
+                if (t.sx, t.sy) in target:
+                    wrong = False
+        return {"wrong_transport": wrong}
+
     def recognition_measures(self):
         if not self.recognise:
             return {}

@@ -33,7 +33,7 @@ MODELS = ((FIREFLY, "firefly"), (ANT, "ant"), (LEVY, "levy"), (MOTH, "moth"), (F
 # -- messages: the link's own (firmware_logic/messages.py MESSAGES); this
 # behaviour fills HELLO.model with MODELS and HEARTBEAT.state with STATES.
 # The thesis's TOUCH and TRANSPORT kinds are link messages too, since the
-# host process understands them. Its own (messages.declare adds them; the
+# host process understands them. Its own (messages.activate puts them in use; the
 # codec, the DBC, recordings, replay and the journal derive from this row):
 # A command is at most 4 bytes, so a SecOC-sealed frame (bridge/links/secoc.py)
 # keeps room for its MAC and freshness.
@@ -96,4 +96,25 @@ MEASURES = (
 REPORTERS = (
     ("holders", "robots holding the object (accepted touches)"),
     ("home_d2", "squared patch distance from the object's nearest segment to home, -1 before a touch"),
+)
+
+# -- words: how the outputs speak of a run (sim_backend/words.py reads these;
+# optional: a behaviour without them gets one summary line and one sweep-plot
+# panel per measure, titled by its meaning, and no power bar or shape panel)
+HEADER = "scenario {scenario}: {robots} {movementModel} robots, object {object}, seed {seed}"
+SUMMARY = (
+    ("first touch", "{found_tick!t}"),
+    ("converged", "{converged_tick!t}  {held}"),   # held: __init__.summary_values
+    ("delivered home", "{home_tick!t}"),
+    ("leader", "robot {leader}"),
+    ("touches", "{touches!n} robots hold the object, power {power:g}"),
+    ("shape IoU", "{shape_iou:.3f}"),
+)
+RESULT = ("delivered", "DELIVERED", "NOT delivered")
+SHAPE = "shape_iou"          # world.png's perceived-vs-true panel, perceived cells drawn
+LOAD = ("power", "weight")   # the live view's bar: the holders' power of the weight
+PLOTS = (
+    ("converged_tick", "convergence tick"),
+    ("delivered", "delivery rate"),
+    ("shape_iou", "shape IoU"),
 )

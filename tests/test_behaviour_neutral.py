@@ -1,0 +1,83 @@
+"""A user's behaviour is as good as ours (issue 26): nothing under sim_backend/
+or bridge/ names a shipped behaviour's parameter or state; those live in the
+behaviour's folder. The names are read from the behaviours' own spec.py, so a
+parameter added to the thesis is checked without touching this test.
+
+The thesis reproduction presets (its Graphs 1-4, the robustness tables, the
+`experiment` command) run the thesis's own parameters by design; they are the
+files in THESIS_PRESETS, and nothing else is let off.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+from firmware_logic import registry
+from sim_backend import scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+THESIS_PRESETS = {
+    "sim_backend/thesis_figures.py",     # the thesis's Graphs 1-4 and Figures 23-24
+    "sim_backend/robustness.py",         # the faults and breeds presets over thesis keys
+    "sim_backend/plots.py",              # the Graph 1-4 panels (graph1..graph4)
+    "sim_backend/sweep.py",              # thesis_points: the preset's grid
+    "bridge/commands/sweep.py",          # --preset thesis/faults/breeds
+    "bridge/commands/experiment.py",     # `touchswarm experiment`: the thesis's tables
+}
+IMPORT = re.compile(r"^\s*(from|import)\s")
+
+
+def _names() -> tuple[set[str], set[str]]:
+    params: set[str] = set()
+    states: set[str] = set()
+    for name in ("thesis", "aggregate"):
+        spec = registry.load(name).spec
+        params |= {row[0] for row in spec.PARAMS}
+        states |= set(spec.STATES)
+    # "halt" is every behaviour's state (the host's contract); world keys such
+    # as "field" are the world's own words
+    states -= {"halt"} | set(scenario.FIELDS)
+    return params - set(scenario.FIELDS), states
+
+
+def _offences(path: Path, params: set[str], states: set[str]) -> list[str]:
+    param = re.compile(r"(?<![A-Za-z0-9_])(" + "|".join(sorted(params)) +
+                       r")(?![A-Za-z0-9_(]|\.py)")
+    state = re.compile(r"[\"'](" + "|".join(sorted(states)) + r")[\"']")
+    found = []
+    for n, line in enumerate(path.read_text().splitlines(), 1):
+        if IMPORT.match(line):
+            continue
+        for m in (param.search(line), state.search(line)):
+            if m:
+                found.append(f"{path.relative_to(ROOT)}:{n}: {m.group(0)!r}: {line.strip()}")
+    return found
+
+
+def test_the_names_are_read_from_the_behaviours() -> None:
+    params, states = _names()
+    assert {"fieldDefiance", "movementModel", "quorum", "recognise"} <= params
+    assert {"grasp", "carry", "climb", "stay"} <= states
+
+
+def test_the_check_finds_a_thesis_parameter_where_it_does_not_belong(tmp_path: Path) -> None:
+    params, states = _names()
+    bad = ROOT / "sim_backend" / "_probe_neutral.py"
+    bad.write_text('x = sc.fieldDefiance\nif s == "carry":\n    pass\ny = recognise(e)\n')
+    try:
+        found = _offences(bad, params, states)
+    finally:
+        bad.unlink()
+    assert len(found) == 2 and "fieldDefiance" in found[0] and "carry" in found[1]
+
+
+def test_sim_backend_and_bridge_name_no_behaviours_parameter_or_state() -> None:
+    params, states = _names()
+    found = []
+    for top in ("sim_backend", "bridge"):
+        for path in sorted((ROOT / top).rglob("*.py")):
+            if path.relative_to(ROOT).as_posix() in THESIS_PRESETS:
+                continue
+            found += _offences(path, params, states)
+    assert not found, "\n".join(found)
