@@ -22,12 +22,12 @@ from sim_backend import scenario
 
 @pytest.fixture(autouse=True)
 def own_schema():
-    """The behaviours here declare message kinds in this process's schema
-    (messages.declare); leave it as it was for the tests after them."""
+    """The behaviours here put their message kinds in this process's schema
+    (messages.activate); leave it as it was for the tests after them."""
     from firmware_logic import messages as msg
-    declared, schema = list(msg.DECLARED), dict(msg.SCHEMA)
+    active, schema = list(msg.ACTIVE), dict(msg.SCHEMA)
     yield
-    msg.DECLARED[:] = declared
+    msg.ACTIVE[:] = active
     msg.SCHEMA.clear()
     msg.SCHEMA.update(schema)
 
