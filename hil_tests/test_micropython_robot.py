@@ -309,7 +309,7 @@ def test_deploy_another_behaviour_and_the_board_builds_it(micropython_device: Pt
         "import main\n"
         "from firmware_logic import messages\n"
         "r, s = main.build(main.config())\n"
-        "messages.declare(s.MESSAGES)\n"
+        "messages.activate(s.MESSAGES)\n"
         "print('built', r.node, r.span, s.STATES[s.STATES.index('halt')], messages.dlc(s.LEAVE))\n")
     assert "built 2 30 halt 5" in text, text
 

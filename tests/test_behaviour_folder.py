@@ -20,6 +20,18 @@ from firmware_logic import registry
 from sim_backend import scenario
 
 
+@pytest.fixture(autouse=True)
+def own_schema():
+    """The behaviours here put their message kinds in this process's schema
+    (messages.activate); leave it as it was for the tests after them."""
+    from firmware_logic import messages as msg
+    active, schema = list(msg.ACTIVE), dict(msg.SCHEMA)
+    yield
+    msg.ACTIVE[:] = active
+    msg.SCHEMA.clear()
+    msg.SCHEMA.update(schema)
+
+
 def scaffold(parent: Path, name: str) -> Path:
     assert main(["behaviour", "new", name, "--into", str(parent)]) == 0
     return parent / name
