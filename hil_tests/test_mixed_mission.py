@@ -232,7 +232,7 @@ def test_mission_cli_with_a_micropython_body_prints_its_summary(micropython_devi
     from bridge.cli import main
     from bridge.serial.deploy import Deployer
     dev = micropython_device
-    Deployer(dev.path).deploy({"NODE": REAL, "SEED": SEED, "MODEL": 1, "MAX_TICKS": 5000,
+    Deployer(dev.path).deploy({"NODE": REAL, "SEED": SEED, "MAX_TICKS": 5000,
                                "LINGER": 2})
     Deployer(dev.path).start()
     rc = main(["mission", "--body", f"{REAL}=mpy://{dev.path}?x=0&y=0", "--robots", "6",
