@@ -214,7 +214,6 @@ def check(sc: Any) -> None:
     a way home, and the robots do not crowd the arena."""
     w = sc.worldSize
     pieces = sc.pieces()
-    target = pieces[0]
     if abs(sc.homeX) > w - 1 or abs(sc.homeY) > w - 1:
         raise ScenarioError(f"homeX/homeY: ({sc.homeX}, {sc.homeY}) must lie within "
                             f"{-w + 1}..{w - 1} (worldSize={w})")
@@ -243,6 +242,13 @@ def check(sc: Any) -> None:
         if p.at is not None:
             for c in p.placed(*p.at):
                 taken[c] = name
+    if not pieces:                       # object = "none": obstacles only
+        free = (2 * w - 1) ** 2 - len(taken)
+        if sc.agents > free // 4:
+            raise ScenarioError(f"agents: {sc.agents} robots crowd a {2 * w + 1}-patch arena "
+                                f"with these obstacles; allowed 1..{max(1, free // 4)}")
+        return
+    target = pieces[0]
     tname = label(sc, target)
     taken = {c: name for c, name in taken.items() if name != tname}
     for ax, ay in anchors(target):

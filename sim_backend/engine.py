@@ -161,7 +161,7 @@ class RunResult:
         """The coordinator's measures that need the truth it is not told (the
         target's cells): its truth_measures(cells), when it has them."""
         hook = getattr(self.coordinator, "truth_measures", None)
-        if hook is None:
+        if hook is None or not self.scenario.pieces():
             return {}
         return hook(set(self.scenario.pieces()[0].placed(self.world.obj_x, self.world.obj_y)))
 

@@ -49,6 +49,9 @@ def _square() -> list[tuple[int, int]]:
     return [(x, y) for x in range(1, 5) for y in range(1, 5)]
 
 
+# `object = "none"`: an arena with no object (a behaviour that carries nothing)
+NONE = "none"
+
 SHAPES = {
     "bar": _bar,
     "L": _l,

@@ -137,6 +137,8 @@ class Scenario:
         """The scenario's objects as objects.Piece, the target first."""
         if self.objects:
             return sorted(self.objects, key=lambda p: not p.target)
+        if self.object == objects.NONE:
+            return []
         at = None if self.objectX is None else (self.objectX, self.objectY)
         return [objects.Piece(self.object, tuple(objects.offsets(self.object)), at,
                               self.objectWeight, None, True)]
@@ -237,11 +239,14 @@ def _object_name(value: Any) -> str:
     if isinstance(value, int) and value in objects.THESIS_NUMBERS:
         return objects.THESIS_NUMBERS[value]
     if isinstance(value, str):
+        if value.lower() == objects.NONE:
+            return objects.NONE
         for name in objects.SHAPES:
             if name.lower() == value.lower():
                 return name
     raise ScenarioError(
-        f"object: expected 1-4 or one of {', '.join(sorted(objects.SHAPES))}, got {value!r}")
+        f"object: expected 1-4, {objects.NONE!r} or one of {', '.join(sorted(objects.SHAPES))}, "
+        f"got {value!r}")
 
 
 def _behaviour(value: Any) -> Any:
@@ -374,12 +379,30 @@ def holders_within_swarm(sc: Scenario, weight_centi: int, key: str) -> int | Non
     return needed
 
 
+def _check_empty_world(sc: Scenario) -> None:
+    """object = "none": nothing to place, nothing a behaviour could carry."""
+    w = sc.worldSize
+    if holders_needed(sc, sc.weight_centi) is not None:
+        raise ScenarioError(f"object: behaviour {sc.behaviour!r} carries an object by its weight; "
+                            f"{objects.NONE!r} leaves it none: name a shape")
+    if abs(sc.homeX) > w - 1 or abs(sc.homeY) > w - 1:
+        raise ScenarioError(f"homeX/homeY: ({sc.homeX}, {sc.homeY}) must lie within "
+                            f"{-w + 1}..{w - 1} (worldSize={w})")
+    free = (2 * w - 1) ** 2
+    if sc.agents > free // 4:
+        raise ScenarioError(f"agents: {sc.agents} robots crowd a {2 * w + 1}-patch arena; "
+                            f"allowed 1..{free // 4} for worldSize={w}")
+
+
 def _check_consistency(sc: Scenario) -> None:
     shares = (sc.deathRate + sc.ignoreFieldRate + sc.ignoreHostRate + sc.randomRate)
     if shares > 1.0 + 1e-9:
         raise ScenarioError(f"deathRate + ignoreFieldRate + ignoreHostRate + randomRate: "
                             f"{shares:g} exceeds 1 (they are disjoint shares of the swarm)")
     w = sc.worldSize
+    if not sc.pieces():
+        _check_empty_world(sc)
+        return
     offs = objects.offsets(sc.object)
     xs = [x for x, _ in offs]
     ys = [y for _, y in offs]

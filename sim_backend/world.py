@@ -64,10 +64,14 @@ class World:
         setup = Rng(seed, 0)             # the observer's stream, as in setup
         # CreateWorld: objx, objy = random 10 (the target's, when not given)
         pieces = sc.pieces()
-        target = pieces[0]
-        self.obj_x = target.at[0] if target.at is not None else setup.below(10)
-        self.obj_y = target.at[1] if target.at is not None else setup.below(10)
-        self.object_cells = target.placed(self.obj_x, self.obj_y)   # the carried object
+        if pieces:
+            target = pieces[0]
+            self.obj_x = target.at[0] if target.at is not None else setup.below(10)
+            self.obj_y = target.at[1] if target.at is not None else setup.below(10)
+            self.object_cells = target.placed(self.obj_x, self.obj_y)   # the carried object
+        else:                            # object = "none": an empty arena
+            self.obj_x = self.obj_y = 0
+            self.object_cells = []
         # the other objects (decoys) and the obstacles never move
         self.decoy_cells = [c for p in pieces[1:] for c in p.placed(*p.at)]
         self.obstacle_cells = [c for p in sc.obstacles for c in p.placed(*p.at)]
