@@ -27,7 +27,7 @@ from pathlib import Path
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
-from bridge.perception.tracker import Perceiver  # noqa: E402
+from perception.tracker import Perceiver  # noqa: E402
 from sim_backend import objects, scenario  # noqa: E402
 from sim_backend.engine import Engine  # noqa: E402
 
@@ -212,7 +212,7 @@ def shapes_figure(out: Path, plt) -> Path:
 
 
 def _iou(a, b) -> float:
-    from bridge.perception.evidence import iou
+    from perception.evidence import iou
     return iou(a, b)
 
 

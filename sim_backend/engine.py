@@ -95,7 +95,7 @@ class RunResult:
     # FSM steps the swarm had taken when it converged (activation netlogo; -1:
     # not converged, or sync, where it is converged_tick x agents)
     conv_steps: int = -1
-    # measures watching the run (e.g. bridge/perception's Perceiver): each
+    # measures watching the run (e.g. perception's Perceiver): each
     # adds its summary() fields; see Engine.instruments
     instruments: list[Any] = field(default_factory=list)
 
@@ -180,7 +180,7 @@ class Engine:
         self.behaviour = registry.load(sc.behaviour).activate()   # its message kinds in use
         self.robots = [self.behaviour.make_robot(n, seed, sc) for n in nodes]
         self.bodies = [SimBody(self.world, i, n, self.link) for i, n in enumerate(nodes)]
-        from bridge.perception import host_coordinator
+        from perception import host_coordinator
         self.coordinator = host_coordinator(self.behaviour, sc, cells=list(self.world.object_cells))
         self.tick = 0
         self.record = record_trajectories

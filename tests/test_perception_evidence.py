@@ -1,11 +1,11 @@
-"""The evidence grid (bridge/perception/evidence.py): touches mark object,
+"""The evidence grid (perception/evidence.py): touches mark object,
 poses mark free, a cell is never both."""
 
 from __future__ import annotations
 
 import pytest
 
-from bridge.perception.evidence import FREE, OBJECT, UNKNOWN, Evidence, iou
+from perception.evidence import FREE, OBJECT, UNKNOWN, Evidence, iou
 from firmware_logic import perception
 
 

@@ -1,4 +1,4 @@
-"""Recognition (bridge/perception/recognise.py): every library shape, in
+"""Recognition (perception/recognise.py): every library shape, in
 every orientation and several placements, is recognised from its full
 evidence; the posterior sharpens as touches arrive."""
 
@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import pytest
 
-from bridge.perception.evidence import Evidence
-from bridge.perception.recognise import THRESHOLD, estimate, recognise
-from bridge.perception.shapes import TRANSFORMS, Library, normalise, orientations
+from perception.evidence import Evidence
+from perception.recognise import THRESHOLD, estimate, recognise
+from perception.shapes import TRANSFORMS, Library, normalise, orientations
 from sim_backend import objects
 
 LIB = Library.builtin()

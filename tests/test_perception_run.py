@@ -1,4 +1,4 @@
-"""Perception as a run's measure (bridge/perception/tracker.py): the
+"""Perception as a run's measure (perception/tracker.py): the
 `touchswarm run` summary fields and trace columns, consistent with each other
 and with the evidence. Runs in-process; no timing."""
 
@@ -8,9 +8,9 @@ import csv
 import json
 from pathlib import Path
 
-from bridge.perception.evidence import iou
-from bridge.perception.recognise import THRESHOLD
-from bridge.perception.tracker import COLUMNS, Perceiver, attach
+from perception.evidence import iou
+from perception.recognise import THRESHOLD
+from perception.tracker import COLUMNS, Perceiver, attach
 from sim_backend import scenario
 from sim_backend.engine import Engine
 from tests.test_watch import run_cli

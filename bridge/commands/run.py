@@ -223,7 +223,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 def _watchers(args: argparse.Namespace, engine) -> tuple:
     """The per-tick observers the options ask for: (trails, trace, animation)."""
     trails = trace = anim = None
-    from bridge.perception.tracker import attach
+    from perception.tracker import attach
     attach(engine)          # the new shape estimate and recognition: summary fields, trace columns
     if args.out or args.animate:
         from sim_backend.observe import Trails
@@ -275,7 +275,7 @@ def _run(args: argparse.Namespace, sc, engine, recorder) -> int:
 
 
 def _perception_lines(s: dict) -> list[str]:
-    """The new estimate and recognition (bridge/perception), when measured."""
+    """The new estimate and recognition (perception), when measured."""
     if "estimate_iou" not in s:
         return []
     if s["recognised"] is None:

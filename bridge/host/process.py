@@ -114,7 +114,7 @@ class HostProcess:
         self.behaviour = host_behaviour(behaviour, sc)
         if journal is not None:
             journal.bind(str(behaviour or "thesis"))    # JournalError: another behaviour's
-        from bridge.perception import host_coordinator
+        from perception import host_coordinator
         self.coord = host_coordinator(self.behaviour, sc, journal=self._journal_report,
                                       cells=cells, on_reject=self._rejected)
         self.tick = 0

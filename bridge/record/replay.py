@@ -315,7 +315,7 @@ def replay(path: Path, realtime: bool = False, limit: int = 50,
     stopped: set[int] = set()
     # the recorded run was a simulation: the host may check touches against
     # the object's true cells
-    from bridge.perception import host_coordinator
+    from perception import host_coordinator
     coord = host_coordinator(beh, sc, cells=World(sc, seed).object_cells)
     coord_ok = True
     divergences: list[str] = []

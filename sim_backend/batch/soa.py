@@ -289,7 +289,7 @@ class SoaEngine:
 
         self._compile(args)
         beh = self.behaviour
-        from bridge.perception import host_coordinator
+        from perception import host_coordinator
         self.coords = [host_coordinator(beh, sc, cells=list(w.object_cells))
                        for (sc, _), w in zip(runs, self.worlds)]
         self.busy = np.array([not _quiet(c) for c in self.coords], dtype=bool)

@@ -4,7 +4,7 @@
 ROBOT = "robot:Robot"
 # host libraries that equip its coordinator, as "module:function(coordinator,
 # scenario)": the recogniser's decider (numpy; scenario recognise = true)
-HOST_EQUIP = ("bridge.perception.decide:equip",)
+HOST_EQUIP = ("perception.decide:equip",)
 SUBSET_SETUP = ("robot_args", "make_coordinator", "holders_needed",
                 "summary_values", "_weight_text")  # host side: may allocate
 
@@ -130,6 +130,6 @@ def make_coordinator(sc, journal=None, cells=None, on_reject=None):
             for p in sc.pieces():
                 if p.at is not None:
                     objects.append(frozenset(p.placed(p.at[0], p.at[1])))
-        # the decider is host code (numpy): bridge.perception.host_coordinator gives it
+        # the decider is host code (numpy): perception.host_coordinator gives it
         c.recognition(int(round(sc.confidence * 1000)), objects)
     return c

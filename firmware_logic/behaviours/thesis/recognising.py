@@ -7,7 +7,7 @@ plausible touch, groups the touched segments into clusters (segments on
 one object of the host's map, when it has one, or within GAP patches of
 each other, transitively: one object each), and asks a
 `decider` the host injects (a callable(cells, free) -> the permille
-confidence that the cluster is the target; bridge/perception/decide.py backs
+confidence that the cluster is the target; perception/decide.py backs
 it with the Bayesian recogniser) about each cluster whose touches changed,
 and again every DECIDE_EVERY ticks while it is undecided and the free
 evidence grew. Then:
@@ -106,7 +106,7 @@ class Recognising:
 
     def wants_decider(self):
         """Whether the host must give this coordinator its decider
-        (bridge/perception/decide.py equip, named by HOST_EQUIP)."""
+        (perception/decide.py equip, named by HOST_EQUIP)."""
         return self.recognise and self.decider is None
 
     def truth_measures(self, target):

@@ -25,8 +25,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
-from bridge.perception.evidence import FREE, OBJECT, Evidence
-from bridge.perception.shapes import Library, Pose
+from perception.evidence import FREE, OBJECT, Evidence
+from perception.shapes import Library, Pose
 
 EPS_TOUCH = 0.01     # a touch reported on a cell that is not the object's
 EPS_FREE = 0.02      # a pose reported on a cell that is the object's

@@ -32,9 +32,9 @@ from __future__ import annotations
 import logging
 from typing import Any, Iterable
 
-from bridge.perception.evidence import Evidence
-from bridge.perception.recognise import recognise
-from bridge.perception.shapes import Library, orientations
+from perception.evidence import Evidence
+from perception.recognise import recognise
+from perception.shapes import Library, orientations
 
 log = logging.getLogger(__name__)
 

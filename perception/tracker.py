@@ -18,9 +18,9 @@ import logging
 from typing import Any, NamedTuple
 
 from firmware_logic import fixedpoint as fx
-from bridge.perception.evidence import Evidence, iou
-from bridge.perception.recognise import THRESHOLD, Recognition, estimate, recognise
-from bridge.perception.shapes import Library
+from perception.evidence import Evidence, iou
+from perception.recognise import THRESHOLD, Recognition, estimate, recognise
+from perception.shapes import Library
 
 log = logging.getLogger(__name__)
 
