@@ -112,7 +112,6 @@ def test_the_guide_runs_as_written(micropython_device, tmp_path: Path,
     import shlex
 
     from tests.test_words import doc_commands
-    monkeypatch.setenv("TOUCHSWARM_SOA_INLINE", "0")
     monkeypatch.chdir(tmp_path)
     cmds = (doc_commands("writing-a-behaviour.md", "1. Scaffold")
             + doc_commands("writing-a-behaviour.md", "3. Run it everywhere"))

@@ -41,7 +41,7 @@ def _names() -> tuple[set[str], set[str]]:
     return params - set(scenario.FIELDS), states
 
 
-def _offences(path: Path, params: set[str], states: set[str]) -> list[str]:
+def _offences(path: Path, params: set[str], states: set[str], root: Path = ROOT) -> list[str]:
     param = re.compile(r"(?<![A-Za-z0-9_])(" + "|".join(sorted(params)) +
                        r")(?![A-Za-z0-9_(]|\.py)")
     state = re.compile(r"[\"'](" + "|".join(sorted(states)) + r")[\"']")
@@ -51,7 +51,7 @@ def _offences(path: Path, params: set[str], states: set[str]) -> list[str]:
             continue
         for m in (param.search(line), state.search(line)):
             if m:
-                found.append(f"{path.relative_to(ROOT)}:{n}: {m.group(0)!r}: {line.strip()}")
+                found.append(f"{path.relative_to(root)}:{n}: {m.group(0)!r}: {line.strip()}")
     return found
 
 
@@ -63,12 +63,10 @@ def test_the_names_are_read_from_the_behaviours() -> None:
 
 def test_the_check_finds_a_thesis_parameter_where_it_does_not_belong(tmp_path: Path) -> None:
     params, states = _names()
-    bad = ROOT / "sim_backend" / "_probe_neutral.py"
+    bad = tmp_path / "sim_backend" / "probe.py"
+    bad.parent.mkdir()
     bad.write_text('x = sc.fieldDefiance\nif s == "carry":\n    pass\ny = recognise(e)\n')
-    try:
-        found = _offences(bad, params, states)
-    finally:
-        bad.unlink()
+    found = _offences(bad, params, states, root=tmp_path)
     assert len(found) == 2 and "fieldDefiance" in found[0] and "carry" in found[1]
 
 

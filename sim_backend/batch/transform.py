@@ -385,7 +385,10 @@ class FunctionTransform:
         return out
 
     def origin(self) -> str:
-        return f"# {self.fn.__module__}.{self.fn.__qualname__}"
+        # the module's own name, not its package: the generated text (and so
+        # the cache key) is the same wherever a behaviour's folder lies and
+        # whatever it is called, so an unedited copy loads the compiled code
+        return f"# {self.fn.__module__.rsplit('.', 1)[-1]}.{self.fn.__qualname__}"
 
     # -- statements ----------------------------------------------------------------
 
