@@ -51,7 +51,7 @@ ROWS = [
     (["run", "--set", "arrival=1"], "arrival: expected one of within4, netlogo"),
     (["sweep", "--grid", "starts=netlogo,random", "--seeds", "1"],
      "starts: expected one of redraw, netlogo"),
-    (["run", "--set", "object=blob"], "object: expected 1-4 or one of"),
+    (["run", "--set", "object=blob"], "object: expected 1-4"),
     (["run", "--set", "movementModel=6"], "movementModel: expected one of 'firefly' (1)"),
     (["run", "--set", "agents=1e9"], "agents: 1000000000 is outside"),
     (["run", "--scenario", "{T}/bad.toml"], "bad.toml: not valid TOML"),
