@@ -143,10 +143,12 @@ def test_firmware_cli_alone_is_touchswarm_firmware():
 def test_the_start_up_bench_runs_and_reports_every_command():
     """bench/cli_startup.py (docs/performance.md, `make bench`) as written;
     its figures are read, not asserted."""
-    done = subprocess.run([sys.executable, "bench/cli_startup.py", "--reps", "1"], cwd=ROOT,
-                          capture_output=True, text=True, timeout=300, check=True)
+    done = subprocess.run([sys.executable, "bench/cli_startup.py", "--reps", "1", "--tree",
+                           str(ROOT)], cwd=ROOT, capture_output=True, text=True, timeout=300,
+                          check=True)
     got = json.loads(done.stdout)
     for name in ("--version", "--help", "run --json"):
-        assert f"this: touchswarm {name}" in got["seconds"]
-        assert got["imports"][f"this: touchswarm {name}"]["modules"] > 0
+        for tree in ("this", str(ROOT)):
+            assert f"{tree}: touchswarm {name}" in got["seconds"]
+            assert got["imports"][f"{tree}: touchswarm {name}"]["modules"] > 0
     assert "python -c 'import numpy'" in got["seconds"]
