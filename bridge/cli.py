@@ -1,5 +1,7 @@
-"""The touchswarm command line. Commands are one flat table; each module
-registers its own sub-parser and keeps heavy imports inside its handler.
+"""The touchswarm command line. Commands are one flat table (COMMANDS: name,
+module, one-line help); a command's module is imported, and registers its
+sub-parser, only when the command line names it (or every one for
+docs/cli.md), and keeps heavy imports inside its handler.
 
 Exit status (docs/cli.md): 0 success; 1 the command ran and its outcome is a
 failure (object not delivered, replay divergence, a device failed mid-way);
