@@ -1,5 +1,7 @@
-"""The touchswarm command line. Commands are one flat table; each module
-registers its own sub-parser and keeps heavy imports inside its handler.
+"""The touchswarm command line. Commands are one flat table (COMMANDS: name,
+module, one-line help); a command's module is imported, and registers its
+sub-parser, only when the command line names it (or every one for
+docs/cli.md), and keeps heavy imports inside its handler.
 
 Exit status (docs/cli.md): 0 success; 1 the command ran and its outcome is a
 failure (object not delivered, replay divergence, a device failed mid-way);
@@ -18,23 +20,34 @@ from typing import NoReturn
 
 from bridge.errors import BridgeError, UsageError
 
-# one module per command; each has register(subparsers) and keeps its heavy
-# imports (python-can, pyserial, numpy) inside its handler
-COMMANDS = [
-    "bridge.commands.run",
-    "bridge.commands.mission",
-    "bridge.commands.scenarios",
-    "bridge.commands.behaviours",
-    "bridge.firmware.cli",
-    "bridge.commands.dbc",
-    "bridge.commands.host",
-    "bridge.commands.robots",
-    "bridge.commands.replay",
-    "bridge.commands.deploy",
-    "bridge.commands.sweep",
-    "bridge.commands.keys",
-    "bridge.commands.view",
-]
+# Every command: its name, the module whose register(subparsers) builds its
+# parser, and its one-line help (listed by `touchswarm --help`; written only
+# here: a module's add_parser takes it from this table). Only the chosen
+# command's module is imported, so `touchswarm --version`, `--help` and
+# `run` do not pay for the others; each module also keeps its heavy imports
+# (python-can, pyserial, numpy, matplotlib) inside its handlers.
+COMMANDS: dict[str, tuple[str, str]] = {
+    "run": ("bridge.commands.run", "run the whole mission in the simulated world"),
+    "mission": ("bridge.commands.mission",
+                "run a mission with some robots on real bodies (Khepera II, GoGo)"),
+    "scenarios": ("bridge.commands.scenarios", "list built-in scenarios and the scenario keys"),
+    "behaviours": ("bridge.commands.behaviours", "list the installed behaviours"),
+    "behaviour": ("bridge.commands.behaviours", "make a new behaviour from a scaffold"),
+    "firmware": ("bridge.firmware.cli",
+                 "check the robot firmware (subset rules, MicroPython conformance)"),
+    "dbc": ("bridge.commands.dbc", "write the CAN message schema as a DBC file"),
+    "host": ("bridge.commands.host",
+             "run the host coordinator against a CAN bus and/or serial ports"),
+    "robots": ("bridge.commands.robots", "run the simulated swarm as nodes on a CAN bus"),
+    "replay": ("bridge.commands.replay", "replay a recorded run against the firmware and host"),
+    "deploy": ("bridge.commands.deploy",
+               "check, compile and copy the robot firmware to a MicroPython board"),
+    "sweep": ("bridge.commands.sweep",
+              "run a grid of parameters x seeds; tidy CSV and the thesis's plots"),
+    "keys": ("bridge.commands.keys", "make keys for authenticated host commands on CAN"),
+    "view": ("bridge.commands.view",
+             "watch a mission live in the browser (a simulated run or a host journal)"),
+}
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 
@@ -47,12 +60,59 @@ class OneLineParser(argparse.ArgumentParser):
         self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see `{self.prog} --help`)\n")
 
 
-def _version() -> str:
-    from sim_backend.api import version
-    return version()
+class LazyCommands(argparse._SubParsersAction):
+    """The sub-parsers of COMMANDS, each built only when needed: `touchswarm
+    --help` lists them from the table alone; the chosen command's module is
+    imported and its parser built when the command line names it; load()
+    builds them all (docs/cli.md)."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        for name, (_module, help) in COMMANDS.items():
+            # a placeholder keeps the table's order and makes the name a valid
+            # choice; the module's add_parser puts the parser in its place
+            self._name_parser_map[name] = None
+            self._choices_actions.append(self._ChoicesPseudoAction(name, (), help))
+
+    def add_parser(self, name: str, **kwargs):
+        if name not in COMMANDS:
+            raise ValueError(f"command {name!r} is not in bridge/cli.py COMMANDS")
+        if "help" in kwargs:
+            raise ValueError(f"command {name!r}: its one-line help is in bridge/cli.py COMMANDS")
+        if self._name_parser_map.get(name) is not None:
+            raise argparse.ArgumentError(self, f"conflicting subparser: {name}")
+        kwargs.setdefault("prog", f"{self._prog_prefix} {name}")
+        parser = self._parser_class(**kwargs)
+        self._name_parser_map[name] = parser
+        return parser
+
+    def load(self, name: str | None = None) -> None:
+        """Build the parser of command `name`, or of every command."""
+        for other, (module, _help) in COMMANDS.items():
+            if (name is None or other == name) and self._name_parser_map[other] is None:
+                importlib.import_module(module).register(self)
+                if self._name_parser_map[other] is None:
+                    raise ValueError(f"{module}.register did not build command {other!r}")
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        if values and values[0] in COMMANDS:
+            self.load(values[0])
+        super().__call__(parser, namespace, values, option_string)
 
 
-def build_parser() -> argparse.ArgumentParser:
+class LazyVersion(argparse._VersionAction):
+    """--version reads the installed version only when it is asked for."""
+
+    def __call__(self, parser, namespace, values, option_string=None) -> NoReturn:
+        from sim_backend.api import version
+        self.version = f"%(prog)s {version()}"
+        super().__call__(parser, namespace, values, option_string)
+
+
+def build_parser(full: bool = False) -> argparse.ArgumentParser:
+    """The command line's parser. Each command's sub-parser is built when the
+    arguments name it; `full` builds every one now (to list them all, e.g.
+    docs/cli.md)."""
     p = OneLineParser(
         prog="touchswarm",
         description="Touch-only swarm robots that perceive an object's shape incrementally "
@@ -67,12 +127,12 @@ def build_parser() -> argparse.ArgumentParser:
                "2 bad input (nothing was\ndone), 130 interrupted; docs/cli.md.",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("-v", "--verbose", action="count", default=0, help="log more (-vv: debug)")
-    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}",
+    p.add_argument("--version", action=LazyVersion,
                    help="print the installed version and exit")
     # sub-parsers are built by type(p), so every command's errors are one line too
-    sub = p.add_subparsers(dest="command", metavar="COMMAND")
-    for name in COMMANDS:
-        importlib.import_module(name).register(sub)
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", action=LazyCommands)
+    if full:
+        sub.load()
     return p
 
 

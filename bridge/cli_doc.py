@@ -55,7 +55,7 @@ def text() -> str:
     old = os.environ.get("COLUMNS")
     os.environ["COLUMNS"] = WIDTH
     try:
-        parser = build_parser()
+        parser = build_parser(full=True)
         parts = [HEAD.format(status=_status())]
         for p in _parsers(parser):
             parts.append(f"## {p.prog}\n\n```text\n{p.format_help().rstrip()}\n```\n")

@@ -21,17 +21,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterator
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.collections import LineCollection  # noqa: E402
-from matplotlib.lines import Line2D  # noqa: E402
-from matplotlib.patches import Patch  # noqa: E402
+from sim_backend.observe import OutputFormatError, Snapshot, Trails, output_format
 
-from sim_backend import render as rd  # noqa: E402
-from sim_backend.observe import OutputFormatError, Snapshot, Trails, output_format  # noqa: E402
+# matplotlib (and sim_backend.render, which draws with it) is imported by
+# write() only: the command line reads MAX_FRAMES and checks --animate's
+# suffix before a run, and a run without --animate never draws
 
 SUFFIXES = (".gif", ".mp4")
 MAX_FRAMES = 120
@@ -111,6 +107,11 @@ class Animation:
 
     def write(self, path: Path) -> int:
         """Draw every kept frame and the last tick's to path; returns the count."""
+        from sim_backend import render as rd   # first: it selects the Agg backend
+        import matplotlib.pyplot as plt
+        from matplotlib.collections import LineCollection
+        from matplotlib.lines import Line2D
+        from matplotlib.patches import Patch
         self.finish()
         frames = self.frames
         fmt = animation_format(path)

@@ -21,13 +21,13 @@ guide: docs/writing-a-behaviour.md"""
 
 
 def register(sub) -> None:
-    p = sub.add_parser("behaviours", help="list the installed behaviours",
+    p = sub.add_parser("behaviours",
                        description="List every behaviour the registry finds: the built-ins "
                                    "and those other packages add through the entry point "
                                    "group 'touchswarm.behaviours'.",
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.set_defaults(func=cmd_list)
-    n = sub.add_parser("behaviour", help="make a new behaviour from a scaffold",
+    n = sub.add_parser("behaviour",
                        description="Create a behaviour package (spec.py, robot.py, "
                                    "coordinator.py, __init__.py) from the aggregation "
                                    "behaviour, renamed, ready to edit.",

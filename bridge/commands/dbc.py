@@ -11,7 +11,7 @@ from bridge.errors import UsageError
 
 
 def register(sub) -> None:
-    p = sub.add_parser("dbc", help="write the CAN message schema as a DBC file",
+    p = sub.add_parser("dbc",
                        description="Generate a DBC from firmware_logic/messages.py and the "
                                    "behaviour's own messages (its spec.MESSAGES) so standard "
                                    "CAN tools (cantools, SavvyCAN, ...) decode the bus.")

@@ -19,7 +19,7 @@ behaviour's robot_args for NODE, SEED and the scenario."""
 def register(sub) -> None:
     from bridge.serial.deploy import CONFIG_KEYS
     p = sub.add_parser(
-        "deploy", help="check, compile and copy the robot firmware to a MicroPython board",
+        "deploy",
         description="Run the subset check, compile the firmware and the behaviour with "
                     "mpy-cross, copy them with mpremote, verify every file on the device by "
                     "sha256, then import the behaviour on the device and build its robot as "

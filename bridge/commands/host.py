@@ -24,7 +24,7 @@ EXIT_SILENT = 3          # the host gave up: robots went silent
 
 
 def register(sub) -> None:
-    p = sub.add_parser("host", help="run the host coordinator against a CAN bus and/or serial ports",
+    p = sub.add_parser("host",
                        description="Collect touch reports from robots on a bus, journal each "
                                    "before acknowledging it, and command the transport home. "
                                    "Runs until the object is home, it is stopped, or the "

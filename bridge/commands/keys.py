@@ -12,7 +12,7 @@ from bridge.errors import UsageError
 
 
 def register(sub) -> None:
-    p = sub.add_parser("keys", help="make keys for authenticated host commands on CAN",
+    p = sub.add_parser("keys",
                        description="Without keys, any node on a CAN bus can send the robots "
                                    "HALT, ACK or TRANSPORT and they obey (CAN frames carry no "
                                    "sender). With `host --keys FILE` and `robots --keys FILE`, "

@@ -13,7 +13,7 @@ from bridge.commands.run import add_scenario_args, check_link_limits, scenario_f
 
 def register(sub) -> None:
     p = sub.add_parser(
-        "mission", help="run a mission with some robots on real bodies (Khepera II, GoGo)",
+        "mission",
         description="Run one scenario in which the robots named by --body are real: their "
                     "unchanged firmware runs here, one tick at a time, on a Khepera II or a "
                     "GoGo Board robot over its serial port; every other robot is simulated. "

@@ -13,7 +13,7 @@ from bridge.commands.paths import path_arg
 def register(sub) -> None:
     from bridge.record.formats import FORMATS
     p = sub.add_parser(
-        "replay", help="replay a recorded run against the firmware and host",
+        "replay",
         description="Re-run every robot's firmware on its recorded sensor stream and the "
                     "coordinator on the recorded reports; report each decision that differs, "
                     "and any difference from the run summary in the sidecar FILE.json. "

@@ -15,7 +15,7 @@ from bridge.commands.run import add_scenario_args, check_link_limits, scenario_f
 
 
 def register(sub) -> None:
-    p = sub.add_parser("robots", help="run the simulated swarm as nodes on a CAN bus",
+    p = sub.add_parser("robots",
                        description="Every simulated robot runs its firmware and talks to the "
                                    "host over one gateway bus. slcan-pty://PATH serves the "
                                    "swarm as an SLCAN adapter on a pseudo-terminal linked at "

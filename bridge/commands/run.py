@@ -90,7 +90,7 @@ def register(sub) -> None:
     from bridge.record.formats import FORMATS
     from sim_backend.animate import MAX_FRAMES
     p = sub.add_parser(
-        "run", help="run the whole mission in the simulated world",
+        "run",
         description="Run one scenario to the end with no hardware: the behaviour's robots "
                     "and its host coordinator (the thesis's search, touch, converge and "
                     "carry the object home). Prints a summary in the behaviour's words: "

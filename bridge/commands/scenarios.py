@@ -12,7 +12,7 @@ EPILOG = """examples:
 
 
 def register(sub) -> None:
-    p = sub.add_parser("scenarios", help="list built-in scenarios and the scenario keys",
+    p = sub.add_parser("scenarios",
                        description="List the built-in scenarios, then every key of the "
                                    "world with its default and allowed range, then the "
                                    "keys the behaviour declares (its spec.PARAMS).",

@@ -15,7 +15,7 @@ from sim_backend.sweep import ENGINES, SOA_COLD_COMPILE
 
 def register(sub) -> None:
     p = sub.add_parser(
-        "sweep", help="run a grid of parameters x seeds; tidy CSV and the thesis's plots",
+        "sweep",
         description="Run every grid point with every seed (the thesis's BehaviourSpace) in the "
                     "vectorised engine, spread over an executor; write one CSV row per run "
                     "(every parameter and every measured figure) and PNG plots.",

@@ -15,7 +15,7 @@ DEFAULT_SPEED = 20.0     # ticks per second: the default scenario is home in abo
 def register(sub) -> None:
     from bridge.view.sources import SPEED_MAX, SPEED_MIN
     p = sub.add_parser(
-        "view", help="watch a mission live in the browser (a simulated run or a host journal)",
+        "view",
         description="Serve a page on 127.0.0.1 that shows a mission as it happens: the arena "
                     "with the object, the field, robots coloured by state, touches numbered "
                     "in order, the behaviour's measures and reporters with their titles (and, "

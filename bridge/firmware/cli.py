@@ -13,7 +13,7 @@ import sys
 
 def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # type: ignore[type-arg]
     p = sub.add_parser(
-        "firmware", help="check the robot firmware (subset rules, MicroPython conformance)",
+        "firmware",
         description="Tools for the robot firmware in firmware_logic/.")
     fsub = p.add_subparsers(dest="firmware_command", metavar="SUBCOMMAND")
     c = fsub.add_parser(
@@ -141,14 +141,9 @@ def cmd_check(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="touchswarm")
-    sub = p.add_subparsers(dest="command")
-    register(sub)
-    args = p.parse_args(argv)
-    if not getattr(args, "func", None):
-        p.print_help()
-        return 2
-    return int(args.func(args))
+    """`python -m bridge.firmware.cli ARGS` is `touchswarm firmware ARGS`."""
+    from bridge.cli import main as cli_main
+    return cli_main(["firmware", *(sys.argv[1:] if argv is None else argv)])
 
 
 if __name__ == "__main__":

@@ -1,0 +1,84 @@
+"""Start-up of the command line: `touchswarm --version`, `--help` and
+`run --json` (the default scenario), wall and CPU seconds per call, beside
+the floors `python -c pass` and `python -c "import numpy"`, plus what
+`python -X importtime` counts (modules imported, seconds in imports).
+
+Each figure is the median of --reps fresh interpreters (wall clock, and
+CPU from the child's rusage, as /usr/bin/time reports them), the commands
+interleaved so a busy machine slows them alike. `--tree DIR` (repeatable) times another source
+tree too, e.g. an export of an older commit
+(`git archive COMMIT | tar -x -C /tmp/old`), run as `python -c "from
+bridge.cli import main; ..."` from that folder with this interpreter.
+Prints one JSON object. Nothing here is asserted: tests/test_cli_imports.py
+checks *what* is imported, never how long it takes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+CLI = "import sys; from bridge.cli import main; sys.exit(main(sys.argv[1:]))"
+COMMANDS = {"--version": ["--version"], "--help": ["--help"], "run --json": ["run", "--json"]}
+FLOORS = {"python -c pass": "pass", "python -c 'import numpy'": "import numpy"}
+
+
+def timed(argv: list[str], cwd: Path) -> tuple[float, float]:
+    """(wall, user + system CPU) seconds of one child process."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    subprocess.run(argv, cwd=cwd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+
+
+def import_time(args: list[str], cwd: Path) -> dict:
+    """Modules imported and the seconds spent importing them (the top-level
+    cumulative figures of -X importtime)."""
+    err = subprocess.run([sys.executable, "-X", "importtime", "-c", CLI, *args], cwd=cwd,
+                         capture_output=True, text=True).stderr
+    rows = [line.split("|") for line in err.splitlines()
+            if line.startswith("import time:") and not line.endswith("package")]
+    top = [int(r[1]) for r in rows if not r[2].startswith("  ")]
+    return {"modules": len(rows), "import_s": round(sum(top) / 1e6, 3)}
+
+
+def median(rows: list[tuple[float, float]]) -> dict:
+    return {"wall_s": round(statistics.median(r[0] for r in rows), 3),
+            "cpu_s": round(statistics.median(r[1] for r in rows), 3)}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--reps", type=int, default=5, help="calls per figure (default: 5)")
+    ap.add_argument("--tree", action="append", default=[], type=Path,
+                    help="another source tree to time beside this one")
+    a = ap.parse_args(argv)
+    trees = {"this": ROOT, **{str(t): t.resolve() for t in a.tree}}
+    times: dict[str, list] = {}
+    for _ in range(a.reps):
+        for name, args in COMMANDS.items():
+            for label, tree in trees.items():
+                times.setdefault(f"{label}: touchswarm {name}", []).append(
+                    timed([sys.executable, "-c", CLI, *args], tree))
+        for name, code in FLOORS.items():
+            times.setdefault(name, []).append(timed([sys.executable, "-c", code], Path("/")))
+    out = {"reps": a.reps, "cpus": os.cpu_count(), "load": os.getloadavg()[0],
+           "seconds": {k: median(v) for k, v in times.items()},
+           "imports": {f"{label}: touchswarm {name}": import_time(args, tree)
+                       for name, args in COMMANDS.items() for label, tree in trees.items()}}
+    print(json.dumps(out, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

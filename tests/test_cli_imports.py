@@ -1,0 +1,154 @@
+"""The command line imports only what the chosen command uses (issue 28
+item 4): `--version` and `--help` build no command's parser, and `run`
+never loads the CAN, compiler, serial or columnar packages. Checked by
+what is in sys.modules after the command, in a fresh interpreter: no
+timing."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from bridge import cli
+
+ROOT = Path(__file__).resolve().parents[1]
+
+HEAVY = ("numpy", "matplotlib", "numba", "can", "cantools", "serial", "pyarrow", "pandas")
+# what `touchswarm run` may never need (numpy it does need: the engine)
+NOT_FOR_RUN = ("matplotlib", "numba", "llvmlite", "can", "cantools", "serial", "pyarrow",
+               "pandas", "PIL")
+
+PROBE = """
+import contextlib, io, json, sys
+import bridge.cli
+out = io.StringIO()
+with contextlib.redirect_stdout(out):
+    try:
+        code = bridge.cli.main(json.loads(sys.argv[1]))
+    except SystemExit as e:
+        code = e.code
+print(json.dumps({"code": code, "out": out.getvalue(), "modules": sorted(sys.modules)}))
+"""
+
+
+def probe(*argv: str) -> dict:
+    """Run bridge.cli.main(argv) in a fresh interpreter: its exit code, stdout
+    and every module it imported."""
+    done = subprocess.run([sys.executable, "-c", PROBE, json.dumps(argv)], cwd=ROOT,
+                          capture_output=True, text=True, timeout=300, check=True)
+    return json.loads(done.stdout.splitlines()[-1])
+
+
+def loaded(modules: list[str], packages: tuple[str, ...]) -> list[str]:
+    return sorted({m.split(".")[0] for m in modules} & set(packages))
+
+
+def commands(modules: list[str]) -> list[str]:
+    """The command modules among `modules`."""
+    mods = {m for m, _help in cli.COMMANDS.values()}
+    return sorted(m for m in modules if m in mods)
+
+
+def test_version_imports_no_command_and_no_heavy_package():
+    got = probe("--version")
+    assert got["code"] == 0 and got["out"].startswith("touchswarm ")
+    assert loaded(got["modules"], HEAVY) == []
+    assert commands(got["modules"]) == []
+
+
+def test_help_lists_every_command_without_building_one():
+    got = probe("--help")
+    assert got["code"] == 0
+    for name, (_module, help) in cli.COMMANDS.items():
+        assert f"\n    {name} " in got["out"], name
+        assert help.split()[0] in got["out"]
+    assert loaded(got["modules"], HEAVY) == []
+    assert commands(got["modules"]) == []
+
+
+def test_run_help_builds_only_run():
+    got = probe("run", "--help")
+    assert got["code"] == 0 and "--animate FILE" in got["out"]
+    assert loaded(got["modules"], NOT_FOR_RUN) == []
+    assert commands(got["modules"]) == ["bridge.commands.run"]
+
+
+def test_a_run_loads_no_can_compiler_serial_plot_or_parquet_package():
+    got = probe("run", "--json", "--set", "maxTicks=40")
+    assert got["code"] in (0, 1)
+    assert json.loads(got["out"])["ticks"] <= 40
+    assert loaded(got["modules"], NOT_FOR_RUN) == []
+    assert commands(got["modules"]) == ["bridge.commands.run"]
+
+
+def test_no_command_parser_needs_a_heavy_package():
+    """Every command's --help (all parsers built, as for docs/cli.md) loads
+    none of them but numpy (run's parser reads sim_backend.animate's
+    MAX_FRAMES, beside the engine's snapshots): heavy imports are inside the
+    handlers."""
+    code = ("import json, sys; from bridge.cli import build_parser; build_parser(full=True); "
+            "print(json.dumps(sorted(sys.modules)))")
+    done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True,
+                          text=True, timeout=300, check=True)
+    assert loaded(json.loads(done.stdout), NOT_FOR_RUN) == []
+
+
+def test_the_lazy_help_is_the_full_help():
+    """`touchswarm --help` from the table alone equals the help with every
+    command's parser built (the one-line helps are written once, in COMMANDS)."""
+    assert cli.build_parser().format_help() == cli.build_parser(full=True).format_help()
+
+
+def test_every_command_in_the_table_is_built_by_its_module():
+    p = cli.build_parser(full=True)
+    sub = next(a for a in p._actions if isinstance(a, cli.LazyCommands))
+    assert list(sub.choices) == list(cli.COMMANDS)
+    for name, parser in sub.choices.items():
+        assert parser is not None and parser.prog == f"touchswarm {name}"
+
+
+def test_a_command_module_may_not_write_its_own_help_or_an_unlisted_name():
+    sub = next(a for a in cli.build_parser()._actions if isinstance(a, cli.LazyCommands))
+    with pytest.raises(ValueError, match="COMMANDS"):
+        sub.add_parser("run", help="a second one-line help")
+    with pytest.raises(ValueError, match="not in bridge/cli.py COMMANDS"):
+        sub.add_parser("frobnicate")
+
+
+def test_a_parse_builds_the_named_command_only():
+    p = cli.build_parser()
+    sub = next(a for a in p._actions if isinstance(a, cli.LazyCommands))
+    args = p.parse_args(["scenarios"])
+    assert args.command == "scenarios" and args.func
+    built = [name for name, parser in sub.choices.items() if parser is not None]
+    assert built == ["scenarios"]
+
+
+def test_an_unknown_command_is_one_line_naming_the_choices():
+    done = subprocess.run([sys.executable, "-m", "bridge.cli", "frobnicate"], cwd=ROOT,
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2 and done.stdout == ""
+    assert done.stderr.count("\n") == 1
+    assert "invalid choice: 'frobnicate'" in done.stderr and "'run'" in done.stderr
+
+
+def test_firmware_cli_alone_is_touchswarm_firmware():
+    done = subprocess.run([sys.executable, "-m", "bridge.firmware.cli", "--help"], cwd=ROOT,
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0 and done.stdout.startswith("usage: touchswarm firmware ")
+
+
+def test_the_start_up_bench_runs_and_reports_every_command():
+    """bench/cli_startup.py (docs/performance.md, `make bench`) as written;
+    its figures are read, not asserted."""
+    done = subprocess.run([sys.executable, "bench/cli_startup.py", "--reps", "1", "--tree",
+                           str(ROOT)], cwd=ROOT, capture_output=True, text=True, timeout=300,
+                          check=True)
+    got = json.loads(done.stdout)
+    for name in ("--version", "--help", "run --json"):
+        for tree in ("this", str(ROOT)):
+            assert f"{tree}: touchswarm {name}" in got["seconds"]
+            assert got["imports"][f"{tree}: touchswarm {name}"]["modules"] > 0
+    assert "python -c 'import numpy'" in got["seconds"]
