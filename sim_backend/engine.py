@@ -24,6 +24,7 @@ from firmware_logic import registry
 from sim_backend import kernel
 from sim_backend.body import SimBody
 from sim_backend.errors import EngineError
+from sim_backend.measures import power_held, shape_iou
 from sim_backend.scenario import Scenario
 from sim_backend.world import World
 
@@ -64,22 +65,6 @@ class InprocLink:
 
     def close(self) -> None:
         pass
-
-
-def power_held(coordinator: Any) -> float:
-    """The holders' power in weight units (coordinators count hundredths)."""
-    return coordinator.power / 100
-
-
-def shape_iou(coordinator: Any, true_cells: list[tuple[int, int]],
-              perceived: set[tuple[int, int]] | None = None) -> float:
-    """IoU of the perceived outline (the touched segments where they are now;
-    pass it when already computed) with the object's true cells, rounded to 6
-    places as the summary has it."""
-    if perceived is None:
-        perceived = perception.outline_cells(coordinator.segments_now())
-    inter, union = perception.iou_counts(perceived, true_cells)
-    return round(inter / union, 6) if union else 0.0
 
 
 @dataclass

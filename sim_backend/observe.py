@@ -18,7 +18,7 @@ import numpy as np
 
 from firmware_logic import fixedpoint as fx
 from firmware_logic import perception
-from sim_backend.engine import power_held, shape_iou
+from sim_backend.measures import power_held, shape_iou
 
 
 class OutputFormatError(ValueError):

@@ -48,3 +48,58 @@ def test_the_check_sees_an_import_inside_a_function(tmp_path: Path) -> None:
     probe.write_text("def f():\n    from bridge.links import codec\n    return codec\n")
     assert offences("sim_backend", root=tmp_path) == [
         "sim_backend/probe.py:2: imports bridge.links"]
+
+
+def _module_graph(root: Path = ROOT) -> dict[str, set[str]]:
+    """Each project module's module-level imports of other project modules."""
+    files = {}
+    for pkg in ("sim_backend", "bridge", "perception", "firmware_logic"):
+        for p in (root / pkg).rglob("*.py"):
+            parts = p.relative_to(root).with_suffix("").parts
+            files[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = p
+    graph: dict[str, set[str]] = {}
+    for name, p in files.items():
+        package = name if p.name == "__init__.py" else name.rpartition(".")[0]
+        out = set()
+        for node in ast.parse(p.read_text()).body:       # module level only
+            if isinstance(node, ast.Import):
+                out |= {a.name for a in node.names}
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:
+                    up = package.split(".")[: len(package.split(".")) - node.level + 1]
+                    base = ".".join(up + ([node.module] if node.module else []))
+                out.add(base)
+                out |= {f"{base}.{a.name}" for a in node.names}
+        graph[name] = {d for d in out if d in files and d != name and not name.startswith(d + ".")}
+    return graph
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    seen: dict[str, int] = {}
+    stack: list[str] = []
+    found = []
+
+    def visit(v: str) -> None:
+        seen[v] = 1
+        stack.append(v)
+        for w in sorted(graph[v]):
+            if seen.get(w) == 1:
+                found.append(stack[stack.index(w):] + [w])
+            elif w not in seen:
+                visit(w)
+        stack.pop()
+        seen[v] = 2
+
+    for v in sorted(graph):
+        if v not in seen:
+            visit(v)
+    return found
+
+
+def test_no_import_cycle_at_module_level() -> None:
+    assert _cycles(_module_graph()) == []
+
+
+def test_the_cycle_check_finds_a_cycle() -> None:
+    assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == [["a", "b", "c", "a"]]
