@@ -127,3 +127,13 @@ def test_the_guide_runs_as_written(micropython_device, tmp_path: Path,
     assert out.rstrip().endswith("behaviour check: PASS")
     assert "NOT RUN" not in out and "FAIL" not in out
     assert (tmp_path / "chain.dbc").exists() and (tmp_path / "chain-sweep" / "sweep.csv").exists()
+
+
+@pytest.mark.parametrize("name", ["thesis", "aggregate"])
+def test_behaviour_check_of_the_shipped_behaviours_passes(
+        name: str, micropython_device, capsys: pytest.CaptureFixture[str]) -> None:
+    rc = main(["behaviour", "check", name, "--ticks", "300", "--port", micropython_device.path])
+    out = capsys.readouterr().out
+    assert re.findall(r"^  (\w+)\s+PASS", out, re.M) == ["load", "run", "sweep", "firmware", "can",
+                                                          "dbc", "bus", "deploy", "mission"], out
+    assert rc == 0 and out.rstrip().endswith("behaviour check: PASS")
