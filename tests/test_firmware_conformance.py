@@ -156,7 +156,7 @@ def test_cli_check_json(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 def test_cli_check_text(capsys: pytest.CaptureFixture[str]) -> None:
-    rc = cli.main(["firmware", "check", "--ticks", "2000"])
+    rc = cli.main(["check", "--ticks", "2000"])
     text = capsys.readouterr().out
     assert "firefly: traces identical (" in text and "ant: traces identical (" in text
     assert "total" in text and "bytes/step" in text
