@@ -306,7 +306,7 @@ class _Engines:
         if self.on_event is not None:
             self.on_event(kind, text)
 
-    def poll(self) -> str:
+    def poll(self, then: str = "the runs not started yet go to it") -> str:
         if self.state == "compiling" and self.bg.finished():
             if self.bg.error:
                 self.state = "failed"
@@ -315,8 +315,7 @@ class _Engines:
             else:
                 self.state = "compiled"
                 self.tell("compiled", f"the soa engine compiled in the background in "
-                                      f"{_duration(self.bg.seconds or 0.0)}; the runs not "
-                                      "started yet go to it")
+                                      f"{_duration(self.bg.seconds or 0.0)}; {then}")
         if self.state is None:
             return self.fixed
         return "soa" if self.state == "compiled" else "reference"
@@ -331,7 +330,7 @@ class _Engines:
             self.tell("left", f"the soa compile goes on in the background (pid {self.bg.pid}) "
                               "and fills the disk cache for the next sweep")
         else:
-            self.poll()
+            self.poll("the next sweep starts in it")
 
 
 def run_chunk(jobs: Sequence[tuple[dict, dict, int]], engine: str = "auto",
