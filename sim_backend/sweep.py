@@ -258,6 +258,32 @@ class BackgroundCompile:
         return lines[-1] if lines else f"the compile process exited with status {rc}"
 
 
+class _Watch:
+    """A compile another process is running (it holds the compile lock of
+    every step this sweep lacks: another sweep's background compile):
+    watched, not started again. It has ended when no process holds the
+    locks; well if the cache holds the steps then."""
+
+    def __init__(self, scenarios: Sequence[Scenario], folders: Sequence[Path], pid: int) -> None:
+        import time
+        self.scenarios, self.folders, self.pid = scenarios, folders, pid
+        self._clock = time.monotonic
+        self.t0 = self._clock()
+        self.error: str | None = None
+        self.seconds: float | None = None
+
+    def finished(self) -> bool:
+        from sim_backend.batch.soa import cold, lock_holder
+        if self.seconds is not None:
+            return True
+        if any(lock_holder(f) is not None for f in self.folders):
+            return False
+        self.seconds = self._clock() - self.t0
+        if cold(self.scenarios):
+            self.error = f"the compile in process {self.pid} ended without the step"
+        return True
+
+
 def _local(executor: Executor | None) -> bool:
     """Whether the executor's workers run on this machine (and so see the
     disk cache a background compile fills)."""
@@ -540,7 +566,12 @@ def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None =
             missing, bg = {}, _Refused(err)
             plan = _Engines(engine, bg, on_event)
         if missing:
-            bg = (background or BackgroundCompile)(scenarios)
+            from sim_backend.batch.soa import lock_holder
+            held = [lock_holder(d) for d in missing.values()]
+            if all(h is not None for h in held):       # another sweep compiles them
+                bg = _Watch(scenarios, list(missing.values()), held[0])
+            else:
+                bg = (background or BackgroundCompile)(scenarios)
             names = ", ".join(repr(b) for b in missing)
             where = ", ".join(str(d) for d in missing.values())
             plan = _Engines(engine, bg, on_event)

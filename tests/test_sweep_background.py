@@ -260,3 +260,34 @@ def test_api_progress_tells_the_background_compile_from_the_first_line(cold_cach
     assert lines[1].startswith("sweep: 1/2 runs (50%)")
     assert "reference engine while soa compiles in the background" in lines[1]
     assert lines[-1].startswith("sweep: the soa compile goes on in the background (pid 777)")
+
+
+def test_a_compile_another_sweep_runs_is_watched_not_started_again(tmp_path, monkeypatch):
+    """While another process holds the step's compile lock, a second sweep
+    starts no compile of its own: it runs in the reference engine until the
+    lock is free and the step is on disk, then in soa."""
+    from contextlib import ExitStack
+
+    from sim_backend.batch import soa
+    warm_folder()
+    folder = tmp_path / "soa" / "x"
+    stack = ExitStack()
+    stack.enter_context(soa.compile_lock(folder))      # "another sweep" compiles
+    assert soa.lock_holder(folder) == os.getpid()
+    compiled = [False]
+    monkeypatch.setattr(soa, "cold", lambda scs: {} if compiled[0] else {"thesis": folder})
+
+    def on_rows(rows):                                 # it ends after the first chunk
+        compiled[0] = True
+        stack.close()
+
+    def no_second_compile(scenarios):
+        raise AssertionError("a second compile was started")
+    events = []
+    rows = sweep.sweep(sweep.grid_points({}), [1, 2, 3], overrides={"maxTicks": MAX_TICKS},
+                       chunk_size=2, on_rows=on_rows, background=no_second_compile,
+                       on_event=lambda kind, text: events.append((kind, text)))
+    assert soa.lock_holder(folder) is None
+    assert [r["engine"] for r in rows] == ["reference", "reference", "soa"]
+    assert [k for k, _ in events] == ["compiling", "compiled"]
+    assert f"pid {os.getpid()}" in events[0][1]

@@ -142,12 +142,37 @@ def compile_lock(folder: Path) -> Iterator[None]:
         yield
         return
     folder.mkdir(parents=True, exist_ok=True)
-    with open(folder / "compile.lock", "a") as f:
+    with open(folder / "compile.lock", "a+") as f:
         fcntl.flock(f, fcntl.LOCK_EX)
         try:
+            f.seek(0)
+            f.truncate()
+            f.write(str(os.getpid()))        # who compiles, for lock_holder
+            f.flush()
             yield
         finally:
             fcntl.flock(f, fcntl.LOCK_UN)
+
+
+def lock_holder(folder: Path) -> int | None:
+    """The pid of the process that holds `folder`'s compile lock (compiling
+    its step now; -1 when it wrote none yet), or None when no process does."""
+    try:
+        import fcntl
+    except ImportError:
+        return None
+    path = folder / "compile.lock"
+    if not path.exists():
+        return None
+    with open(path, "a+") as f:
+        try:
+            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            f.seek(0)
+            text = f.read().strip()
+            return int(text) if text.isdigit() else -1
+        fcntl.flock(f, fcntl.LOCK_UN)
+        return None
 
 
 def _from_numba_cache(err: BaseException) -> bool:
