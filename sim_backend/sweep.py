@@ -618,13 +618,7 @@ def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None =
             # worker is free for it; otherwise every chunk goes at once
             limit = None
             if bg is not None:
-                workers = getattr(executor, "_max_workers", None) or os.cpu_count() or 1
-
-                def limit() -> int:
-                    # while it compiles, one worker fewer: the compile has a
-                    # core (beside two reference workers on 2 cores it took
-                    # 327 s instead of ~180 s, docs/performance.md)
-                    return max(1, workers - 1) if plan.state == "compiling" else workers
+                limit = getattr(executor, "_max_workers", None) or os.cpu_count() or 1
             _run_on(executor, next_chunk, lambda: bool(todo), jobs, until, progress, finish,
                     limit, plan.poll)
     finally:
@@ -650,9 +644,8 @@ def _run_on(executor: Executor, next_chunk: Callable[[], tuple[list[int], str]],
             more: Callable[[], bool], jobs: list, until: str,
             progress: Callable[[int], None] | None,
             finish: Callable[[list[int], str, list[dict]], None],
-            limit: Callable[[], int] | None = None,
-            poll: Callable[[], Any] = lambda: None) -> None:
-    """Submit chunks (at most limit() running at once, None: all at once);
+            limit: int | None = None, poll: Callable[[], Any] = lambda: None) -> None:
+    """Submit chunks (at most `limit` running at once, None: all at once);
     report runs as they finish, rows as chunks return; poll() between."""
     import queue as queue_mod
     from concurrent.futures import FIRST_COMPLETED, wait
@@ -666,7 +659,7 @@ def _run_on(executor: Executor, next_chunk: Callable[[], tuple[list[int], str]],
             told[i] = k
 
     def submit() -> None:
-        while more() and (limit is None or len(futs) < limit()):
+        while more() and (limit is None or len(futs) < limit):
             ch, eng = next_chunk()
             i = len(told)
             told[i] = 0

@@ -291,35 +291,3 @@ def test_a_compile_another_sweep_runs_is_watched_not_started_again(tmp_path, mon
     assert [r["engine"] for r in rows] == ["reference", "reference", "soa"]
     assert [k for k, _ in events] == ["compiling", "compiled"]
     assert f"pid {os.getpid()}" in events[0][1]
-
-
-def test_while_it_compiles_the_sweep_leaves_the_compile_a_worker(cold_cache, monkeypatch):
-    """Two workers: one chunk at a time while the compile runs (it gets a
-    core), two at once after it."""
-    import threading
-    from concurrent.futures import ThreadPoolExecutor
-    real, lock = sweep.run_chunk, threading.Lock()
-    running, most = [0], {"reference": 0, "soa": 0}
-
-    def run_chunk(jobs, engine, *args, **kw):
-        with lock:
-            running[0] += 1
-            most[engine] = max(most[engine], running[0])
-        try:
-            return real(jobs, engine, *args, **kw)
-        finally:
-            with lock:
-                running[0] -= 1
-    monkeypatch.setattr(sweep, "run_chunk", run_chunk)
-
-    def on_rows(rows):
-        if len(on_rows.seen) == 2:
-            cold_cache.done = True
-        on_rows.seen.append(rows)
-    on_rows.seen = []
-    with ThreadPoolExecutor(2) as ex:
-        rows = sweep.sweep(sweep.grid_points({}), range(1, 9), overrides={"maxTicks": MAX_TICKS},
-                           chunk_size=1, executor=ex, on_rows=on_rows)
-    assert len(rows) == 8 and most["reference"] == 1
-    assert [r["engine"] for r in rows][:3] == ["reference"] * 3
-    assert {r["engine"] for r in rows[3:]} == {"soa"}
