@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterable, Mapping
+from typing import Any, Callable, Iterable, Mapping
 
 from sim_backend.errors import ScenarioError
 
@@ -100,13 +100,22 @@ def run(scenario: str | Path | Mapping[str, Any] = "default", seed: int = 0,
 
 def sweep(grid: Mapping[str, Iterable[Any]], seeds: int | Iterable[int] = 20,
           scenario: str | Path | Mapping[str, Any] = "default", engine: str = "auto",
-          until: str = "delivered", executor: Any = None, **overrides: Any) -> Any:
+          until: str = "delivered", executor: Any = None,
+          progress: bool | Callable[[str], None] = True, **overrides: Any) -> Any:
     """Every grid point with every seed; one row per run in point, seed order.
 
     grid: {scenario key: [values]}, their product is the set of points.
     seeds: a count N (seeds 1..N) or the seeds themselves.
-    engine: auto, soa or reference (sim_backend.sweep.ENGINES).
+    engine: auto, soa or reference (sim_backend.sweep.ENGINES). auto does
+      not wait for the soa engine's first compile: the runs start in the
+      reference engine while it compiles in the background (the `engine`
+      column says which engine ran each row); soa waits for it.
     executor: a concurrent.futures.Executor (None: this process).
+    progress: True (default) prints progress lines on stderr (the first
+      run, then every 5% of the runs or 10 s, and what the engine is doing:
+      a background compile's start and end); a callable gets those lines
+      instead; False prints nothing. The `sim_backend.sweep` logger hears
+      the engine's news either way.
     overrides: scenario keys for every point, e.g. maxTicks=3000.
     """
     from sim_backend import sweep as sw
@@ -127,6 +136,26 @@ def sweep(grid: Mapping[str, Iterable[Any]], seeds: int | Iterable[int] = 20,
         grid_lists[key] = list(values)
     base = scenario_of(scenario, overrides)
     points = sw.grid_points(grid_lists)
+    if progress is True:
+        import sys
+
+        def emit(line: str) -> None:
+            print(line, file=sys.stderr, flush=True)
+    elif callable(progress):
+        emit = progress
+    elif progress is False or progress is None:
+        emit = None
+    else:
+        raise ScenarioError(f"progress: expected True, False or a function of one line, "
+                            f"got {progress!r}")
+    step = on_event = None
+    if emit is not None:
+        status = sw.EngineStatus()
+        step = sw.ProgressLog(len(points) * len(seed_list), emit, note=status.note).update
+
+        def on_event(kind: str, text: str) -> None:
+            status(kind, text)
+            emit(f"sweep: {text}")
     rows = sw.sweep(points, seed_list, base=base, engine=engine, executor=executor,
-                    until=until)
+                    until=until, progress=step, on_event=on_event)
     return _frame(rows)

@@ -38,6 +38,12 @@ ENGINES = ("auto", "soa", "reference")
 # how long the soa engine's first compile of a behaviour takes on a 2-core
 # machine (docs/performance.md: aggregate 80-95 s, thesis 142-206 s)
 SOA_COLD_COMPILE = "1.5-3.5 min"
+# engine auto on a cold cache: the runs start in the reference engine while
+# the soa step compiles in another process; reference chunks hold this many
+# runs, so that the runs move to soa within a few runs of the compile's end
+REFERENCE_CHUNK = 4
+# what a sweep's on_event(kind, text) hears about a background compile
+EVENTS = ("compiling", "compiled", "failed", "left")
 MEASURES = ["ticks", "found_tick", "converged_tick", "home_tick", "n_touches", "power",
             "shape_iou", "leader", "delivered", "segments", "touches", "converged_moves"]
 # the drawn pieces (tables, not values) go in one text column, `pieces`
@@ -151,6 +157,206 @@ def warm(scenarios: Iterable[Scenario], engine: str = "auto",
         return []
     from sim_backend.batch.soa import warm as soa_warm
     return soa_warm(scenarios, on_compile)
+
+
+# the background compile's process: the scenarios (one per behaviour) come
+# pickled on stdin; the last line on stderr of a failure is its reason
+COMPILE_MAIN = "from sim_backend.sweep import _compile_main; _compile_main()"
+
+
+def _compile_main() -> None:
+    import pickle
+    import sys
+    import traceback
+    scenarios = pickle.load(sys.stdin.buffer)
+    try:
+        from sim_backend.batch.soa import warm as soa_warm
+        soa_warm(scenarios)
+    except BaseException as err:      # noqa: BLE001 - reported to the sweep in one line
+        traceback.print_exc()
+        print(one_line(err), file=sys.stderr, flush=True)
+        sys.exit(1)
+
+
+def one_line(err: BaseException) -> str:
+    """`Type: first line of the message`."""
+    first = (str(err).strip().splitlines() or [""])[0]
+    return f"{type(err).__name__}: {first}" if first else type(err).__name__
+
+
+class _Refused:
+    """A background compile that could not start: the transform refused the
+    behaviour (or failed) in this process already."""
+    pid = None
+    seconds = 0.0
+
+    def __init__(self, err: BaseException) -> None:
+        self.error = one_line(err)
+
+    def finished(self) -> bool:
+        return True
+
+
+class BackgroundCompile:
+    """The soa engine's compile of the behaviours of `scenarios`, in a
+    separate process (`python -c COMPILE_MAIN`: it holds its own GIL, not
+    the sweep's), started at once. finished() does not block; after it
+    returns True, `error` is None or the failure in one line and `seconds`
+    how long it took. A sweep that ends first leaves it running: it fills
+    the disk cache for the next sweep. Two at once compile once: the second
+    waits on the compile lock (soa.compile_lock) and then loads."""
+
+    def __init__(self, scenarios: Sequence[Scenario]) -> None:
+        import pickle
+        import subprocess
+        import sys
+        import tempfile
+        import time
+        first: dict[str, Scenario] = {}
+        for sc in scenarios:
+            first.setdefault(str(sc.behaviour), sc)
+        self.behaviours = list(first)
+        self._clock = time.monotonic
+        self._err = tempfile.TemporaryFile()
+        root = str(Path(__file__).resolve().parents[1])
+        env = dict(os.environ)
+        env["PYTHONPATH"] = os.pathsep.join(p for p in (root, env.get("PYTHONPATH")) if p)
+        self.t0 = self._clock()
+        self.proc = subprocess.Popen([sys.executable, "-c", COMPILE_MAIN],
+                                     stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
+                                     stderr=self._err, env=env)
+        assert self.proc.stdin is not None
+        self.proc.stdin.write(pickle.dumps(list(first.values())))
+        self.proc.stdin.close()
+        self.pid = self.proc.pid
+        self.error: str | None = None
+        self.seconds: float | None = None
+
+    def finished(self) -> bool:
+        if self.seconds is not None:
+            return True
+        rc = self.proc.poll()
+        if rc is None:
+            return False
+        self.seconds = self._clock() - self.t0
+        if rc != 0:
+            self.error = self._reason(rc)
+        self._err.close()
+        return True
+
+    def wait(self) -> bool:
+        """Block until the compile ends (for callers that want it, not sweeps)."""
+        self.proc.wait()
+        return self.finished()
+
+    def _reason(self, rc: int) -> str:
+        if rc < 0:
+            return f"the compile process was killed by signal {-rc}"
+        self._err.seek(0)
+        lines = [ln.strip() for ln in self._err.read().decode(errors="replace").splitlines()
+                 if ln.strip()]
+        return lines[-1] if lines else f"the compile process exited with status {rc}"
+
+
+class _Watch:
+    """A compile another process is running (it holds the compile lock of
+    every step this sweep lacks: another sweep's background compile):
+    watched, not started again. It has ended when no process holds the
+    locks; well if the cache holds the steps then."""
+
+    def __init__(self, scenarios: Sequence[Scenario], folders: Sequence[Path], pid: int) -> None:
+        import time
+        self.scenarios, self.folders, self.pid = scenarios, folders, pid
+        self._clock = time.monotonic
+        self.t0 = self._clock()
+        self.error: str | None = None
+        self.seconds: float | None = None
+
+    def finished(self) -> bool:
+        from sim_backend.batch.soa import cold, lock_holder
+        if self.seconds is not None:
+            return True
+        if any(lock_holder(f) is not None for f in self.folders):
+            return False
+        self.seconds = self._clock() - self.t0
+        if cold(self.scenarios):
+            self.error = f"the compile in process {self.pid} ended without the step"
+        return True
+
+
+def _local(executor: Executor | None) -> bool:
+    """Whether the executor's workers run on this machine (and so see the
+    disk cache a background compile fills)."""
+    from concurrent.futures import ThreadPoolExecutor
+    return executor is None or isinstance(executor, (ProcessPoolExecutor, ThreadPoolExecutor))
+
+
+class EngineStatus:
+    """What a sweep's engine is doing, for progress lines: pass it as the
+    sweep's on_event; note() is the text a progress line ends with."""
+
+    def __init__(self, clock: Callable[[], float] | None = None) -> None:
+        import time
+        self.clock = clock or time.monotonic
+        self.kind: str | None = None
+        self.since = self.clock()
+
+    def __call__(self, kind: str, text: str) -> None:
+        self.kind, self.since = kind, self.clock()
+
+    def note(self) -> str:
+        if self.kind == "compiling":
+            return (f"reference engine while soa compiles in the background "
+                    f"({_duration(self.clock() - self.since)})")
+        if self.kind == "compiled":
+            return "soa engine (compiled in the background)"
+        if self.kind == "failed":
+            return "reference engine (the soa compile failed)"
+        return ""
+
+
+class _Engines:
+    """The engine each new chunk runs in: `engine`, or, with a background
+    compile, reference until it ends well and soa after (reference for good
+    when it fails). Tells on_event(kind, text) and the log of each change."""
+
+    def __init__(self, engine: str, bg: Any = None,
+                 on_event: Callable[[str, str], None] | None = None) -> None:
+        self.fixed = pick_engine(engine)
+        self.bg = bg
+        self.on_event = on_event
+        self.state = "compiling" if bg is not None else None
+
+    def tell(self, kind: str, text: str) -> None:
+        (log.warning if kind == "failed" else log.info)("%s", text)
+        if self.on_event is not None:
+            self.on_event(kind, text)
+
+    def poll(self, then: str = "the runs not started yet go to it") -> str:
+        if self.state == "compiling" and self.bg.finished():
+            if self.bg.error:
+                self.state = "failed"
+                self.tell("failed", f"the soa engine's compile failed ({self.bg.error}); "
+                                    "the sweep finishes in the reference engine")
+            else:
+                self.state = "compiled"
+                self.tell("compiled", f"the soa engine compiled in the background in "
+                                      f"{_duration(self.bg.seconds or 0.0)}; {then}")
+        if self.state is None:
+            return self.fixed
+        return "soa" if self.state == "compiled" else "reference"
+
+    def chunk_size(self, engine: str, chunk_size: int) -> int:
+        if self.state is not None and engine == "reference":
+            return min(chunk_size, REFERENCE_CHUNK)
+        return chunk_size
+
+    def end(self) -> None:
+        if self.state == "compiling" and not self.bg.finished():
+            self.tell("left", f"the soa compile goes on in the background (pid {self.bg.pid}) "
+                              "and fills the disk cache for the next sweep")
+        else:
+            self.poll("the next sweep starts in it")
 
 
 def run_chunk(jobs: Sequence[tuple[dict, dict, int]], engine: str = "auto",
@@ -297,9 +503,20 @@ def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None =
           on_rows: Callable[[list[dict]], None] | None = None,
           done: Sequence[dict] = (),
           on_compile: Callable[[str, Path], None] | None = None,
-          compile_first: bool = True) -> list[dict]:
+          compile_first: bool = True,
+          on_event: Callable[[str, str], None] | None = None,
+          background: Callable[[Sequence[Scenario]], Any] | None = None) -> list[dict]:
     """Run every point with every seed; return tidy rows in point, seed order.
 
+    engine: soa (compile the soa step first if the disk cache lacks it, then
+      run in it), reference, or auto: soa when the cache holds the step;
+      when it does not (and the executor is local), the runs start at once
+      in the reference engine while `background(scenarios)` compiles the
+      step in another process, and the chunks started after it ends run in
+      soa (rows may mix: bit-identical engines; each row's `engine` says
+      which ran it). A compile that fails leaves the sweep in the reference
+      engine. A dask executor's workers do not share this machine's cache:
+      auto compiles first there, as soa does.
     executor: any concurrent.futures.Executor (None: run in this process).
     overrides: scenario keys applied to every point (e.g. maxTicks).
     progress: called with the number of runs just finished, as each run
@@ -311,8 +528,14 @@ def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None =
       are checked against this sweep (check_done) and not run again; the
       result holds only the new runs.
     on_compile: told (behaviour, cache folder) before the soa engine compiles
-      a behaviour its disk cache does not hold (see warm).
+      a behaviour its disk cache does not hold in this process (see warm).
     compile_first: False when the caller ran warm itself.
+    on_event: told (kind, one-line text) of a background compile: kind
+      "compiling" when it starts, "compiled" or "failed" when it ends,
+      "left" when the sweep ends first (EVENTS); the log hears them too.
+    background: starts the background compile (default BackgroundCompile;
+      tests pass a fake): an object with pid and finished() -> bool, then
+      error (None or the reason in one line) and seconds.
     """
     if engine not in ENGINES:
         raise ValueError(f"engine: expected one of {ENGINES}, got {engine!r}")
@@ -333,35 +556,73 @@ def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None =
                 continue
             jobs.append((base_d, pt.as_dict(), s))
             meta.append((pt, sc, s))
-    if jobs and compile_first:
-        warm([sc for _, sc, _ in meta], engine, on_compile)
-    chunks = [list(range(i, min(i + chunk_size, len(jobs))))
-              for i in range(0, len(jobs), chunk_size)]
+    scenarios = [sc for _, sc, _ in meta]
+    bg = None
+    if jobs and engine == "auto" and _local(executor):
+        from sim_backend.batch.soa import cold
+        try:
+            missing = cold(scenarios)
+        except Exception as err:       # e.g. a CompileError: auto runs the reference
+            missing, bg = {}, _Refused(err)
+            plan = _Engines(engine, bg, on_event)
+        if missing:
+            from sim_backend.batch.soa import lock_holder
+            held = [lock_holder(d) for d in missing.values()]
+            if all(h is not None for h in held):       # another sweep compiles them
+                bg = _Watch(scenarios, list(missing.values()), held[0])
+            else:
+                bg = (background or BackgroundCompile)(scenarios)
+            names = ", ".join(repr(b) for b in missing)
+            where = ", ".join(str(d) for d in missing.values())
+            plan = _Engines(engine, bg, on_event)
+            plan.tell("compiling", f"the soa engine for behaviour {names} is not compiled yet "
+                                   f"(once per machine and behaviour source, {SOA_COLD_COMPILE}):"
+                                   f" the runs start now in the reference engine while it "
+                                   f"compiles in the background (pid {bg.pid}; cache {where})")
+    if bg is None:
+        plan = _Engines(engine)
+        if jobs and compile_first:
+            warm(scenarios, engine, on_compile)
     rows: list[dict | None] = [None] * len(jobs)
+    todo = list(range(len(jobs)))          # job indices not yet given to a chunk
 
-    def finish(i: int, sums: list[dict]) -> None:
-        new = [make_row(*meta[j], summ, until) for j, summ in zip(chunks[i], sums)]
-        for j, r in zip(chunks[i], new):
+    def next_chunk() -> tuple[list[int], str]:
+        eng = plan.poll()
+        n = plan.chunk_size(eng, chunk_size)
+        ch = todo[:n]
+        del todo[:n]
+        return ch, eng
+
+    def finish(ch: list[int], eng: str, sums: list[dict]) -> None:
+        new = [make_row(*meta[j], summ, until, eng) for j, summ in zip(ch, sums)]
+        for j, r in zip(ch, new):
             rows[j] = r
         if on_rows is not None:
             on_rows(new)
 
-    if executor is None:
-        for i, ch in enumerate(chunks):
-            report = None
-            if progress is not None:
+    try:
+        if executor is None:
+            while todo:
+                ch, eng = next_chunk()
                 told = [0]
 
                 def report(k: int, told: list[int] = told) -> None:
-                    if k > told[0]:
+                    if progress is not None and k > told[0]:
                         progress(k - told[0])
                         told[0] = k
-            sums = run_chunk([jobs[j] for j in ch], engine, until, report=report)
-            if progress is not None and told[0] < len(ch):
-                progress(len(ch) - told[0])
-            finish(i, sums)
-    else:
-        _run_on(executor, chunks, jobs, engine, until, progress, finish)
+                sums = run_chunk([jobs[j] for j in ch], eng, until, report=report)
+                report(len(ch))
+                finish(ch, eng, sums)
+        else:
+            # with a background compile, a chunk's engine is chosen when a
+            # worker is free for it; otherwise every chunk goes at once
+            limit = None
+            if bg is not None:
+                limit = getattr(executor, "_max_workers", None) or os.cpu_count() or 1
+            _run_on(executor, next_chunk, lambda: bool(todo), jobs, until, progress, finish,
+                    limit, plan.poll)
+    finally:
+        plan.end()
     return rows  # type: ignore[return-value]
 
 
@@ -379,40 +640,52 @@ def _progress_queue(executor: Executor) -> tuple[Any, Callable[[], None]]:
     return None, (lambda: None)
 
 
-def _run_on(executor: Executor, chunks: list[list[int]], jobs: list, engine: str, until: str,
+def _run_on(executor: Executor, next_chunk: Callable[[], tuple[list[int], str]],
+            more: Callable[[], bool], jobs: list, until: str,
             progress: Callable[[int], None] | None,
-            finish: Callable[[int, list[dict]], None]) -> None:
-    """Submit every chunk; report runs as they finish, rows as chunks return."""
+            finish: Callable[[list[int], str, list[dict]], None],
+            limit: int | None = None, poll: Callable[[], Any] = lambda: None) -> None:
+    """Submit chunks (at most `limit` running at once, None: all at once);
+    report runs as they finish, rows as chunks return; poll() between."""
     import queue as queue_mod
     from concurrent.futures import FIRST_COMPLETED, wait
     q, close = _progress_queue(executor) if progress is not None else (None, lambda: None)
-    told = [0] * len(chunks)
+    told: dict[int, int] = {}
+    futs: dict[Future, tuple[int, list[int], str]] = {}
 
     def tell(i: int, k: int) -> None:
-        if k > told[i]:
-            progress(k - told[i])  # type: ignore[misc]
+        if k > told.get(i, 0):
+            progress(k - told.get(i, 0))  # type: ignore[misc]
             told[i] = k
+
+    def submit() -> None:
+        while more() and (limit is None or len(futs) < limit):
+            ch, eng = next_chunk()
+            i = len(told)
+            told[i] = 0
+            futs[executor.submit(run_chunk, [jobs[j] for j in ch], eng, until, q, i)] = \
+                (i, ch, eng)
     try:
-        futs: dict[Future, int] = {
-            executor.submit(run_chunk, [jobs[j] for j in ch], engine, until, q, i): i
-            for i, ch in enumerate(chunks)}
-        pending = set(futs)
-        while pending:
-            # the timeout only bounds how stale the per-run progress gets
-            finished, pending = wait(pending, timeout=0.5 if q is not None else None,
-                                     return_when=FIRST_COMPLETED)
+        submit()
+        while futs:
+            # the timeout only bounds how stale the per-run progress (and
+            # the news of a background compile) gets
+            timeout = 0.5 if q is not None or limit is not None else None
+            finished, _ = wait(set(futs), timeout=timeout, return_when=FIRST_COMPLETED)
             while q is not None:
                 try:
                     i, k = q.get_nowait()
                 except queue_mod.Empty:
                     break
                 tell(i, k)
+            poll()
             for f in finished:
-                i = futs[f]
+                i, ch, eng = futs.pop(f)
                 sums = f.result()
                 if progress is not None:
-                    tell(i, len(chunks[i]))
-                finish(i, sums)
+                    tell(i, len(ch))
+                finish(ch, eng, sums)
+            submit()
     finally:
         close()
 
@@ -453,7 +726,7 @@ def columns(behaviours: Iterable[str]) -> list[str]:
     fixed ones, then each behaviour's declared measures not already there."""
     from firmware_logic import registry
     names = ["experiment", "point", *SCENARIO_KEYS, "pieces", "breeds", "required", "seed",
-             "until",
+             "until", "engine",
              *MEASURES]
     from sim_backend import params
     at = names.index("pieces")
@@ -482,7 +755,9 @@ def point_behaviours(points: Sequence[Point], base: Scenario | None = None,
     return list(dict.fromkeys(sc.behaviour for sc in point_scenarios(points, base, overrides)))
 
 
-def make_row(pt: Point, sc: Scenario, seed: int, s: dict, until: str) -> dict:
+def make_row(pt: Point, sc: Scenario, seed: int, s: dict, until: str,
+             engine: str = "reference") -> dict:
+    """One sweep.csv row: the run's settings, the engine that ran it, its measures."""
     row: dict[str, Any] = {"experiment": pt.experiment,
                            "point": ";".join(f"{k}={v}" for k, v in pt.params)}
     for k in SCENARIO_KEYS:
@@ -493,6 +768,7 @@ def make_row(pt: Point, sc: Scenario, seed: int, s: dict, until: str) -> dict:
     row["required"] = holders_needed(sc, sc.weight_centi)
     row["seed"] = seed
     row["until"] = until
+    row["engine"] = engine
     row["ticks"] = s["ticks"]
     row["found_tick"] = s["found_tick"]
     row["converged_tick"] = s["converged_tick"]
@@ -608,16 +884,20 @@ class ProgressLog:
     """Progress as plain lines, for a sweep whose output is not a terminal
     (a log file, CI, nohup): `done/total runs (pct), rate runs/s, ETA`.
 
-    update(n) is called as each run finishes; a line goes to emit every
-    `every_runs` runs (default: every 5% of the sweep) or once `every_s`
-    seconds have passed since the last line, whichever comes first, and
-    at the end. clock is injectable so tests need no real time.
+    update(n) is called as each run finishes; a line goes to emit for the
+    first run, then every `every_runs` runs (default: every 5% of the
+    sweep) or once `every_s` seconds have passed since the last line,
+    whichever comes first, and at the end. note() (e.g. EngineStatus.note)
+    ends each line when it says something. clock is injectable so tests
+    need no real time.
     """
 
     def __init__(self, total: int, emit: Callable[[str], None], already: int = 0,
                  every_runs: int | None = None, every_s: float = 10.0,
-                 clock: Callable[[], float] | None = None) -> None:
+                 clock: Callable[[], float] | None = None,
+                 note: Callable[[], str] | None = None) -> None:
         import time
+        self.note = note
         self.total = total
         self.emit = emit
         self.already = already          # runs a resumed sweep found done
@@ -631,7 +911,8 @@ class ProgressLog:
     def update(self, n: int = 1) -> None:
         self.done += n
         now = self.clock()
-        if (self.done >= self.total or self.done - self.last_done >= self.every_runs
+        first = self.last_done == self.already
+        if (first or self.done >= self.total or self.done - self.last_done >= self.every_runs
                 or now - self.last_t >= self.every_s):
             self.emit(self.line(now))
             self.last_t, self.last_done = now, self.done
@@ -643,8 +924,9 @@ class ProgressLog:
         left = self.total - self.done
         eta = _duration(left / rate) if rate > 0 else "?"
         pct = 100 * self.done / self.total if self.total else 100.0
+        note = self.note() if self.note is not None else ""
         return (f"sweep: {self.done}/{self.total} runs ({pct:.0f}%), {rate:.2f} runs/s, "
-                f"ETA {eta}")
+                f"ETA {eta}" + (f"; {note}" if note else ""))
 
 
 def _duration(s: float) -> str:

@@ -18,6 +18,14 @@ def csv_text(tmp_path, name, **kw):
     return sweep.write_csv(rows, tmp_path / name).read_text(), rows
 
 
+def but_engine(text):
+    """A sweep.csv's text without its engine column (the one column that
+    says which bit-identical engine ran the row)."""
+    lines = [ln.split(",") for ln in text.splitlines()]
+    at = lines[0].index("engine")
+    return [ln[:at] + ln[at + 1:] for ln in lines]
+
+
 def test_grid_rows_and_reference_agree(tmp_path):
     local, rows = csv_text(tmp_path, "a.csv")
     assert len(rows) == 12
@@ -25,8 +33,10 @@ def test_grid_rows_and_reference_agree(tmp_path):
         (1, "firefly", 1), (1, "firefly", 2), (1, "firefly", 3), (1, "ant", 1)]
     for key in ("sigRadius", "rPower", "object", "converged_tick", "shape_iou", "segments"):
         assert key in rows[0]
-    ref, _ = csv_text(tmp_path, "b.csv", engine="reference")
-    assert ref == local
+    ref, ref_rows = csv_text(tmp_path, "b.csv", engine="reference")
+    assert but_engine(ref) == but_engine(local) and ref != local
+    assert {r["engine"] for r in rows} == {"soa"}
+    assert {r["engine"] for r in ref_rows} == {"reference"}
     with ThreadPoolExecutor(2) as ex:
         threaded, _ = csv_text(tmp_path, "c.csv", executor=ex)
     assert threaded == local
@@ -85,7 +95,7 @@ def test_a_grid_over_behaviours_reports_each_behaviours_measures(tmp_path):
     pts = sweep.grid_points({"behaviour": ["thesis", "aggregate"]})
     rows = sweep.sweep(pts, [1, 2], overrides=OVR)
     ref = sweep.sweep(pts, [1, 2], overrides=OVR, engine="reference")
-    assert rows == ref
+    assert [{**r, "engine": "reference"} for r in rows] == ref
     agg = [r for r in rows if r["behaviour"] == "aggregate"]
     the = [r for r in rows if r["behaviour"] == "thesis"]
     assert len(agg) == len(the) == 2

@@ -24,17 +24,20 @@ def test_progress_log_lines_by_runs_and_by_time():
     lines: list[str] = []
     clock = FakeClock()
     log = sweep.ProgressLog(100, lines.append, every_runs=10, every_s=5.0, clock=clock)
+    clock.t += 0.1
+    log.update()                      # the first run always shows: the first result
+    assert lines == ["sweep: 1/100 runs (1%), 10.00 runs/s, ETA 10s"]
     for _ in range(9):
         clock.t += 0.1
         log.update()
-    assert lines == []
+    assert len(lines) == 1
     clock.t += 0.1
-    log.update()                      # the 10th run
-    assert lines == ["sweep: 10/100 runs (10%), 10.00 runs/s, ETA 9s"]
+    log.update()                      # 10 runs after the last line
+    assert lines[-1] == "sweep: 11/100 runs (11%), 10.00 runs/s, ETA 9s"
     clock.t += 6.0                    # a slow run: the time limit shows it
     log.update()
-    assert lines[-1] == "sweep: 11/100 runs (11%), 1.57 runs/s, ETA 57s"
-    for _ in range(89):
+    assert lines[-1] == "sweep: 12/100 runs (12%), 1.69 runs/s, ETA 52s"
+    for _ in range(88):
         log.update()
     assert lines[-1].startswith("sweep: 100/100 runs (100%)")
 

@@ -68,12 +68,19 @@ def register(sub) -> None:
                    help="stop each run when the object is home or when power first reaches "
                         "its weight (default: delivered; --thesis: converged)")
     p.add_argument("--engine", choices=ENGINES, default=None,
-                   help="auto (default) or soa: the struct-of-arrays transform of the "
-                        "behaviour's own source, compiled once per machine and behaviour "
-                        f"source ({SOA_COLD_COMPILE}, said on stderr; TOUCHSWARM_SOA_INLINE=0 "
-                        "halves it, for slower runs) and cached on disk (~/.cache/touchswarm "
-                        "or $TOUCHSWARM_CACHE); reference: the per-robot engine, bit-identical "
-                        "and over 100x slower at 10,000 robots (docs/performance.md)")
+                   help="soa: the struct-of-arrays transform of the behaviour's own "
+                        "source, compiled once per machine and behaviour source "
+                        f"({SOA_COLD_COMPILE}, said on stderr; TOUCHSWARM_SOA_INLINE=0 halves "
+                        "it, for slower runs) and cached on disk (~/.cache/touchswarm or "
+                        "$TOUCHSWARM_CACHE); soa waits for that compile before the first run. "
+                        "auto (default): soa when the cache holds it; when not, the runs start "
+                        "at once in the reference engine while the soa engine compiles in a "
+                        "background process, and the runs not started when it is done go to "
+                        "soa (sweep.csv's engine column says which engine ran each row; a "
+                        "failed compile leaves the sweep in the reference engine, said in one "
+                        "line; a compile still going when the sweep ends goes on and fills "
+                        "the cache). reference: the per-robot engine, bit-identical and over "
+                        "100x slower at 10,000 robots (docs/performance.md)")
     p.add_argument("--executor", default=None, metavar="SPEC",
                    help="processes[:N] (default: one per core), inline, or dask://HOST:PORT "
                         "(a dask.distributed scheduler)")
@@ -300,15 +307,28 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     appender = sweep.CsvAppender(csv_path, names, resume=args.resume)
     if done:
         print(f"resuming: {len(done)} of {total} runs already in {csv_path}", file=sys.stderr)
-    # compile (or load) the engine first, so the progress rate counts runs only
-    if todo:
+    # --engine soa: compile (or load) the engine first, so the progress rate
+    # counts runs only; auto does not wait (a cold cache compiles in the
+    # background while the runs start in the reference engine)
+    if todo and cfg["engine"] == "soa":
         sweep.warm(sweep.point_scenarios(points, base, overrides), cfg["engine"], _compiling)
-    bar, step = _progress(total, len(done), args.progress_every)
+    status = sweep.EngineStatus()
+    bar, step = _progress(total, len(done), args.progress_every, status.note)
+
+    def on_event(kind: str, text: str) -> None:
+        status(kind, text)
+        line = f"sweep: {text}"
+        if bar is not None:
+            bar.set_postfix_str(status.note(), refresh=False)
+            bar.write(line, file=sys.stderr)
+        else:
+            print(line, file=sys.stderr, flush=True)
     t0 = time.perf_counter()
     try:
         new = sweep.sweep(points, seeds, base=base, engine=cfg["engine"], executor=executor,
                           until=until, chunk_size=chunk, overrides=overrides, progress=step,
-                          on_rows=appender.append, done=done, compile_first=False)
+                          on_rows=appender.append, done=done,
+                          compile_first=cfg["engine"] != "soa", on_event=on_event)
     finally:
         appender.close()
         if bar is not None:
@@ -340,15 +360,21 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             pngs = plots.thesis_plots(saved, out) + thesis_figures.plots(saved, out)
         else:
             pngs = plots.grid_plots(saved, list(grid), out)
+    engines: dict[str, int] = {}
+    for r in new:
+        engines[r["engine"]] = engines.get(r["engine"], 0) + 1
     info = {"runs": len(rows), "new_runs": len(new), "resumed_runs": len(done),
             "points": len(points), "seeds": len(seeds), "engine": cfg["engine"],
+            "engines": engines,
             "executor": cfg["executor"], "until": until, "wall_s": round(wall, 3),
             "csv": str(csv_path), "plots": [str(p) for p in pngs]}
     if args.json:
         print(json.dumps(info, sort_keys=True))
     else:
         again = f", {len(done)} kept from before" if done else ""
-        used = sweep.pick_engine(cfg["engine"])
+        # the engines that ran the new runs: one, or "12 reference + 8 soa"
+        used = " + ".join(f"{n} {e}" for e, n in engines.items()) if len(engines) > 1 else \
+            next(iter(engines), sweep.pick_engine(cfg["engine"]))
         engine = used if used == cfg["engine"] else f"{used} ({cfg['engine']})"
         print(f"{len(rows)} runs ({len(points)} points x {len(seeds)} seeds, {engine} "
               f"engine, until {until}{again}) in {wall:.1f} s")
@@ -364,13 +390,18 @@ def _seeds_value(text: str) -> int | str | list[int]:
     return int(text) if text.isdigit() else text
 
 
-def _progress(total: int, already: int, every_s: float):
-    """(bar or None, step(n)): a tqdm bar on a terminal, else log lines on stderr."""
+def _progress(total: int, already: int, every_s: float, note):
+    """(bar or None, step(n)): a tqdm bar on a terminal, else log lines on
+    stderr; note() (what the engine is doing) ends the bar or each line."""
     if sys.stderr.isatty():
         from tqdm import tqdm
         bar = tqdm(total=total, initial=already, unit="run", desc="sweep")
-        return bar, bar.update
+
+        def step(n: int) -> None:
+            bar.set_postfix_str(note(), refresh=False)
+            bar.update(n)
+        return bar, step
     from sim_backend.sweep import ProgressLog
     log = ProgressLog(total, lambda line: print(line, file=sys.stderr, flush=True),
-                      already=already, every_s=every_s)
+                      already=already, every_s=every_s, note=note)
     return None, log.update

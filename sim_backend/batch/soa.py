@@ -36,9 +36,10 @@ import threading
 import time
 import traceback
 from collections import defaultdict
+from contextlib import contextmanager
 from pathlib import Path
 from types import ModuleType
-from typing import Any, Callable, Iterable, Sequence
+from typing import Any, Callable, Iterable, Iterator, Sequence
 
 import numpy as np
 
@@ -104,11 +105,21 @@ class Compiled:
         name = self.names[key]
         return getattr(self.module, name), getattr(self.module, name + "__STATE")
 
-    def first_call(self, fn: Any, args: tuple) -> Any:
+    def first_call(self, fn: Any, args: tuple, key: str | None = None) -> Any:
         """fn(*args), the call that compiles fn or loads it from the disk
         cache. numba raises on a cache file it cannot unpickle (a truncated
         or damaged index or data file) instead of compiling again; then the
-        module's cache is deleted, a warning names it, and fn compiles."""
+        module's cache is deleted, a warning names it, and fn compiles.
+        When entry `key` is not on disk yet the call holds the module's
+        compile lock: processes that need the same step (a sweep's
+        background compile, its workers, another sweep) compile it once,
+        the others wait and load it."""
+        if key is None or self.on_disk(key):
+            return self._first_call(fn, args)
+        with compile_lock(self.path.parent):
+            return self._first_call(fn, args)
+
+    def _first_call(self, fn: Any, args: tuple) -> Any:
         try:
             return fn(*args)
         except Exception as err:
@@ -119,6 +130,49 @@ class Compiled:
                         "compiling it again", folder, type(err).__name__, err)
             shutil.rmtree(folder, ignore_errors=True)
             return fn(*args)
+
+
+@contextmanager
+def compile_lock(folder: Path) -> Iterator[None]:
+    """Hold `folder`/compile.lock (an flock: the kernel frees it when the
+    holder dies) for the duration; no lock where fcntl is missing."""
+    try:
+        import fcntl
+    except ImportError:          # not POSIX: compiles may overlap, numba copes
+        yield
+        return
+    folder.mkdir(parents=True, exist_ok=True)
+    with open(folder / "compile.lock", "a+") as f:
+        fcntl.flock(f, fcntl.LOCK_EX)
+        try:
+            f.seek(0)
+            f.truncate()
+            f.write(str(os.getpid()))        # who compiles, for lock_holder
+            f.flush()
+            yield
+        finally:
+            fcntl.flock(f, fcntl.LOCK_UN)
+
+
+def lock_holder(folder: Path) -> int | None:
+    """The pid of the process that holds `folder`'s compile lock (compiling
+    its step now; -1 when it wrote none yet), or None when no process does."""
+    try:
+        import fcntl
+    except ImportError:
+        return None
+    path = folder / "compile.lock"
+    if not path.exists():
+        return None
+    with open(path, "a+") as f:
+        try:
+            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            f.seek(0)
+            text = f.read().strip()
+            return int(text) if text.isdigit() else -1
+        fcntl.flock(f, fcntl.LOCK_UN)
+        return None
 
 
 def _from_numba_cache(err: BaseException) -> bool:
@@ -325,10 +379,10 @@ class SoaEngine:
     def _first_tick(self, t: int) -> None:
         """The first tick: the calls that load the step from the disk cache,
         or compile it."""
-        self.compiled.first_call(self._tick_fn, self._tick_args + (0, t))
+        self.compiled.first_call(self._tick_fn, self._tick_args + (0, t), "tick_all")
         if self.record:
             out = np.zeros(len(self.robot_objs), dtype=np.int64)
-            self.compiled.first_call(self._states_fn, self._states_args + (out,))
+            self.compiled.first_call(self._states_fn, self._states_args + (out,), "states_of")
 
     # -- one tick ---------------------------------------------------------------------------
 
@@ -509,23 +563,36 @@ def run_batch(scenarios: Scenario | Sequence[Scenario], seeds: Iterable[int],
     return sums
 
 
+def _first_engines(scenarios: Iterable[Any]) -> dict[str, "SoaEngine"]:
+    """One one-run, one-tick engine per behaviour of `scenarios` (built, not
+    stepped: its transform is generated and written, nothing compiles)."""
+    first: dict[str, Any] = {}
+    for sc in scenarios:
+        first.setdefault(str(sc.behaviour), sc)
+    return {name: SoaEngine([(sc.replace(maxTicks=1), 1)]) for name, sc in first.items()}
+
+
+def cold(scenarios: Iterable[Any]) -> dict[str, Path]:
+    """The behaviours of `scenarios` whose step the disk cache does not hold
+    yet, each with its cache folder; nothing compiles (about 0.2 s of
+    transform per behaviour)."""
+    return {name: eng.compiled.path.parent for name, eng in _first_engines(scenarios).items()
+            if not eng.compiled.on_disk("tick_all")}
+
+
 def warm(scenarios: Iterable[Any], on_compile: Callable[[str, Path], None] | None = None
          ) -> list[str]:
     """Compile, or load from the disk cache, the step of every behaviour of
     `scenarios` in this process (one run of one tick each); on_compile(behaviour,
     cache folder) is called before a compile the cache does not hold. Returns
     the behaviours that compiled."""
-    first: dict[str, Any] = {}
-    for sc in scenarios:
-        first.setdefault(str(sc.behaviour), sc)
-    cold = []
-    for name, sc in first.items():
-        eng = SoaEngine([(sc.replace(maxTicks=1), 1)])
+    built = []
+    for name, eng in _first_engines(scenarios).items():
         if not eng.compiled.on_disk("tick_all"):
-            cold.append(name)
+            built.append(name)
             log.info("compiling the soa engine for behaviour %s (cache %s)", name,
                      eng.compiled.path.parent)
             if on_compile is not None:
                 on_compile(name, eng.compiled.path.parent)
         eng.step()
-    return cold
+    return built
