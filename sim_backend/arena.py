@@ -208,15 +208,35 @@ def label(sc: Any, p: Piece) -> str:
     return "object"
 
 
+def check_home(sc: Any) -> None:
+    """Home lies inside the arena."""
+    w = sc.worldSize
+    if abs(sc.homeX) > w - 1 or abs(sc.homeY) > w - 1:
+        raise ScenarioError(f"homeX/homeY: ({sc.homeX}, {sc.homeY}) must lie within "
+                            f"{-w + 1}..{w - 1} (worldSize={w})")
+
+
+def check_crowd(sc: Any, occupied: int, among: str | None = None) -> None:
+    """A quarter of the patches inside the edge, less the `occupied` ones,
+    left free for the robots; `among` names what occupies them."""
+    w = sc.worldSize
+    free = (2 * w - 1) ** 2 - occupied
+    if sc.agents <= free // 4:
+        return
+    if among is None:
+        raise ScenarioError(f"agents: {sc.agents} robots crowd a {2 * w + 1}-patch arena; "
+                            f"allowed 1..{free // 4} for worldSize={w}")
+    raise ScenarioError(f"agents: {sc.agents} robots crowd a {2 * w + 1}-patch arena "
+                        f"with {among}; allowed 1..{max(1, free // 4)}")
+
+
 def check(sc: Any) -> None:
     """Every object and obstacle fits, nothing overlaps, home is clear, the
     target's weight is reachable by the robots that can surround it, it has
     a way home, and the robots do not crowd the arena."""
     w = sc.worldSize
     pieces = sc.pieces()
-    if abs(sc.homeX) > w - 1 or abs(sc.homeY) > w - 1:
-        raise ScenarioError(f"homeX/homeY: ({sc.homeX}, {sc.homeY}) must lie within "
-                            f"{-w + 1}..{w - 1} (worldSize={w})")
+    check_home(sc)
     taken: dict[tuple[int, int], str] = {}
     # obstacles may touch the wall; objects keep a free patch all round
     for p, margin in [(o, 0) for o in sc.obstacles] + [(o, 1) for o in pieces]:
@@ -243,10 +263,7 @@ def check(sc: Any) -> None:
             for c in p.placed(*p.at):
                 taken[c] = name
     if not pieces:                       # object = "none": obstacles only
-        free = (2 * w - 1) ** 2 - len(taken)
-        if sc.agents > free // 4:
-            raise ScenarioError(f"agents: {sc.agents} robots crowd a {2 * w + 1}-patch arena "
-                                f"with these obstacles; allowed 1..{max(1, free // 4)}")
+        check_crowd(sc, len(taken), "these obstacles")
         return
     target = pieces[0]
     tname = label(sc, target)
@@ -265,11 +282,7 @@ def check(sc: Any) -> None:
     if target.at is not None:
         _check_path(sc, target, tname, taken)
     _check_weight(sc, target, tname, taken)
-    # as the flat check: a quarter of the patches inside the edge left free
-    free = (2 * w - 1) ** 2 - len(taken) - len(target.cells)
-    if sc.agents > free // 4:
-        raise ScenarioError(f"agents: {sc.agents} robots crowd a {2 * w + 1}-patch arena "
-                            f"with these objects and obstacles; allowed 1..{max(1, free // 4)}")
+    check_crowd(sc, len(taken) + len(target.cells), "these objects and obstacles")
 
 
 def _check_weight(sc: Any, target: Piece, tname: str, taken: dict) -> None:

@@ -381,17 +381,11 @@ def holders_within_swarm(sc: Scenario, weight_centi: int, key: str) -> int | Non
 
 def _check_empty_world(sc: Scenario) -> None:
     """object = "none": nothing to place, nothing a behaviour could carry."""
-    w = sc.worldSize
     if holders_needed(sc, sc.weight_centi) is not None:
         raise ScenarioError(f"object: behaviour {sc.behaviour!r} carries an object by its weight; "
                             f"{objects.NONE!r} leaves it none: name a shape")
-    if abs(sc.homeX) > w - 1 or abs(sc.homeY) > w - 1:
-        raise ScenarioError(f"homeX/homeY: ({sc.homeX}, {sc.homeY}) must lie within "
-                            f"{-w + 1}..{w - 1} (worldSize={w})")
-    free = (2 * w - 1) ** 2
-    if sc.agents > free // 4:
-        raise ScenarioError(f"agents: {sc.agents} robots crowd a {2 * w + 1}-patch arena; "
-                            f"allowed 1..{free // 4} for worldSize={w}")
+    arena.check_home(sc)
+    arena.check_crowd(sc, 0)
 
 
 def _check_consistency(sc: Scenario) -> None:
@@ -417,9 +411,7 @@ def _check_consistency(sc: Scenario) -> None:
             f"object: {sc.object!r} at anchor x {ax[0]}..{ax[1]}, y {ay[0]}..{ay[1]} spans "
             f"x {lo_x}..{hi_x}, y {lo_y}..{hi_y}, which does not fit the arena "
             f"{-w + 1}..{w - 1} (worldSize={w}); enlarge worldSize or move objectX/objectY")
-    if abs(sc.homeX) > w - 1 or abs(sc.homeY) > w - 1:
-        raise ScenarioError(f"homeX/homeY: ({sc.homeX}, {sc.homeY}) must lie within "
-                            f"{-w + 1}..{w - 1} (worldSize={w})")
+    arena.check_home(sc)
     cells = set(objects.offsets(sc.object))
     for x, y in cells:
         for ox in range(ax[0], ax[1] + 1):
@@ -437,10 +429,7 @@ def _check_consistency(sc: Scenario) -> None:
             raise ScenarioError(
                 f"objectWeight: {sc.objectWeight} needs {needed} robots holding, but "
                 f"{sc.object!r} has only {reach} reachable segments; lower objectWeight")
-    free = (2 * w - 1) ** 2 - len(cells)
-    if sc.agents > free // 4:
-        raise ScenarioError(f"agents: {sc.agents} robots crowd a {2 * w + 1}-patch arena; "
-                            f"allowed 1..{free // 4} for worldSize={w}")
+    arena.check_crowd(sc, len(cells))
 
 
 def builtin_names() -> list[str]:
