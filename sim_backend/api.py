@@ -58,7 +58,7 @@ class Result:
     def __repr__(self) -> str:
         s = self.summary
         return (f"Result(scenario={s['scenario']!r}, seed={self.seed}, ticks={s['ticks']}, "
-                f"delivered={s['delivered']}, shape_iou={s['shape_iou']:.3f})")
+                f"delivered={s['delivered']})")
 
 
 def scenario_of(scenario: str | Path | Mapping[str, Any] = "default",

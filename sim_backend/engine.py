@@ -112,8 +112,29 @@ class RunResult:
             return None                  # an engine that did not count them
         return round(self.conv_steps / self.scenario.agents, 2)
 
+    def offered(self) -> dict[str, Callable[[], Any]]:
+        """The measures the world computes for any behaviour, by name, each a
+        function of this run. A summary holds one only when the behaviour
+        declares it in spec.MEASURES: a dispersion run has no power or shape
+        IoU (issue 26: thesis words appear only for behaviours declaring them)."""
+        c = self.coordinator
+
+        def tick(t: int) -> int | None:
+            return t if t >= 0 else None
+        return {
+            "found_tick": lambda: tick(c.found_tick),
+            "converged_tick": lambda: tick(c.converged_tick),
+            "home_tick": lambda: tick(c.delivered_tick),
+            "segments": lambda: [[t.sx, t.sy] for t in c.touches],
+            "power": lambda: power_held(c),
+            "shape_iou": self.shape_iou,
+            "leader": lambda: c.leader or None,
+            "converged_moves": self.converged_moves,
+        }
+
     def summary(self) -> dict:
         c = self.coordinator
+        declared = {name for name, _ in registry.load(self.scenario.behaviour).spec.MEASURES}
         return {
             "scenario": self.scenario.name,
             "seed": self.seed,
@@ -122,17 +143,12 @@ class RunResult:
             **dict(self.scenario.params),
             "object": self.scenario.object,
             "ticks": self.ticks,
-            "found_tick": c.found_tick if c.found_tick >= 0 else None,
-            "converged_tick": c.converged_tick if c.converged_tick >= 0 else None,
-            "home_tick": c.delivered_tick if c.delivered_tick >= 0 else None,
+            # the host contract: where robots touched, and whether the
+            # behaviour's goal was reached (its RESULT words say it)
             "touches": [[t.rx, t.ry] for t in c.touches],
-            "segments": [[t.sx, t.sy] for t in c.touches],
-            "power": power_held(c),
-            "shape_iou": self.shape_iou(),
-            "leader": c.leader or None,
             "delivered": self.delivered,
             "activation": self.scenario.activation,
-            "converged_moves": self.converged_moves(),
+            **{k: f() for k, f in self.offered().items() if k in declared},
             **(c.measures() if hasattr(c, "measures") else {}),
             # [[breeds]] (issue 12 §3): each touch's breed, in touch order
             **({"touch_breeds": [self.scenario.breed_name(t.node)

@@ -44,8 +44,9 @@ SOA_COLD_COMPILE = "1.5-3.5 min"
 REFERENCE_CHUNK = 4
 # what a sweep's on_event(kind, text) hears about a background compile
 EVENTS = ("compiling", "compiled", "failed", "left")
-MEASURES = ["ticks", "found_tick", "converged_tick", "home_tick", "n_touches", "power",
-            "shape_iou", "leader", "delivered", "segments", "touches", "converged_moves"]
+# every behaviour's columns (the world's and the host contract's); then each
+# behaviour's own declared measures (columns())
+MEASURES = ["ticks", "n_touches", "delivered", "touches"]
 # the drawn pieces (tables, not values) go in one text column, `pieces`
 PIECE_KEYS = ("objects", "obstacles")
 # [[breeds]] tables go in one text column too, `breeds`; the world's keys,
@@ -770,25 +771,23 @@ def make_row(pt: Point, sc: Scenario, seed: int, s: dict, until: str,
     row["until"] = until
     row["engine"] = engine
     row["ticks"] = s["ticks"]
-    row["found_tick"] = s["found_tick"]
-    row["converged_tick"] = s["converged_tick"]
-    row["home_tick"] = s["home_tick"]
     row["n_touches"] = len(s["touches"])
-    row["power"] = s["power"]
-    row["shape_iou"] = s["shape_iou"]
-    row["leader"] = s["leader"]
     row["delivered"] = s["delivered"]
-    row["segments"] = " ".join(f"{x}:{y}" for x, y in s["segments"])
-    # issue 10: the holders' rounded positions (the thesis's shape.txt) and
-    # convergence in robot moves (activation netlogo: more than one per tick)
-    row["touches"] = " ".join(f"{x}:{y}" for x, y in s["touches"])
-    row["converged_moves"] = s.get("converged_moves")
-    # the measures the behaviour declares (spec.MEASURES) that the columns
-    # above do not already hold, e.g. aggregation's stopped/clusters/largest
+    # the holders' rounded positions (the host contract; the thesis's shape.txt)
+    row["touches"] = _cells(s["touches"])
+    # the measures the behaviour declares (spec.MEASURES), and only those:
+    # a dispersion sweep has no power or shape_iou column
     from firmware_logic import registry
     for name, _ in registry.load(sc.behaviour).spec.MEASURES:
         if name not in row:
-            row[name] = s.get(name)
+            v = s.get(name)
+            row[name] = _cells(v) if isinstance(v, list) else v
+    return row
+
+
+def _cells(pairs: list) -> str:
+    """A list of (x, y) cells as one CSV field, "x:y x:y"."""
+    return " ".join(f"{x}:{y}" for x, y in pairs)
     return row
 
 

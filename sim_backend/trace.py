@@ -2,8 +2,10 @@
 tick, the DataCollector idea; columns documented in docs/outputs.md.
 
 The columns, in order, are `columns(behaviour)`: tick, n_<state> for each
-state the behaviour declares, the fixed FIXED ones, then its spec.REPORTERS.
-The last row's power, shape_iou and reporters equal summary.json's.
+state the behaviour declares, the FIXED ones (the world's measures among them,
+power and shape_iou, only when the behaviour declares them in spec.MEASURES),
+then its spec.REPORTERS. The last row's power, shape_iou and reporters equal
+summary.json's.
 """
 
 from __future__ import annotations
@@ -15,6 +17,9 @@ from typing import Any
 from sim_backend.observe import OutputFormatError, Snapshot, output_format
 
 SUFFIXES = (".csv", ".parquet")
+# measures the world computes each tick; a column only for a behaviour that
+# declares the measure (spec.MEASURES), as in summary.json
+OFFERED = ("power", "shape_iou")
 FIXED = (("tick", "tick, 1..ticks"),
          ("power", "holders' power in weight units (summary.json power)"),
          ("shape_iou", "IoU of the perceived shape with the true one (summary.json shape_iou)"),
@@ -39,9 +44,11 @@ def trace_format(path: Path) -> str:
 def columns(behaviour: Any) -> list[tuple[str, str]]:
     """(name, meaning) of every column, in order, for a behaviour."""
     fixed = dict(FIXED)
+    declared = {name for name, _ in behaviour.spec.MEASURES}
     states = [(f"n_{s}", f"robots in state {s}") for s in behaviour.spec.STATES]
     return ([("tick", fixed["tick"])] + states
-            + [(k, v) for k, v in FIXED if k != "tick"] + list(behaviour.reporters))
+            + [(k, v) for k, v in FIXED if k != "tick" and (k not in OFFERED or k in declared)]
+            + list(behaviour.reporters))
 
 
 class Trace:
@@ -49,6 +56,7 @@ class Trace:
 
     def __init__(self, engine: Any) -> None:
         self.names = [name for name, _ in columns(engine.behaviour)]
+        self.offered = [k for k in OFFERED if k in self.names]
         # the engine's instruments add their columns last (docs/outputs.md)
         self.instruments = list(getattr(engine, "instruments", ()))
         self.names += [name for inst in self.instruments for name, _ in inst.COLUMNS]
@@ -57,7 +65,9 @@ class Trace:
 
     def add(self, s: Snapshot) -> None:
         counts = s.counts()
-        self.rows.append([s.tick, *counts.values(), s.power, s.iou, len(s.touches),
+        world = {"power": s.power, "shape_iou": s.iou}
+        self.rows.append([s.tick, *counts.values(), *(world[k] for k in self.offered),
+                          len(s.touches),
                           s.msgs_up, s.msgs_down, s.bad_frames, *s.reporters.values(),
                           *(v for inst in self.instruments for v in inst.row())])
 

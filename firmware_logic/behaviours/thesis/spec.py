@@ -83,6 +83,8 @@ MEASURES = (
     ("power", "power held at the end"),
     ("shape_iou", "IoU of the perceived shape with the true one"),
     ("leader", "node of the first finder"),
+    ("segments", "the touched segments, in touch order (object cells relative to its centre)"),
+    ("converged_moves", "robot moves to convergence (under netlogo more than one per tick)"),
     ("delivered", "the object is home"),
     ("outcome", "delivered, no path home, stalled, transporting or collecting touches"),
     ("target_tick", "recognise: tick a cluster of touches was first recognised as the target"),
