@@ -23,8 +23,10 @@ demo: $(STAMP)
 	$(BIN)/touchswarm run --out demo-out
 	@echo "figures and records written to demo-out/"
 
+# two workers: the suite is CPU-bound (numba compiles, MicroPython, runs) and
+# each test waits on conditions, never on time, so it holds beside other work
 test: $(STAMP)
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n 2 --dist worksteal
 
 bench: $(STAMP)
 	for b in bench/*.py; do $(BIN)/python $$b; done

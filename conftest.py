@@ -12,3 +12,43 @@ both is checked in tests/test_soa_engine.py. A variable set by the caller wins.
 import os
 
 os.environ.setdefault("TOUCHSWARM_SOA_INLINE", "0")
+
+
+# Every command in README and the guide is run by a test (tests/doc_commands.py):
+# the CLI records each command line the suite runs, and after the whole suite
+# the documented ones it never ran successfully fail the session by name.
+def pytest_configure(config) -> None:
+    if "TOUCHSWARM_ARGV_LOG" not in os.environ and not hasattr(config, "workerinput"):
+        import tempfile
+        fd, path = tempfile.mkstemp(prefix="touchswarm-argv-", suffix=".jsonl")
+        os.close(fd)
+        os.environ["TOUCHSWARM_ARGV_LOG"] = path
+        config._touchswarm_argv_log = path
+
+
+def _whole_suite(config) -> bool:
+    from _pytest.config import Config
+    opt = config.option
+    return (config.args_source == Config.ArgsSource.TESTPATHS and not opt.keyword
+            and not opt.markexpr and not getattr(opt, "lf", False)
+            and not getattr(opt, "deselect", None) and not opt.exitfirst)
+
+
+def pytest_sessionfinish(session, exitstatus) -> None:
+    path = getattr(session.config, "_touchswarm_argv_log", None)
+    if path is None:
+        return
+    try:
+        if _whole_suite(session.config) and session.testscollected:
+            from pathlib import Path
+            from tests import doc_commands
+            missing = doc_commands.uncovered(Path(path))
+            if missing:
+                tr = session.config.pluginmanager.get_plugin("terminalreporter")
+                tr.write_line(f"documented commands no test ran ({len(missing)}; "
+                              "tests/doc_commands.py):", red=True)
+                for m in missing:
+                    tr.write_line(f"  {m}", red=True)
+                session.exitstatus = 1
+    finally:
+        os.unlink(path)

@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import os
 import sys
 from typing import NoReturn
 
@@ -137,6 +138,36 @@ def build_parser(full: bool = False) -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    rc: int | str | None = EXIT_FAILED
+    try:
+        rc = _main(argv)
+        return rc
+    except SystemExit as done:          # --help, --version, argparse's errors
+        rc = done.code
+        raise
+    finally:
+        _log_argv(argv, rc)
+
+
+def _log_argv(argv: list[str], rc: int | str | None) -> None:
+    """The suite's record of the command lines it ran (TOUCHSWARM_ARGV_LOG,
+    set by conftest.py): every command in README and the guide must appear
+    there with exit status 0 (tests/doc_commands.py). One JSON line each,
+    appended whole, so processes running side by side do not mix lines."""
+    path = os.environ.get("TOUCHSWARM_ARGV_LOG")
+    if not path:
+        return
+    import json
+    line = json.dumps({"argv": argv, "rc": rc if isinstance(rc, int) else (0 if rc is None else 1)})
+    fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o600)
+    try:
+        os.write(fd, (line + "\n").encode())
+    finally:
+        os.close(fd)
+
+
+def _main(argv: list[str]) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.WARNING - 10 * min(args.verbose, 2),

@@ -18,47 +18,12 @@ import pytest
 
 from bridge.cli import main
 from firmware_logic import registry
-from tests.test_behaviour_folder import edit, scaffold, with_down_only_state
-
-
-def with_parameter_and_measure(folder: Path) -> None:
-    """fleeTicks, the behaviour's own parameter, reaches the robot through
-    robot_args (a seventh constructor argument); the host NUDGEs every third
-    stop it accepts and counts them in its own measure `nudges`."""
-    spec, robot, coord, init = (folder / f for f in ("spec.py", "robot.py", "coordinator.py",
-                                                     "__init__.py"))
-    edit(spec, '    ("quorum", 80, 1, 100, "percent of the swarm that must have stopped"),\n',
-         '    ("quorum", 80, 1, 100, "percent of the swarm that must have stopped"),\n'
-         '    ("fleeTicks", 5, 1, 50, "ticks a nudged robot walks away"),\n')
-    edit(spec, '    ("largest", "robots in the largest cluster"),\n)\n\n# values',
-         '    ("largest", "robots in the largest cluster"),\n'
-         '    ("nudges", "NUDGE commands the host sent"),\n)\n\n# values')
-    edit(init, "    return (node, seed, model, sc.robotVisionSpan, sc.fieldDefiance, 100)",
-         "    return (node, seed, model, sc.robotVisionSpan, sc.fieldDefiance, 100, sc.fleeTicks)")
-    edit(robot, "    def __init__(self, node, seed, model, vision_span, field_defiance, power):\n",
-         "    def __init__(self, node, seed, model, vision_span, field_defiance, power,\n"
-         "                 flee_ticks):\n        self.flee_ticks = flee_ticks\n")
-    edit(robot, "                self.flee = moves.FLEE_TICKS\n",
-         "                self.flee = self.flee_ticks\n")
-    edit(coord, "from .spec import LEAVE, MODELS, STAY\n", "from .spec import LEAVE, MODELS, NUDGE, STAY\n")
-    edit(coord, "        self.outbox = []\n\n    def on_message",
-         "        self.outbox = []\n        self.nudges = 0\n\n    def on_message")
-    edit(coord, "                if self.found_tick < 0:\n",
-         "                if len(self.touches) % 3 == 0:\n"
-         "                    self.nudges += 1\n"
-         "                    self.outbox.append((node, NUDGE, (f[0],)))\n"
-         "                if self.found_tick < 0:\n")
-    edit(coord, '                "largest": sizes[0] if sizes else 0}',
-         '                "largest": sizes[0] if sizes else 0, "nudges": self.nudges}')
+from tests.test_behaviour_folder import spread_behaviour
 
 
 @pytest.fixture
 def spread(tmp_path: Path) -> Path:
-    parent = tmp_path / "elsewhere"
-    parent.mkdir()
-    folder = scaffold(parent, "spread")
-    with_down_only_state(folder)
-    with_parameter_and_measure(folder)
+    folder = spread_behaviour(tmp_path)
     assert not folder.resolve().is_relative_to(Path(registry.__file__).parents[1])
     return folder
 

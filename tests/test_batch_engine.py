@@ -8,8 +8,6 @@ test changes one rule in a copy of a behaviour and shows that both engines
 change, identically: there is no second copy of any rule to forget.
 """
 
-import shutil
-from pathlib import Path
 
 import pytest
 
@@ -21,7 +19,6 @@ from sim_backend.scenario import validate
 from tests.harness import (arena_scenarios, assert_same, count_pushes, mixed_scenarios,
                            reference, wrap_scenarios)
 
-THESIS_DIR = Path(registry.load("thesis").folder)
 
 
 @pytest.mark.parametrize("behaviour", sorted(registry.names()))
@@ -104,26 +101,27 @@ def test_bad_batches_get_a_named_error():
         SoaEngine([(validate({}), 1), (validate({"behaviour": "aggregate"}), 1)])
 
 
-def test_one_rule_changed_in_the_source_changes_both_engines_identically(tmp_path, monkeypatch):
-    """Single source: a copy of the thesis behaviour whose random heading is
-    drawn from 0..179 instead of 0..359. Both engines must follow the copy."""
-    # the soa engine's inlining is held by the harness runs of the registered
-    # behaviours; the copy, a new module on every machine, compiles in half the time
-    monkeypatch.setenv("TOUCHSWARM_SOA_INLINE", "0")
-    mutant = tmp_path / "thesis_half_turns"
-    shutil.copytree(THESIS_DIR, mutant, ignore=shutil.ignore_patterns("__pycache__"))
-    robot = mutant / "robot.py"
-    src = robot.read_text()
-    rule = ("        if m == FIREFLY:\n"
-            "            self.heading = self.rng.below(360)\n"
-            "        elif m == LEVY:")
-    assert src.count(rule) == 1, "the rule this test mutates has moved; update the test"
-    robot.write_text(src.replace(rule, rule.replace("below(360)", "below(180)")))
-    original = validate({"maxTicks": 400})
-    changed = validate({"behaviour": str(mutant), "maxTicks": 400})
-    seeds = [1, 2]
-    got = assert_same([changed] * 2, seeds)           # batch == reference on the copy
+def test_rules_changed_in_the_source_change_both_engines_identically(tmp_path):
+    """Single source: aggregate's scaffold edited outside the repository (a
+    state only the host's NUDGE leads to, a seventh constructor argument, the
+    host's own measure; tests/test_behaviour_folder.spread_behaviour, the
+    behaviour hil_tests/test_own_behaviour.py checks step by step). Both
+    engines must follow the edited source, and the runs leave the original's."""
+    from firmware_logic import messages as msg
+    from tests.test_behaviour_folder import spread_behaviour
+    active, schema = list(msg.ACTIVE), dict(msg.SCHEMA)
+    try:
+        spread = spread_behaviour(tmp_path)
+        original = validate({"behaviour": "aggregate", "maxTicks": 400})
+        changed = validate({"behaviour": str(spread), "maxTicks": 400})
+        seeds = [1, 2]
+        got = assert_same([changed] * 2, seeds)           # batch == reference on the edit
+    finally:
+        msg.ACTIVE[:] = active
+        msg.SCHEMA.clear()
+        msg.SCHEMA.update(schema)
     for seed, b in zip(seeds, got):
+        assert b.summary()["nudges"] >= 1, seed          # the edit ran
         before = reference(original, seed)
         assert b.trajectories != before.trajectories[:len(b.trajectories)], seed
 

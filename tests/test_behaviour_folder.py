@@ -79,6 +79,50 @@ def with_down_only_state(folder: Path, nudge_direction: str = "DOWN", kind: int 
          "                self.state = SEARCH\n")
 
 
+def with_parameter_and_measure(folder: Path) -> None:
+    """fleeTicks, the behaviour's own parameter, reaches the robot through
+    robot_args (a seventh constructor argument); the host NUDGEs every third
+    stop it accepts and counts them in its own measure `nudges`."""
+    spec, robot, coord, init = (folder / f for f in ("spec.py", "robot.py", "coordinator.py",
+                                                     "__init__.py"))
+    edit(spec, '    ("quorum", 80, 1, 100, "percent of the swarm that must have stopped"),\n',
+         '    ("quorum", 80, 1, 100, "percent of the swarm that must have stopped"),\n'
+         '    ("fleeTicks", 5, 1, 50, "ticks a nudged robot walks away"),\n')
+    edit(spec, '    ("largest", "robots in the largest cluster"),\n)\n\n# values',
+         '    ("largest", "robots in the largest cluster"),\n'
+         '    ("nudges", "NUDGE commands the host sent"),\n)\n\n# values')
+    edit(init, "    return (node, seed, model, sc.robotVisionSpan, sc.fieldDefiance, 100)",
+         "    return (node, seed, model, sc.robotVisionSpan, sc.fieldDefiance, 100, sc.fleeTicks)")
+    edit(robot, "    def __init__(self, node, seed, model, vision_span, field_defiance, power):\n",
+         "    def __init__(self, node, seed, model, vision_span, field_defiance, power,\n"
+         "                 flee_ticks):\n        self.flee_ticks = flee_ticks\n")
+    edit(robot, "                self.flee = moves.FLEE_TICKS\n",
+         "                self.flee = self.flee_ticks\n")
+    edit(coord, "from .spec import LEAVE, MODELS, STAY\n", "from .spec import LEAVE, MODELS, NUDGE, STAY\n")
+    edit(coord, "        self.outbox = []\n\n    def on_message",
+         "        self.outbox = []\n        self.nudges = 0\n\n    def on_message")
+    edit(coord, "                if self.found_tick < 0:\n",
+         "                if len(self.touches) % 3 == 0:\n"
+         "                    self.nudges += 1\n"
+         "                    self.outbox.append((node, NUDGE, (f[0],)))\n"
+         "                if self.found_tick < 0:\n")
+    edit(coord, '                "largest": sizes[0] if sizes else 0}',
+         '                "largest": sizes[0] if sizes else 0, "nudges": self.nudges}')
+
+
+def spread_behaviour(tmp_path: Path) -> Path:
+    """The third behaviour of issue 26: aggregate's scaffold as "spread",
+    outside the repository, with a state only its own NUDGE leads to, its own
+    parameter and its own measure. The same source each time, so its soa
+    step compiles once per machine (tests/test_batch_engine.py runs it too)."""
+    parent = tmp_path / "elsewhere"
+    parent.mkdir()
+    folder = scaffold(parent, "spread")
+    with_down_only_state(folder)
+    with_parameter_and_measure(folder)
+    return folder
+
+
 def test_a_scaffold_outside_the_repo_passes_firmware_check_with_its_own_parameters(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     folder = scaffold(tmp_path, "spread")

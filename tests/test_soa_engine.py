@@ -106,24 +106,28 @@ print(json.dumps({"hits": sum(s.cache_hits.values()), "misses": sum(s.cache_miss
 """
 
 
-def test_a_second_process_loads_the_compiled_step_from_the_disk_cache(tmp_path):
-    # not inlined: the cache works the same, and the cold compile takes half as long
-    env = {**os.environ, "TOUCHSWARM_CACHE": str(tmp_path), "PYTHONPATH": str(ROOT),
-           "TOUCHSWARM_SOA_INLINE": "0"}
+def test_a_second_process_loads_the_compiled_step_from_the_disk_cache():
+    # the suite's own cache: the first process compiles aggregate's step only
+    # if no earlier test did (a cold compile is the same code path, and the
+    # suite pays for it once); the second must load it from disk
+    from sim_backend.batch.soa import cache_root
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
     runs = []
     for _ in range(2):
         out = subprocess.run([sys.executable, "-c", WARM], env=env, capture_output=True,
                              text=True, check=True, cwd=ROOT)
         runs.append(json.loads(out.stdout.strip().splitlines()[-1]))
-    cold, warm = runs
-    assert cold["misses"] >= 1 and cold["hits"] == 0
+    first, warm = runs
     assert warm["hits"] >= 1 and warm["misses"] == 0
-    assert warm["xs"] == cold["xs"]
+    assert warm["xs"] == first["xs"]
     # sweep.warm compiles before the runs, and says so only when the cache lacks the step
-    assert cold["cold"] == ["aggregate"] and cold["told"] == [["aggregate", cold["dir"]]]
+    if first["misses"]:
+        assert first["cold"] == ["aggregate"] and first["told"] == [["aggregate", first["dir"]]]
+    else:
+        assert first["cold"] == [] and first["told"] == []
     assert warm["cold"] == [] and warm["told"] == []
-    assert Path(cold["dir"]).parent == tmp_path / "soa"
-    assert list(Path(cold["dir"]).glob("__pycache__/*.nbi"))
+    assert Path(warm["dir"]).parent == cache_root() and warm["dir"] == first["dir"]
+    assert list(Path(warm["dir"]).glob("__pycache__/*.nbi"))
 
 
 def test_sweep_engine_soa_gives_the_reference_summaries():
