@@ -31,7 +31,7 @@ def _whole_suite(config) -> bool:
     opt = config.option
     return (config.args_source == Config.ArgsSource.TESTPATHS and not opt.keyword
             and not opt.markexpr and not getattr(opt, "lf", False)
-            and not getattr(opt, "deselect", None) and not opt.exitfirst)
+            and not getattr(opt, "deselect", None) and not opt.maxfail)
 
 
 def pytest_sessionfinish(session, exitstatus) -> None:
@@ -49,6 +49,11 @@ def pytest_sessionfinish(session, exitstatus) -> None:
                               "tests/doc_commands.py):", red=True)
                 for m in missing:
                     tr.write_line(f"  {m}", red=True)
+                tr.write_line(f"(the command lines the suite ran: {path})", red=True)
                 session.exitstatus = 1
-    finally:
-        os.unlink(path)
+                return
+    except Exception as err:             # the check must never hide the results
+        print(f"conftest: the documented-commands check failed: {err!r}")
+        session.exitstatus = 1
+        return
+    os.unlink(path)
