@@ -49,10 +49,10 @@ REQUIRED = ("name", "about", "figures")
 FIGURES: dict[str, tuple[str, tuple[str, ...], tuple[str, ...]]] = {
     # y (a tick measure) against the numeric column x, one panel per value
     # of series: mean (95% CI), median, censored runs at maxTicks
-    "factor": ("factor_plot", ("x", "y"), ("experiment", "series", "title")),
+    "factor": ("factor_plot", ("x", "y"), ("experiment", "series", "title", "ylabel")),
     # several tick columns y ((column, label), ...) against x, log scale,
     # one panel per value of series, over the runs that got there
-    "units": ("units_plot", ("x", "y"), ("experiment", "series", "title")),
+    "units": ("units_plot", ("x", "y"), ("experiment", "series", "title", "ylabel")),
     # per value of category (levels) and required holders: the median-IoU
     # run's perceived shape over the true cells, and mean IoU against N
     "shapes": ("shapes_plot", ("levels",), ("experiment", "category", "title")),

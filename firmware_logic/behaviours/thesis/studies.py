@@ -63,16 +63,16 @@ THESIS = {
     ),
     "figures": (
         {"name": "graph1", "kind": "factor", "experiment": "graph1", "x": "fieldDefiance",
-         "series": "movementModel", "y": "converged_tick",
+         "series": "movementModel", "y": "converged_tick", "ylabel": "convergence (ticks)",
          "title": "Graph 1: field defiance vs convergence"},
         {"name": "graph2", "kind": "factor", "experiment": "graph2", "x": "sigRadius",
-         "series": "movementModel", "y": "converged_tick",
+         "series": "movementModel", "y": "converged_tick", "ylabel": "convergence (ticks)",
          "title": "Graph 2: signal radius vs convergence"},
         {"name": "graph3", "kind": "factor", "experiment": "graph3", "x": "rPower",
-         "series": "movementModel", "y": "converged_tick",
+         "series": "movementModel", "y": "converged_tick", "ylabel": "convergence (ticks)",
          "title": "Graph 3: robot power vs convergence"},
         {"name": "graph4", "kind": "factor", "experiment": "graph3", "x": "required",
-         "series": "movementModel", "y": "converged_tick",
+         "series": "movementModel", "y": "converged_tick", "ylabel": "convergence (ticks)",
          "title": "Graph 4: robots required (population 20) vs convergence"},
         {"name": "fig22_bar", "kind": "shapes", "experiment": "shapes", "levels": FIG22,
          "title": "Figure 22: extracted shape vs touching robots (bar)"},
@@ -86,6 +86,7 @@ THESIS = {
         {"name": "graph1_units", "kind": "units", "experiment": "graph1", "x": "fieldDefiance",
          "series": "movementModel",
          "y": (("converged_tick", "go iterations"), ("converged_moves", "robot moves")),
+         "ylabel": "convergence (mean of converged runs, 95% CI)",
          "title": "Graph 1 in both units"},
         # Figures 22-24 as the thesis drew them: the rounded positions of the
         # robots holding the object (DrawShape's shape.txt) and the polygon
