@@ -316,6 +316,18 @@ def _series(rows: Sequence[dict], fig: dict) -> list:
     return list(dict.fromkeys(_num(r[col]) for r in rows)) if col else [None]
 
 
+def _meaning(rows: Sequence[dict], col: str) -> str:
+    """What the rows' behaviour says a measure column is (spec.MEASURES), or
+    the column's name."""
+    from sim_backend import words
+    from sim_backend.scenario import DEFAULT_BEHAVIOUR
+    b = next((r.get("behaviour") for r in rows if r.get("behaviour")), DEFAULT_BEHAVIOUR)
+    try:
+        return dict(words.of(b).measures).get(col, col)
+    except Exception:          # noqa: BLE001 - a label only; the rows were made by it
+        return col
+
+
 def _in(r: dict, fig: dict, value) -> bool:
     col = fig.get("series")
     return col is None or _num(r[col]) == value
@@ -378,7 +390,9 @@ def factor_plot(rows: Sequence[dict], fig: dict, path: Path) -> Path | None:
         ax.set_ylim(0, ymax)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
-    f.suptitle(fig.get("title", f"{y} against {x}"), fontsize=10)
+    import textwrap
+    f.suptitle(fig.get("title") or textwrap.fill(f"{y}: {_meaning(rs, y)}, against {x}",
+                                                 50 * len(table)), fontsize=10)
     f.tight_layout()
     return _save(f, path)
 

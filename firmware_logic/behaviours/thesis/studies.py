@@ -25,7 +25,7 @@ FIG24 = ("X",)
 THESIS = {
     "name": "thesis",
     "about": "every graph and figure of the thesis's chapter 5 (Graphs 1-4, Figures 22-24), "
-             "both movement models, until convergence",
+             "both movement models",
     "seeds": 150,
     "until": "converged",
     "set": (("maxTicks", 5000),),
@@ -108,8 +108,8 @@ RATES = ("0.0", "0.1", "0.25", "0.5")
 FAULTS = {
     "name": "faults",
     "about": "robustness (issue 12): each fault alone at rates 0-0.5, field noise 0-4 and "
-             "the goal mix (25% dead, 10% ignoring the field, 10% random); until delivered, "
-             "the host drops a holder silent 100 ticks",
+             "the goal mix (25% dead, 10% ignoring the field, 10% random); the host drops a "
+             "holder silent 100 ticks",
     "seeds": 40,          # the issue asks for at least 40 seeds of the goal mix
     "until": "delivered",
     # deaths and deadlocks strike in ticks 1..200, while the swarm searches and
@@ -138,7 +138,7 @@ FAULTS = {
 
 BREEDS = {
     "name": "breeds",
-    "about": "0, 5, 10, 15, 20 ants in a swarm of 20 with fireflies, until converged",
+    "about": "0, 5, 10, 15, 20 ants in a swarm of 20 with fireflies",
     "seeds": 30,
     "until": "converged",
     "set": (("maxTicks", 5000),),
