@@ -227,13 +227,17 @@ def get(behaviour: str, name: str) -> Study:
 
 
 def check(study: Study, base: Any = None, overrides: dict[str, Any] | None = None) -> None:
-    """Every point a valid scenario (ScenarioError naming the study)."""
+    """Every point a valid scenario (ScenarioError naming the study and the
+    point)."""
     from sim_backend import sweep
-    try:
-        sweep.validate_points(study.points, base, {**dict(study.overrides),
-                                                   **dict(overrides or {})})
-    except ScenarioError as err:
-        raise StudyError(f"behaviour {study.behaviour!r} study {study.name!r}: {err}") from None
+    ovr = {**dict(study.overrides), **dict(overrides or {})}
+    for pt in study.points:
+        try:
+            sweep.validate_points([pt], base, ovr)
+        except ScenarioError as err:
+            text = ", ".join(f"{k}={v}" for k, v in pt.params)
+            raise StudyError(f"behaviour {study.behaviour!r} study {study.name!r}: point "
+                             f"{pt.experiment!r} ({text}): {err}") from None
 
 
 def draw(study: Study, rows: Sequence[dict], out: Path) -> list[Path]:
