@@ -250,3 +250,27 @@ def draw(study: Study, rows: Sequence[dict], out: Path) -> list[Path]:
         if p:
             paths.append(p)
     return paths
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """`python -m sim_backend.studies BEHAVIOUR STUDY SWEEP_CSV OUTDIR`: draw
+    a study's figures again from its sweep.csv."""
+    import sys
+    from sim_backend.sweep import read_csv
+    args = list(sys.argv[1:] if argv is None else argv)
+    if len(args) != 4:
+        print("usage: python -m sim_backend.studies BEHAVIOUR STUDY SWEEP_CSV OUTDIR",
+              file=sys.stderr)
+        return 2
+    try:
+        study = get(args[0], args[1])
+        for p in draw(study, read_csv(Path(args[2])), Path(args[3])):
+            print(p)
+    except (ScenarioError, OSError) as err:
+        print(f"studies: {err}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
