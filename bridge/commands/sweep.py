@@ -256,7 +256,13 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     elif flag:
         from sim_backend import studies
         behaviour = str(sweep.base_dict(base, overrides)["behaviour"])
-        study = studies.get(behaviour, args.study or args.preset or "thesis")
+        try:
+            study = studies.get(behaviour, args.study or args.preset or "thesis")
+        except studies.StudyError as err:
+            if args.preset:      # neither the world's preset nor the behaviour's study
+                raise UsageError(f"--preset {args.preset}: not a world preset "
+                                 f"({', '.join(_world_presets())}); {err}") from None
+            raise
         points = list(study.points)
         seeds = _seeds(cfg["seeds"]) if "seeds" in cfg else list(range(1, study.seeds + 1))
         until = cfg.get("until") or study.until
