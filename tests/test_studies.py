@@ -48,15 +48,13 @@ def test_the_guides_study_runs_from_a_scaffold_and_draws_its_figure(tmp_path, ca
                      re.M), listed
 
 
-GOOD = STUDY
-
-
 @pytest.mark.parametrize("change, words", [
     (('"y": "home_tick"', ''), "figure 'quorum': no 'y'; a factor figure needs x, y"),
     (('"kind": "factor"', '"kind": "pie"'), "figure 'quorum': kind 'pie'; expected one of"),
     (('"seeds": 2', '"sede": 2'), "study 'quorum': unknown key 'sede'"),
     (('"seeds": 2', '"seeds": "2"'), "study 'quorum': seeds = 2; expected the count"),
-    (('(20, 50)', '(20, 500)'), "study 'quorum': point 'quorum' (quorum=500): quorum: 500 is outside"),
+    (('(20, 50)', '(20, 500)'),
+     "study 'quorum': point 'quorum' (quorum=500): quorum: 500 is outside"),
     (('("agents", 10)', '("objectWeight", "heavy")'),
      "study 'quorum' set: objectWeight = 'heavy'; expected a number"),
     (('"about"', '"abut"'), "unknown key 'abut'"),
@@ -69,7 +67,7 @@ def test_a_wrong_study_is_one_line_naming_behaviour_study_and_key(change, words,
     # a folder name of its own per case: the registry keeps a folder's modules by name
     name = "bad" + re.sub(r"\W", "", change[1])[:12].lower() + str(len(words))
     assert main(["behaviour", "new", name, "--into", str(tmp_path)]) == 0
-    (tmp_path / name / "studies.py").write_text(GOOD.replace(*change))
+    (tmp_path / name / "studies.py").write_text(STUDY.replace(*change))
     capsys.readouterr()
     rc = main(["sweep", "--set", f"behaviour={tmp_path / name}", "--study", "quorum",
                "--engine", "reference", "--executor", "inline", "--out", str(tmp_path / "o")])
