@@ -12,6 +12,8 @@ A behaviour is a package of firmware-subset modules:
                     at load; per behaviour: Behaviour.activate() puts them in use)
     robot.py        the FSM class named by ROBOT, stepped as `robot.step(hal)`
     coordinator.py  its host-side coordinator (portable, may allocate)
+    studies.py      optional: STUDIES, named sweeps and their figures as data
+                    (sim_backend/studies.py; `touchswarm sweep --study NAME`)
     __init__.py     the wiring: ROBOT = "module:Class", and
                     robot_args(node, seed, sc) -> the FSM's constructor args,
                     make_coordinator(sc) -> its coordinator for a scenario
@@ -152,6 +154,23 @@ class Behaviour:
         global _ACTIVE
         _ACTIVE = self
         return self
+
+    @property
+    def studies(self) -> tuple:
+        """Its studies (studies.py STUDIES: named sweeps and their figures as
+        data, sim_backend/studies.py; none without that module). Host-side:
+        no robot imports it, so deploy never copies it."""
+        if not (self.folder / "studies.py").is_file():
+            return ()
+        try:
+            mod = importlib.import_module(self.module_name + ".studies")
+        except Exception as err:      # noqa: BLE001 - any error in the file, one line
+            raise BehaviourError(f"behaviour {self.name!r}: {self.folder / 'studies.py'}: "
+                                 f"{type(err).__name__}: {err}") from None
+        if not hasattr(mod, "STUDIES"):
+            raise BehaviourError(f"behaviour {self.name!r}: {self.folder / 'studies.py'} "
+                                 "lacks STUDIES")
+        return mod.STUDIES
 
     def model_names(self) -> dict[int, str]:
         return dict(self.spec.MODELS)

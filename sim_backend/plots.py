@@ -1,8 +1,13 @@
-"""PNG plots of sweep rows: the thesis's Graphs 1-4 and Figures 22-24.
+"""PNG plots of sweep rows: a --grid sweep's figures (grid_plots: the
+behaviour's measures against each swept key) and the figure kinds a
+behaviour's studies draw (sim_backend/studies.py FIGURES: factor, units,
+shapes, touchmap, rates, levels; the thesis's Graphs 1-4 and Figures 22-24
+are its studies.py's figures of these kinds).
 
 Rows are the dicts of sim_backend.sweep (or the same read back from its CSV:
-values may be strings). Convergence is in ticks; a run that never converged
-within maxTicks is counted at maxTicks (censored) and the count is shown.
+values may be strings). Every column a study's figure draws is named by the
+study. Ticks: a run whose tick measure never came within maxTicks is counted
+at maxTicks (censored) and the count is shown.
 """
 
 from __future__ import annotations
@@ -11,19 +16,6 @@ import math
 from collections import defaultdict
 from pathlib import Path
 from typing import Sequence
-
-GRAPHS = {
-    "graph1": ("fieldDefiance", "Graph 1: field defiance vs convergence"),
-    "graph2": ("sigRadius", "Graph 2: signal radius vs convergence"),
-    "graph3": ("rPower", "Graph 3: robot power vs convergence"),
-    "graph4": ("required", "Graph 4: robots required (population 20) vs convergence"),
-}
-SHAPE_FIGURES = {
-    "fig22_bar": ("bar",),
-    "fig23_L_plus": ("L", "cross"),
-    "fig24_X": ("X",),
-}
-
 
 def _num(v):
     if v is None or v == "":
@@ -39,13 +31,6 @@ def _num(v):
     return int(f) if f.is_integer() else f
 
 
-def _conv(r) -> tuple[float, bool]:
-    c = _num(r["converged_tick"])
-    if c is None:
-        return float(_num(r["maxTicks"])), False
-    return float(c), True
-
-
 def _stats(vals: list[float]) -> tuple[float, float, float]:
     n = len(vals)
     m = sum(vals) / n
@@ -53,165 +38,6 @@ def _stats(vals: list[float]) -> tuple[float, float, float]:
     s = sorted(vals)
     med = s[n // 2] if n % 2 else (s[n // 2 - 1] + s[n // 2]) / 2
     return m, sd / math.sqrt(n) if n else 0.0, med
-
-
-def convergence_table(rows: Sequence[dict], experiment: str, factor: str) -> dict:
-    """{model: [(x, mean, sem, median, n, censored)]} of convergence ticks."""
-    groups: dict[tuple[str, float], list] = defaultdict(list)
-    for r in rows:
-        if r["experiment"] != experiment:
-            continue
-        groups[(r["movementModel"], _num(r[factor]))].append(_conv(r))
-    out: dict[str, list] = defaultdict(list)
-    for (model, x), vals in sorted(groups.items(), key=lambda kv: (kv[0][0], kv[0][1])):
-        ticks = [v for v, _ in vals]
-        m, sem, med = _stats(ticks)
-        out[model].append((x, m, sem, med, len(vals), sum(1 for _, ok in vals if not ok)))
-    return dict(out)
-
-
-def shape_table(rows: Sequence[dict], experiment: str = "shapes") -> dict:
-    """{object: [(N, mean IoU, sem, mean touches, n)]}."""
-    groups: dict[tuple[str, int], list] = defaultdict(list)
-    for r in rows:
-        if r["experiment"] == experiment:
-            n = int(math.ceil(float(_num(r["objectWeight"])) / float(_num(r["rPower"])) - 1e-9))
-            groups[(r["object"], n)].append((float(_num(r["shape_iou"])),
-                                             int(_num(r["n_touches"]))))
-    out: dict[str, list] = defaultdict(list)
-    for (obj, n), vals in sorted(groups.items()):
-        m, sem, _ = _stats([v for v, _ in vals])
-        out[obj].append((n, m, sem, sum(t for _, t in vals) / len(vals), len(vals)))
-    return dict(out)
-
-
-def plot_convergence(rows: Sequence[dict], experiment: str, factor: str, title: str,
-                     path: Path, source: str | None = None) -> Path | None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    table = convergence_table(rows, source or experiment, factor)
-    if not table:
-        return None
-    models = [m for m in ("firefly", "ant") if m in table] + \
-        [m for m in table if m not in ("firefly", "ant")]
-    fig, axes = plt.subplots(1, len(models), figsize=(4.6 * len(models), 3.6), squeeze=False)
-    ymax = max(m + s for pts in table.values() for _, m, s, *_ in pts) * 1.1
-    for ax, (letter, model) in zip(axes[0], zip("abcd", models)):
-        pts = table[model]
-        xs = [p[0] for p in pts]
-        ax.errorbar(xs, [p[1] for p in pts], yerr=[1.96 * p[2] for p in pts], marker="o",
-                    capsize=3, label="mean (95% CI)")
-        ax.plot(xs, [p[3] for p in pts], "s--", alpha=0.6, label="median")
-        censored = [r for r in rows if r["experiment"] == (source or experiment)
-                    and r["movementModel"] == model and not _conv(r)[1]]
-        if censored:
-            # every censored run drawn at its censoring tick, not only counted
-            sc = ax.scatter([_num(r[factor]) for r in censored],
-                            [_conv(r)[0] for r in censored], facecolors="none",
-                            edgecolors="C3", s=30, label="censored at maxTicks")
-            sc.set_gid("censored")
-            ymax = max(ymax, max(_conv(r)[0] for r in censored) * 1.05)
-        cens = sum(p[5] for p in pts)
-        n = min(p[4] for p in pts)
-        ax.set_title(f"({letter}) {model}, n={n}/point" + (f", {cens} censored" if cens else ""),
-                     fontsize=9)
-        ax.set_xlabel(factor)
-        ax.set_ylabel("convergence (ticks)")
-        ax.set_ylim(0, ymax)
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=7)
-    fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    return _save(fig, path)
-
-
-def _example(rows, obj, n):
-    """The run of median IoU among those at (obj, N)."""
-    cand = [r for r in rows if r["experiment"] == "shapes" and r["object"] == obj
-            and int(math.ceil(float(_num(r["objectWeight"])) / float(_num(r["rPower"])) - 1e-9))
-            == n]
-    if not cand:
-        return None
-    cand.sort(key=lambda r: (float(_num(r["shape_iou"])), int(_num(r["seed"]))))
-    return cand[len(cand) // 2]
-
-
-def plot_shapes(rows: Sequence[dict], objs: Sequence[str], title: str, path: Path) -> Path | None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from firmware_logic import perception
-    from sim_backend.scenario import validate
-    from sim_backend.sweep import row_keys
-    from sim_backend.world import World
-
-    table = shape_table(rows)
-    objs = [o for o in objs if o in table]
-    if not objs:
-        return None
-    ns = sorted({p[0] for o in objs for p in table[o]})
-    fig, axes = plt.subplots(len(objs), len(ns) + 1, figsize=(2.1 * (len(ns) + 1), 2.3 * len(objs)),
-                             squeeze=False)
-    for row_axes, obj in zip(axes, objs):
-        for ax, n in zip(row_axes, ns):
-            ax.set_xticks([])
-            ax.set_yticks([])
-            r = _example(rows, obj, n)
-            if r is None:
-                ax.axis("off")
-                continue
-            # breeds (a tuple, "()" in a CSV) are not numbers: a shapes point has none
-            sc = validate({k: _num(r[k]) for k in row_keys(r)
-                           if r.get(k) not in (None, "", (), "()")})
-            true = World(sc, int(_num(r["seed"]))).object_cells
-            segs = [tuple(int(v) for v in p.split(":")) for p in str(r["segments"]).split()]
-            outline = perception.outline_cells(segs)
-            xs = [c[0] for c in true]
-            ys = [c[1] for c in true]
-            ax.scatter(xs, ys, marker="s", s=60, c="#f2d06b", label="object")
-            if outline:
-                ax.scatter([c[0] for c in outline], [c[1] for c in outline], marker="s", s=18,
-                           c="#4a7bd0", alpha=0.5, label="perceived")
-            if segs:
-                ax.scatter([c[0] for c in segs], [c[1] for c in segs], marker="x", s=25,
-                           c="k", label="touched")
-            ax.set_xlim(min(xs) - 2, max(xs) + 2)
-            ax.set_ylim(min(ys) - 2, max(ys) + 2)
-            ax.set_aspect("equal")
-            ax.set_title(f"{obj}: {n} robots, IoU {float(_num(r['shape_iou'])):.2f}", fontsize=7)
-        ax = row_axes[-1]
-        pts = table[obj]
-        ax.errorbar([p[0] for p in pts], [p[1] for p in pts], yerr=[1.96 * p[2] for p in pts],
-                    marker="o", capsize=3)
-        ax.set_ylim(0, 1)
-        ax.set_xlabel("touching robots", fontsize=7)
-        ax.set_ylabel("mean IoU", fontsize=7)
-        ax.tick_params(labelsize=6)
-        ax.grid(alpha=0.3)
-        ax.set_title(f"{obj}: n={min(p[4] for p in pts)}/point", fontsize=7)
-    fig.suptitle(title, fontsize=9)
-    fig.tight_layout()
-    return _save(fig, path)
-
-
-def thesis_plots(rows: Sequence[dict], out: Path) -> list[Path]:
-    """Every thesis graph and figure the rows hold data for."""
-    paths = []
-    for name, (factor, title) in GRAPHS.items():
-        source = "graph3" if name == "graph4" else name
-        p = plot_convergence(rows, name, factor, title, out / f"{name}.png", source=source)
-        if p:
-            paths.append(p)
-    for name, objs in SHAPE_FIGURES.items():
-        num = name[3:5]
-        p = plot_shapes(rows, objs, f"Figure {num}: extracted shape vs touching robots "
-                        f"({', '.join(objs)})", out / f"{name}.png")
-        if p:
-            paths.append(p)
-    return paths
 
 
 def _factor_levels(rows: Sequence[dict], factor: str) -> list:
@@ -379,7 +205,7 @@ def factor_figure(rows: Sequence[dict], factor: str, others: Sequence[str]):
 
 
 def category_figure(rows: Sequence[dict], factor: str, others: Sequence[str]):
-    """A categorical factor (object, movementModel, behaviour...): one panel
+    """A categorical factor (object, behaviour, a choice parameter...): one panel
     per measure (panels()), boxes of ticks and values and bars of rates per
     level, one coloured set per combination of the other factors' levels, n
     under each level; censored runs as hollow markers at maxTicks. Returns
@@ -471,3 +297,400 @@ def grid_plots(rows: Sequence[dict], factors: Sequence[str], out: Path) -> list[
         fig = (factor_figure if is_numeric(rows, f) else category_figure)(rows, f, others)
         paths.append(_save(fig, out / f"by_{f}.png"))
     return paths
+
+
+# -- the figure kinds of a behaviour's studies (sim_backend/studies.py FIGURES):
+# fn(rows, figure, path) -> path or None when the rows hold no data for it;
+# every column comes from the figure's keys
+
+def _of(rows: Sequence[dict], fig: dict) -> list[dict]:
+    """The rows of the figure's experiment (every row when it names none)."""
+    exp = fig.get("experiment")
+    return [r for r in rows if exp is None or r["experiment"] == exp]
+
+
+def _series(rows: Sequence[dict], fig: dict) -> list:
+    """The series column's values in first-seen (point) order; one series
+    (None) when the figure has none."""
+    col = fig.get("series")
+    return list(dict.fromkeys(_num(r[col]) for r in rows)) if col else [None]
+
+
+def _meaning(rows: Sequence[dict], col: str) -> str:
+    """What the rows' behaviour says a measure column is (spec.MEASURES), or
+    the column's name."""
+    from sim_backend import words
+    from sim_backend.scenario import DEFAULT_BEHAVIOUR
+    b = next((r.get("behaviour") for r in rows if r.get("behaviour")), DEFAULT_BEHAVIOUR)
+    try:
+        return dict(words.of(b).measures).get(col, col)
+    except Exception:          # noqa: BLE001 - a label only; the rows were made by it
+        return col
+
+
+def _in(r: dict, fig: dict, value) -> bool:
+    col = fig.get("series")
+    return col is None or _num(r[col]) == value
+
+
+def factor_table(rows: Sequence[dict], fig: dict) -> dict:
+    """{series value: [(x, mean, sem, median, n, censored)]} of the tick
+    column y against x (a run whose y never came counts at maxTicks)."""
+    rs = _of(rows, fig)
+    out: dict = {}
+    for value in _series(rs, fig):
+        by_x: dict = defaultdict(list)
+        for r in rs:
+            if _in(r, fig, value):
+                by_x[_num(r[fig["x"]])].append(_tick(r, fig["y"]))
+        pts = []
+        for x in sorted(by_x):
+            vals = by_x[x]
+            m, sem, med = _stats([v for v, _ in vals])
+            pts.append((x, m, sem, med, len(vals), sum(1 for _, ok in vals if not ok)))
+        out[value] = pts
+    return out
+
+
+def factor_plot(rows: Sequence[dict], fig: dict, path: Path) -> Path | None:
+    """Kind factor: the tick column y against x, one panel per series value:
+    mean (95% CI), median, and each censored run at maxTicks."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    table = factor_table(rows, fig)
+    if not any(table.values()):
+        return None
+    x, y = fig["x"], fig["y"]
+    rs = _of(rows, fig)
+    f, axes = plt.subplots(1, len(table), figsize=(4.6 * len(table), 3.6), squeeze=False)
+    ymax = max(m + s for pts in table.values() for _, m, s, *_ in pts) * 1.1
+    for ax, (letter, value) in zip(axes[0], zip("abcdefgh", table)):
+        pts = table[value]
+        xs = [p[0] for p in pts]
+        ax.errorbar(xs, [p[1] for p in pts], yerr=[1.96 * p[2] for p in pts], marker="o",
+                    capsize=3, label="mean (95% CI)")
+        ax.plot(xs, [p[3] for p in pts], "s--", alpha=0.6, label="median")
+        censored = [r for r in rs if _in(r, fig, value) and not _tick(r, y)[1]]
+        if censored:
+            # every censored run drawn at its censoring tick, not only counted
+            sc = ax.scatter([_num(r[x]) for r in censored], [_tick(r, y)[0] for r in censored],
+                            facecolors="none", edgecolors="C3", s=30,
+                            label="censored at maxTicks")
+            sc.set_gid("censored")
+            ymax = max(ymax, max(_tick(r, y)[0] for r in censored) * 1.05)
+        cens = sum(p[5] for p in pts)
+        n = min(p[4] for p in pts)
+        name = "all runs" if value is None else value
+        ax.set_title(f"({letter}) {name}, n={n}/point" + (f", {cens} censored" if cens else ""),
+                     fontsize=9)
+        ax.set_xlabel(x)
+        ax.set_ylabel(fig.get("ylabel", f"{y} (ticks)"))
+        ax.set_ylim(0, ymax)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    import textwrap
+    f.suptitle(fig.get("title") or textwrap.fill(f"{y}: {_meaning(rs, y)}, against {x}",
+                                                 50 * len(table)), fontsize=10)
+    f.tight_layout()
+    return _save(f, path)
+
+
+def units_table(rows: Sequence[dict], fig: dict) -> dict:
+    """{series value: [(x, (mean, sem) per y column, got there, runs)]} over
+    the runs whose first y column came."""
+    cols = [c for c, _ in fig["y"]]
+    rs = _of(rows, fig)
+    out: dict = {}
+    for value in _series(rs, fig):
+        by_x: dict = defaultdict(list)
+        for r in rs:
+            if _in(r, fig, value):
+                by_x[_num(r[fig["x"]])].append(r)
+        pts = []
+        for x in sorted(by_x):
+            done = [r for r in by_x[x] if _num(r[cols[0]]) is not None]
+            stats = [(_stats([float(_num(r[c])) for r in done])[:2] if done else (math.nan, 0.0))
+                     for c in cols]
+            pts.append((x, stats, len(done), len(by_x[x])))
+        out[value] = pts
+    return out
+
+
+def units_plot(rows: Sequence[dict], fig: dict, path: Path) -> Path | None:
+    """Kind units: several tick columns y ((column, label), ...) against x on
+    a log scale (a stalled level would flatten the rest), one panel per
+    series value, over the runs that got there; the panel's title counts
+    those that did not."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    table = units_table(rows, fig)
+    if not any(table.values()):
+        return None
+    act = sorted({str(r.get("activation", "sync")) for r in _of(rows, fig)})
+    f, axes = plt.subplots(1, len(table), figsize=(4.8 * len(table), 3.6), squeeze=False)
+    for ax, value in zip(axes[0], table):
+        pts = table[value]
+        xs = [p[0] for p in pts]
+        for i, (_, label) in enumerate(fig["y"]):
+            ax.errorbar(xs, [p[1][i][0] for p in pts], yerr=[1.96 * p[1][i][1] for p in pts],
+                        marker="os^v"[i % 4], capsize=3, label=label)
+        stalled = [p[3] - p[2] for p in pts]
+        name = "all runs" if value is None else value
+        ax.set_title(f"{name}, n={min(p[3] for p in pts)}/point; not reached: "
+                     + ",".join(str(s) for s in stalled), fontsize=8)
+        ax.set_xlabel(fig["x"])
+        ax.set_ylabel(fig.get("ylabel", f"{fig['y'][0][0]} (mean of the runs that got there, "
+                                        "95% CI)"), fontsize=8)
+        ax.set_yscale("log")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    f.suptitle(f"{fig.get('title', fig['x'])} (activation {', '.join(act)})", fontsize=10)
+    f.tight_layout()
+    return _save(f, path)
+
+
+def _n(r) -> int:
+    """The robots that must hold the run's object (sweep.csv's `required`)."""
+    return int(_num(r["required"]))
+
+
+def shape_table(rows: Sequence[dict], fig: dict) -> dict:
+    """{category value: [(N, mean IoU, sem, mean touches, n)]}: N the robots
+    required to hold it."""
+    cat = fig.get("category", "object")
+    groups: dict[tuple, list] = defaultdict(list)
+    for r in _of(rows, fig):
+        groups[(r[cat], _n(r))].append((float(_num(r["shape_iou"])), int(_num(r["n_touches"]))))
+    out: dict[str, list] = defaultdict(list)
+    for (obj, n), vals in sorted(groups.items()):
+        m, sem, _ = _stats([v for v, _ in vals])
+        out[obj].append((n, m, sem, sum(t for _, t in vals) / len(vals), len(vals)))
+    return dict(out)
+
+
+def _example(rows: Sequence[dict], fig: dict, obj, n):
+    """The run of median IoU among those at (category value, N)."""
+    cat = fig.get("category", "object")
+    cand = [r for r in _of(rows, fig) if r[cat] == obj and _n(r) == n]
+    if not cand:
+        return None
+    cand.sort(key=lambda r: (float(_num(r["shape_iou"])), int(_num(r["seed"]))))
+    return cand[len(cand) // 2]
+
+
+def _true_cells(r: dict) -> list[tuple[int, int]]:
+    """The object's cells at the start of the run a sweep row describes."""
+    from sim_backend.scenario import validate
+    from sim_backend.sweep import row_keys
+    from sim_backend.world import World
+    # breeds (a tuple, "()" in a CSV) are not numbers: such a point has none
+    sc = validate({k: _num(r[k]) for k in row_keys(r) if r.get(k) not in (None, "", (), "()")})
+    return World(sc, int(_num(r["seed"]))).object_cells
+
+
+def shapes_plot(rows: Sequence[dict], fig: dict, path: Path) -> Path | None:
+    """Kind shapes: per level of the category (rows) and required holders N
+    (columns) the median-IoU run's perceived shape over the true cells, and
+    a last panel of mean IoU against N."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from firmware_logic import perception
+
+    table = shape_table(rows, fig)
+    objs = [o for o in fig["levels"] if o in table]
+    if not objs:
+        return None
+    ns = sorted({p[0] for o in objs for p in table[o]})
+    f, axes = plt.subplots(len(objs), len(ns) + 1, figsize=(2.1 * (len(ns) + 1), 2.3 * len(objs)),
+                           squeeze=False)
+    for row_axes, obj in zip(axes, objs):
+        for ax, n in zip(row_axes, ns):
+            ax.set_xticks([])
+            ax.set_yticks([])
+            r = _example(rows, fig, obj, n)
+            if r is None:
+                ax.axis("off")
+                continue
+            true = _true_cells(r)
+            segs = [tuple(int(v) for v in p.split(":")) for p in str(r["segments"]).split()]
+            outline = perception.outline_cells(segs)
+            xs = [c[0] for c in true]
+            ys = [c[1] for c in true]
+            ax.scatter(xs, ys, marker="s", s=60, c="#f2d06b", label="object")
+            if outline:
+                ax.scatter([c[0] for c in outline], [c[1] for c in outline], marker="s", s=18,
+                           c="#4a7bd0", alpha=0.5, label="perceived")
+            if segs:
+                ax.scatter([c[0] for c in segs], [c[1] for c in segs], marker="x", s=25,
+                           c="k", label="touched")
+            ax.set_xlim(min(xs) - 2, max(xs) + 2)
+            ax.set_ylim(min(ys) - 2, max(ys) + 2)
+            ax.set_aspect("equal")
+            ax.set_title(f"{obj}: {n} robots, IoU {float(_num(r['shape_iou'])):.2f}", fontsize=7)
+        ax = row_axes[-1]
+        pts = table[obj]
+        ax.errorbar([p[0] for p in pts], [p[1] for p in pts], yerr=[1.96 * p[2] for p in pts],
+                    marker="o", capsize=3)
+        ax.set_ylim(0, 1)
+        ax.set_xlabel("touching robots", fontsize=7)
+        ax.set_ylabel("mean IoU", fontsize=7)
+        ax.tick_params(labelsize=6)
+        ax.grid(alpha=0.3)
+        ax.set_title(f"{obj}: n={min(p[4] for p in pts)}/point", fontsize=7)
+    f.suptitle(fig.get("title", "extracted shape vs touching robots"), fontsize=9)
+    f.tight_layout()
+    return _save(f, path)
+
+
+def polygon(points: Sequence[tuple[int, int]]) -> list[tuple[float, float]]:
+    """The closed polygon through the points in angle order about their
+    centroid (duplicates dropped): the outline a reader draws through the
+    holders' positions."""
+    pts = sorted(set(points))
+    if len(pts) < 2:
+        return [(float(x), float(y)) for x, y in pts]
+    mx = sum(x for x, _ in pts) / len(pts)
+    my = sum(y for _, y in pts) / len(pts)
+    pts.sort(key=lambda p: (math.atan2(p[1] - my, p[0] - mx), p))
+    return [(float(x), float(y)) for x, y in pts + [pts[0]]]
+
+
+def _pairs(text) -> list[tuple[int, int]]:
+    return [tuple(int(v) for v in p.split(":")) for p in str(text or "").split()]  # type: ignore
+
+
+def _draw_touches(ax, obj: str, n: int, r: dict | None) -> None:
+    """One panel: the object, the run's touches (holders' rounded positions),
+    their polygon."""
+    ax.set_xticks([])
+    ax.set_yticks([])
+    if r is None:
+        ax.axis("off")
+        return
+    true = _true_cells(r)
+    holders = _pairs(r.get("touches"))
+    ax.scatter([c[0] for c in true], [c[1] for c in true], marker="s", s=60, c="#f2d06b")
+    if holders:
+        poly = polygon(holders)
+        ax.plot([p[0] for p in poly], [p[1] for p in poly], "-", c="#c0392b", lw=1)
+        ax.scatter([h[0] for h in holders], [h[1] for h in holders], s=18, c="#c0392b")
+    pts = list(true) + holders
+    ax.set_xlim(min(p[0] for p in pts) - 2, max(p[0] for p in pts) + 2)
+    ax.set_ylim(min(p[1] for p in pts) - 2, max(p[1] for p in pts) + 2)
+    ax.set_aspect("equal")
+    ax.set_title(f"{obj}: {n} holders (seed {r['seed']}), IoU "
+                 f"{float(_num(r['shape_iou'])):.2f}", fontsize=6)
+
+
+def touchmap_plot(rows: Sequence[dict], fig: dict, path: Path) -> Path | None:
+    """Kind touchmap: per level of the category and required holders N, the
+    median-IoU run's touches over the true cells and the polygon through
+    them (a shape judged by eye, as a reader of the touches would)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rs = _of(rows, fig)
+    cat = fig.get("category", "object")
+    objs = [o for o in fig["levels"] if any(r[cat] == o for r in rs)]
+    if not objs:
+        return None
+    ns = sorted({_n(r) for r in rs})
+    f, axes = plt.subplots(len(objs), len(ns), figsize=(2.2 * len(ns), 2.4 * len(objs)),
+                           squeeze=False)
+    for row_axes, obj in zip(axes, objs):
+        for ax, n in zip(row_axes, ns):
+            _draw_touches(ax, obj, n, _example(rows, fig, obj, n))
+    f.suptitle(fig.get("title", "touches and the polygon through them"), fontsize=9)
+    f.tight_layout()
+    return _save(f, path)
+
+
+def rates_plot(rows: Sequence[dict], fig: dict, path: Path) -> Path | None:
+    """Kind rates: delivery rate (of the feasible runs) and median delivery
+    tick against the rate of each fault, one curve per experiment (named
+    after the key it varies, sim_backend/robustness.fault_table); the
+    reference experiment as a line; scale ((key, divisor), ...) puts a key
+    that is not a rate on the same axis."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from sim_backend.robustness import fault_table
+    ref = fig.get("reference")
+    scale = dict(fig.get("scale", ()))
+    table = fault_table(rows, ref)
+    if not table:
+        return None
+    f, (a, b) = plt.subplots(1, 2, figsize=(11, 4.2))
+    for exp, pts in table.items():
+        if exp == ref:
+            continue
+        xs = [p[0] / scale.get(exp, 1) for p in pts]
+        a.plot(xs, [p[2] / p[1] if p[1] else float("nan") for p in pts], "o-", label=exp)
+        b.plot(xs, [p[3] if p[3] is not None else float("nan") for p in pts], "o-", label=exp)
+    if ref in table:
+        _, n, d, med = table[ref][0]
+        a.axhline(d / n if n else 0, color="k", ls=":", label=f"{ref} ({d}/{n})")
+    scaled = ", ".join(f"{k}: value / {v}" for k, v in scale.items())
+    a.set_xlabel("fault rate" + (f" ({scaled})" if scaled else ""))
+    a.set_ylabel("delivered / feasible runs")
+    a.set_ylim(-0.02, 1.02)
+    b.set_xlabel("fault rate")
+    b.set_ylabel("median tick of delivery")
+    a.legend(fontsize=7)
+    f.suptitle(fig.get("title", "delivery against each fault's rate"))
+    f.tight_layout()
+    return _save(f, path, dpi=110)
+
+
+def levels_table(rows: Sequence[dict], fig: dict) -> list[tuple[str, int, int, float | None,
+                                                             float | None]]:
+    """(label, runs, got there, median, mean of y) per level (experiment)."""
+    import statistics
+    out = []
+    for exp, label in fig["levels"]:
+        rs = [r for r in rows if r["experiment"] == exp]
+        got = [float(_num(r[fig["y"]])) for r in rs if _num(r[fig["y"]]) is not None]
+        if rs:
+            out.append((label, len(rs), len(got), statistics.median(got) if got else None,
+                        round(statistics.mean(got), 1) if got else None))
+    return out
+
+
+def levels_plot(rows: Sequence[dict], fig: dict, path: Path) -> Path | None:
+    """Kind levels: boxes of the column y per experiment, in the order of
+    levels ((experiment, label), ...), the mean as a line, and under each
+    label the runs that got there of all."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    y = fig["y"]
+    levels = [(exp, label) for exp, label in fig["levels"]
+              if any(r["experiment"] == exp for r in rows)]
+    if not levels:
+        return None
+    data, ticks, means = [], [], []
+    for exp, label in levels:
+        rs = [r for r in rows if r["experiment"] == exp]
+        got = [float(_num(r[y])) for r in rs if _num(r[y]) is not None]
+        data.append(got or [float("nan")])
+        means.append(sum(got) / len(got) if got else float("nan"))
+        ticks.append(f"{label}\n{len(got)}/{len(rs)}")
+    xs = list(range(len(levels)))
+    f, ax = plt.subplots(figsize=(6, 4))
+    ax.boxplot(data, positions=xs, widths=0.5, showfliers=False)
+    ax.plot(xs, means, "o-", label="mean")
+    ax.set_xticks(xs, ticks)
+    ax.set_xlabel(fig.get("xlabel", "experiment; runs that got there/runs"))
+    ax.set_ylabel(fig.get("ylabel", y))
+    ax.legend()
+    f.suptitle(fig.get("title", f"{y} per level"))
+    f.tight_layout()
+    return _save(f, path, dpi=110)

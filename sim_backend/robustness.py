@@ -1,9 +1,17 @@
-"""Issue 12's experiments: the fault sweep (`touchswarm sweep --preset faults`)
-and the figures of docs/extensions.md and docs/movement-models.md.
+"""Issue 12's fault runs, world-level: which runs could deliver at all
+(with_feasible), the table of a fault study's rates (fault_table, drawn by
+sim_backend/plots.rates_plot; the thesis's faults study is in its
+studies.py), why a run did not deliver (diagnose, why_table) and the
+figures of docs/extensions.md and docs/movement-models.md.
+
+`python -m sim_backend.robustness why STUDY POINT SEEDS [KEY=VALUE ...]`
+says why each run of one point of a study ended (e.g. `why faults goal 40`,
+the thesis's goal mix over seeds 1..40; KEY=VALUE changes a scenario key).
 
 `python -m sim_backend.robustness models SWEEP_CSV FACTOR OUT.png` draws the
 convergence and first-touch times of a categorical grid (movement models,
-antBlocked); `... trajectories OUT.png` one trajectory of each model.
+a choice parameter); `... trajectories OUT.png [BEHAVIOUR]` one trajectory of each of
+the behaviour's movement models.
 """
 
 from __future__ import annotations
@@ -14,86 +22,6 @@ from pathlib import Path
 from typing import Any, Sequence
 
 from sim_backend.plots import _save
-from sim_backend.sweep import Point
-
-FAULT_RATES = (0.0, 0.1, 0.25, 0.5)
-FAULT_KEYS = ("deathRate", "deadlockRate", "ignoreFieldRate", "ignoreHostRate", "randomRate",
-              "probeMiss", "probeGhost")
-GOAL = (("deathRate", 0.25), ("ignoreFieldRate", 0.1), ("randomRate", 0.1))
-PRESET_SEEDS = 40     # the issue asks for at least 40 seeds of the goal mix
-PRESET_MAX_TICKS = 3000
-# deaths and deadlocks strike in ticks 1..200, while the swarm searches and
-# carries (a default run delivers near tick 150); later ones miss the mission
-PRESET_FAULT_WINDOW = 200
-# the host drops a holder silent this long (a waiting holder reports every
-# 64 ticks, a carrying one every tick; docs/extensions.md)
-PRESET_LOST_AFTER = 100
-
-
-def fault_points() -> list[Point]:
-    """Each fault alone at FAULT_RATES, field noise at 0..4, and the issue's goal mix."""
-    pts = [Point(k, ((k, r),)) for k in FAULT_KEYS for r in FAULT_RATES]
-    pts += [Point("fieldNoise", (("fieldNoise", v),)) for v in (0, 1, 2, 4)]
-    pts.append(Point("goal", GOAL))
-    return pts
-
-
-BREED_ANTS = (0, 5, 10, 15, 20)     # ants of 20 robots, the rest fireflies
-BREED_SEEDS = 30
-
-
-def breed_points(agents: int = 20) -> list[Point]:
-    """The ant share of a firefly/ant swarm: one point per count of ants."""
-    pts = []
-    for ants in BREED_ANTS:
-        breeds = tuple(b for b in (
-            (("count", ants), ("name", "ants"), ("movementModel", "ant")),
-            (("count", agents - ants), ("name", "fireflies"), ("movementModel", "firefly")))
-            if dict(b)["count"] > 0)
-        pts.append(Point(f"ants{ants}", (("breeds", breeds),)))
-    return pts
-
-
-def breed_plots(rows: Sequence[dict], out: Path) -> list[Path]:
-    """Convergence time against the share of ants."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    by: dict[int, list[float]] = {}
-    runs: dict[int, int] = {}
-    for r in rows:
-        ants = int(str(r["experiment"])[4:])
-        runs[ants] = runs.get(ants, 0) + 1
-        v = _num(r["converged_tick"])
-        if v is not None:
-            by.setdefault(ants, []).append(v)
-    xs = sorted(runs)
-    fig, ax = plt.subplots(figsize=(6, 4))
-    ax.boxplot([by.get(x, [float("nan")]) for x in xs], positions=xs, widths=2.5,
-               showfliers=False)
-    ax.plot(xs, [statistics.mean(by[x]) if x in by else float("nan") for x in xs], "o-",
-            label="mean")
-    ax.set_xticks(xs, [f"{x}\n{len(by.get(x, []))}/{runs[x]}" for x in xs])
-    ax.set_xlabel("ants among 20 robots (the rest fireflies); converged/runs")
-    ax.set_ylabel("tick of convergence")
-    ax.legend()
-    fig.suptitle("breeds: convergence against the share of ants")
-    fig.tight_layout()
-    path = out / "breeds.png"
-    return [_save(fig, path, dpi=110)]
-
-
-def breed_table(rows: Sequence[dict]) -> list[tuple[int, int, int, float, float]]:
-    """(ants, runs, converged, median, mean convergence tick) per point."""
-    out = []
-    for ants in BREED_ANTS:
-        rs = [r for r in rows if r["experiment"] == f"ants{ants}"]
-        got = [_num(r["converged_tick"]) for r in rs if _num(r["converged_tick"]) is not None]
-        if rs:
-            out.append((ants, len(rs), len(got), statistics.median(got) if got else None,
-                        round(statistics.mean(got), 1) if got else None))
-    return out
-
 
 def _num(v: Any) -> float | None:
     if v in (None, "", "None"):
@@ -121,7 +49,7 @@ def with_feasible(rows: Sequence[dict]) -> list[dict]:
     """Rows with `feasible` (docs/extensions.md): the robots that never die and
     may claim can lift the object (faults.feasible), and the run did not end
     with the host finding no way home round the obstacles it knows (the
-    map's, and with lostAfter the cells of the holders that died: an object
+    map's, and when its host drops lost holders the cells of the holders that died: an object
     pinned by dead robots cannot be delivered by anyone)."""
     from sim_backend import faults
     from sim_backend.scenario import validate
@@ -136,13 +64,15 @@ def with_feasible(rows: Sequence[dict]) -> list[dict]:
     return out
 
 
-def fault_table(rows: Sequence[dict]) -> dict[str, list[tuple[float, int, int, float | None]]]:
-    """experiment -> [(rate, feasible runs, delivered of those, median home tick)]."""
+def fault_table(rows: Sequence[dict], reference: str | None = None
+                ) -> dict[str, list[tuple[float, int, int, float | None]]]:
+    """experiment -> [(rate, feasible runs, delivered of those, median home
+    tick)]: each experiment is named after the fault key it varies; the
+    reference experiment (a mix) has one entry at rate -1."""
     table: dict[str, dict[float, list[dict]]] = {}
     for r in with_feasible(rows):
         exp = r["experiment"]
-        key = exp if exp != "goal" else "deathRate"
-        rate = float(r[key]) if exp != "goal" else -1.0
+        rate = float(r[exp]) if exp != reference else -1.0
         table.setdefault(exp, {}).setdefault(rate, []).append(r)
     out: dict[str, list[tuple[float, int, int, float | None]]] = {}
     for exp, by in table.items():
@@ -153,33 +83,6 @@ def fault_table(rows: Sequence[dict]) -> dict[str, list[tuple[float, int, int, f
             med = statistics.median(homes) if homes else None
             out.setdefault(exp, []).append((rate, len(rs), len(got), med))
     return out
-
-
-def fault_plots(rows: Sequence[dict], out: Path) -> list[Path]:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    table = fault_table(rows)
-    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4.2))
-    for exp, pts in table.items():
-        if exp == "goal":
-            continue
-        xs = [p[0] / 10 if exp == "fieldNoise" else p[0] for p in pts]
-        a.plot(xs, [p[2] / p[1] if p[1] else float("nan") for p in pts], "o-", label=exp)
-        b.plot(xs, [p[3] if p[3] is not None else float("nan") for p in pts], "o-", label=exp)
-    if "goal" in table:
-        _, n, d, med = table["goal"][0]
-        a.axhline(d / n if n else 0, color="k", ls=":", label=f"goal mix ({d}/{n})")
-    a.set_xlabel("fault rate (fieldNoise: amplitude / 10)")
-    a.set_ylabel("delivered / feasible runs")
-    a.set_ylim(-0.02, 1.02)
-    b.set_xlabel("fault rate")
-    b.set_ylabel("median tick of delivery")
-    a.legend(fontsize=7)
-    fig.suptitle("robustness: each fault alone (touchswarm sweep --preset faults)")
-    fig.tight_layout()
-    path = out / "faults.png"
-    return [_save(fig, path, dpi=110)]
 
 
 def category_plot(rows: Sequence[dict], factor: str, path: Path) -> Path:
@@ -210,17 +113,27 @@ def category_plot(rows: Sequence[dict], factor: str, path: Path) -> Path:
     return _save(fig, path, dpi=110)
 
 
-def trajectories_plot(path: Path, seed: int = 3, ticks: int = 150) -> Path:
-    """One robot's first `ticks` ticks under each movement model."""
+def trajectories_plot(path: Path, seed: int = 3, ticks: int = 150,
+                      behaviour: str | None = None) -> Path:
+    """One robot's first `ticks` ticks under each of the behaviour's
+    movement models (spec.MODELS, set through the parameter that names one)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from sim_backend import params
     from sim_backend.engine import Engine
-    from sim_backend.scenario import MODELS, validate
+    from sim_backend.errors import ScenarioError
+    from sim_backend.scenario import DEFAULT_BEHAVIOUR, validate
     from sim_backend.world import World
-    fig, axes = plt.subplots(1, len(MODELS), figsize=(3.2 * len(MODELS), 3.4))
-    for ax, model in zip(axes, MODELS):
-        e = Engine(validate({"movementModel": model, "maxTicks": ticks}), seed,
+    behaviour = behaviour or DEFAULT_BEHAVIOUR
+    key = next((p for p in params.declared(behaviour) if p.codes), None)
+    if key is None:
+        raise ScenarioError(f"behaviour {behaviour!r}: no parameter names one of its "
+                            "spec.MODELS; no movement models to draw")
+    fig, axes = plt.subplots(1, len(key.choices), figsize=(3.2 * len(key.choices), 3.4),
+                             squeeze=False)
+    for ax, model in zip(axes[0], key.choices):
+        e = Engine(validate({"behaviour": behaviour, key.name: model, "maxTicks": ticks}), seed,
                    record_trajectories=True)
         r = e.run()
         xs = [f[0][0] / 256 for f in r.trajectories]
@@ -299,36 +212,46 @@ def why_table(raw: dict, seeds: Sequence[int]) -> dict[str, list[int]]:
     return out
 
 
+def study_point(study: str, point: str, changes: dict[str, Any]) -> dict:
+    """The scenario of one point of a study (its overrides, then the
+    point's keys, then `changes`; changes may name the behaviour, default
+    the thesis)."""
+    from sim_backend import studies
+    from sim_backend.scenario import DEFAULT_BEHAVIOUR
+    behaviour = str(changes.get("behaviour", DEFAULT_BEHAVIOUR))
+    st = studies.get(behaviour, study)
+    pts = [p for p in st.points if p.experiment == point]
+    if len(pts) != 1:
+        raise studies.StudyError(
+            f"study {study!r}: {len(pts)} points are named {point!r}; expected one of "
+            f"{', '.join(dict.fromkeys(p.experiment for p in st.points))}")
+    return {**dict(st.overrides), **pts[0].as_dict(), **changes}
+
+
 def main(argv: list[str]) -> int:
     import csv
     if argv[:1] == ["models"] and len(argv) == 4:
         rows = list(csv.DictReader(open(argv[1])))
         print(category_plot(rows, argv[2], Path(argv[3])))
         return 0
-    if argv[:1] == ["trajectories"] and len(argv) == 2:
-        print(trajectories_plot(Path(argv[1])))
+    if argv[:1] == ["trajectories"] and len(argv) in (2, 3):
+        print(trajectories_plot(Path(argv[1]), behaviour=argv[2] if len(argv) == 3 else None))
         return 0
-    if argv[:1] == ["faults"] and len(argv) == 3:
-        rows = list(csv.DictReader(open(argv[1])))
-        for exp, pts in fault_table(rows).items():
-            print(exp, pts)
-        print(fault_plots(rows, Path(argv[2])))
-        return 0
-    if argv[:1] == ["why"] and len(argv) in (2, 3, 4):
-        # the goal mix, preset settings, seeds 1..N: why each run ended
-        # (lostAfter: the preset's, or 0 for the thesis's host; crowd: the
-        # scenario default, or the rule named)
-        raw = {**dict(GOAL), "maxTicks": PRESET_MAX_TICKS, "faultWindow": PRESET_FAULT_WINDOW,
-               "lostAfter": int(argv[2]) if len(argv) >= 3 else PRESET_LOST_AFTER}
-        if len(argv) == 4:
-            raw["crowd"] = argv[3]
-        got = why_table(raw, range(1, int(argv[1]) + 1))
+    if argv[:1] == ["why"] and len(argv) >= 4:
+        # a point of a study (e.g. the thesis's faults study's goal mix) with
+        # the study's settings, seeds 1..N, KEY=VALUE changes: why each run ended
+        changes = {}
+        for kv in argv[4:]:
+            k, _, v = kv.partition("=")
+            changes[k] = _value(v)
+        got = why_table(study_point(argv[1], argv[2], changes), range(1, int(argv[3]) + 1))
         for why in WHY_ORDER:
             if why in got:
                 print(f"{why:24s} {len(got[why]):3d}  seeds {got[why]}")
         return 0
     print("usage: python -m sim_backend.robustness models CSV FACTOR OUT.png | "
-          "trajectories OUT.png | faults CSV OUTDIR | why SEEDS [LOST_AFTER [CROWD]]", file=sys.stderr)
+          "trajectories OUT.png [BEHAVIOUR] | why STUDY POINT SEEDS [KEY=VALUE ...]",
+          file=sys.stderr)
     return 2
 
 

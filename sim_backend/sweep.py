@@ -91,38 +91,6 @@ def grid_points(grid: dict[str, Sequence[Any]], experiment: str = "grid") -> lis
             for combo in itertools.product(*(grid[k] for k in keys))]
 
 
-def thesis_points() -> list[Point]:
-    """Every experiment of the thesis's chapter 5, both movement models.
-
-    graph1 fieldDefiance, graph2 sigRadius, graph3 rPower (graph 4, robots
-    required = ceil(objectWeight / rPower) of a population of 20, is the same
-    data read the other way, as the thesis says); figures 22-24: the shape N
-    touching robots extract (objectWeight = N, rPower 1) from a swarm of
-    max(20, N), for the bar, L, '+' (cross, DrawObject 3) and X objects.
-    """
-    pts: list[Point] = []
-    models = ("firefly", "ant")
-    for m in models:
-        for v in (0, 1, 2, 4, 6, 8, 10):
-            pts.append(Point("graph1", (("movementModel", m), ("fieldDefiance", v))))
-    for m in models:
-        for v in (1, 2, 3, 5, 7, 9):
-            pts.append(Point("graph2", (("movementModel", m), ("sigRadius", v))))
-    for m in models:
-        for v in (0.5, 0.75, 1.0, 1.25, 1.5, 2.0, 2.5, 5.0):
-            pts.append(Point("graph3", (("movementModel", m), ("rPower", v))))
-    for obj in ("bar", "L", "cross", "X"):
-        for n in (4, 6, 8, 10, 12):
-            pts.append(Point("shapes", (("object", obj), ("agents", max(20, n)),
-                                        ("objectWeight", float(n)))))
-    return pts
-
-
-THESIS_SEEDS = 150
-THESIS_MAX_TICKS = 5000
-THESIS_UNTIL = "converged"
-
-
 def base_dict(base: Scenario | None, overrides: dict[str, Any] | None) -> dict[str, Any]:
     """The keys every point starts from: the base scenario's with the --set
     overrides over them (an override naming another behaviour leaves the base

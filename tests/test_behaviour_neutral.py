@@ -3,9 +3,10 @@ or bridge/ names a shipped behaviour's parameter or state; those live in the
 behaviour's folder. The names are read from the behaviours' own spec.py, so a
 parameter added to the thesis is checked without touching this test.
 
-The thesis reproduction presets (its Graphs 1-4, the robustness tables, the
-`experiment` command) run the thesis's own parameters by design; they are the
-files in THESIS_PRESETS, and nothing else is let off.
+The thesis's own studies (its Graphs 1-4 and Figures 22-24, the faults and
+breeds sweeps) are data in its folder (firmware_logic/behaviours/thesis/
+studies.py); sim_backend/studies.py and the figure kinds of plots.py take
+every column from them, so no file is let off.
 """
 
 from __future__ import annotations
@@ -17,14 +18,6 @@ from firmware_logic import registry
 from sim_backend import scenario
 
 ROOT = Path(__file__).resolve().parents[1]
-THESIS_PRESETS = {
-    "sim_backend/thesis_figures.py",     # the thesis's Graphs 1-4 and Figures 23-24
-    "sim_backend/robustness.py",         # the faults and breeds presets over thesis keys
-    "sim_backend/plots.py",              # the Graph 1-4 panels (graph1..graph4)
-    "sim_backend/sweep.py",              # thesis_points: the preset's grid
-    "bridge/commands/sweep.py",          # --preset thesis/faults/breeds
-    "bridge/commands/experiment.py",     # `touchswarm experiment`: the thesis's tables
-}
 IMPORT = re.compile(r"^\s*(from|import)\s")
 
 
@@ -75,7 +68,5 @@ def test_sim_backend_and_bridge_name_no_behaviours_parameter_or_state() -> None:
     found = []
     for top in ("sim_backend", "bridge"):
         for path in sorted((ROOT / top).rglob("*.py")):
-            if path.relative_to(ROOT).as_posix() in THESIS_PRESETS:
-                continue
             found += _offences(path, params, states)
     assert not found, "\n".join(found)

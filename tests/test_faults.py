@@ -228,14 +228,23 @@ def test_fault_options_refused_in_one_line(argv, needle, capsys, tmp_path):
 
 
 def test_the_fault_preset_has_each_fault_alone_and_the_goal_mix():
-    from sim_backend.robustness import FAULT_KEYS, FAULT_RATES, GOAL, fault_points, fault_table
-    pts = fault_points()
-    for k in FAULT_KEYS:
-        assert [p.as_dict()[k] for p in pts if p.experiment == k] == list(FAULT_RATES)
-    assert dict(GOAL) == {"deathRate": 0.25, "ignoreFieldRate": 0.1, "randomRate": 0.1}
+    from sim_backend import studies
+    from sim_backend.robustness import fault_table
+    st = studies.get("thesis", "faults")
+    pts = st.points
+    keys = ("deathRate", "deadlockRate", "ignoreFieldRate", "ignoreHostRate", "randomRate",
+            "probeMiss", "probeGhost")
+    for k in keys:
+        assert [p.as_dict()[k] for p in pts if p.experiment == k] == [0.0, 0.1, 0.25, 0.5]
+    assert [p.as_dict()["fieldNoise"] for p in pts if p.experiment == "fieldNoise"] == \
+        [0, 1, 2, 4]
+    goal = [p.as_dict() for p in pts if p.experiment == "goal"]
+    assert goal == [{"deathRate": 0.25, "ignoreFieldRate": 0.1, "randomRate": 0.1}]
+    assert dict(st.overrides) == {"maxTicks": 3000, "faultWindow": 200, "lostAfter": 100}
+    assert (st.seeds, st.until) == (40, "delivered")
     rows = [{**validate({"maxTicks": 10, **p.as_dict()}).to_dict(), "experiment": p.experiment,
              "seed": 1, "delivered": p.experiment == "goal", "home_tick": 9}
             for p in pts]
-    t = fault_table(rows)
+    t = fault_table(rows, "goal")
     assert t["goal"] == [(-1.0, 1, 1, 9)]
     assert t["deathRate"][0] == (0.0, 1, 0, None)

@@ -246,8 +246,8 @@ def test_why_a_run_failed_is_diagnosed_and_a_pinned_object_is_not_feasible():
         {"delivered": [1], "no path home": [35]}
     row = {"experiment": "goal", "seed": 35, "deathRate": 0.25, "ignoreFieldRate": 0.1,
            "randomRate": 0.1, "delivered": False, "home_tick": None}
-    pinned = fault_table([{**row, "outcome": "no path home"}])
-    stalled = fault_table([{**row, "outcome": "stalled"}])
+    pinned = fault_table([{**row, "outcome": "no path home"}], "goal")
+    stalled = fault_table([{**row, "outcome": "stalled"}], "goal")
     assert pinned["goal"] == [(-1.0, 0, 0, None)]
     assert stalled["goal"] == [(-1.0, 1, 0, None)]
 

@@ -237,12 +237,12 @@ def test_breeds_run_over_virtual_can_as_in_process():
 
 
 def test_the_breed_preset_varies_the_ant_share():
-    from sim_backend.robustness import BREED_ANTS, breed_points
-    pts = breed_points()
+    from sim_backend import studies
+    pts = studies.get("thesis", "breeds").points
     shares = []
     for p in pts:
         sc = validate(p.as_dict())
         shares.append(sum(1 for n in range(1, sc.agents + 1)
                           if sc.for_node(n).movementModel == "ant"))
         assert sc.agents == 20
-    assert shares == list(BREED_ANTS)
+    assert shares == [0, 5, 10, 15, 20]

@@ -66,6 +66,7 @@ def register(sub) -> None:
 
 def cmd_list(args: argparse.Namespace) -> int:
     from firmware_logic import registry
+    from sim_backend import studies
 
     for name, module in sorted(registry.names().items()):
         try:
@@ -79,6 +80,12 @@ def cmd_list(args: argparse.Namespace) -> int:
         if b.messages:
             print(f"{'':12s} own messages (kinds are per behaviour): "
                   + ", ".join(f"{m[1]} (kind {m[0]}, {m[2]})" for m in b.messages))
+        try:
+            own = ", ".join(studies.of(name))
+        except studies.StudyError as err:
+            own = f"BROKEN: {err}"
+        if own:
+            print(f"{'':12s} studies (touchswarm sweep --study NAME): {own}")
     return 0
 
 

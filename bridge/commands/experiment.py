@@ -10,8 +10,8 @@ files"):
     until = "delivered"
     out = "sweep-out"
     [grid]
-    fieldDefiance = [0, 2, 4]
-    movementModel = ["firefly", "ant"]
+    agents = [10, 20, 40]                # world keys or the behaviour's own
+    sigRadius = [3, 5]                   # (`touchswarm scenarios --behaviour NAME`)
     [set]
     maxTicks = 3000
 
@@ -64,7 +64,7 @@ def load(path: Path) -> dict[str, Any]:
             raise UsageError(f"experiment {path}: {key} = {value!r}; expected {what}")
     if "grid" not in raw:
         raise UsageError(f"experiment {path}: no [grid] table; expected e.g. "
-                         "[grid] fieldDefiance = [0, 2, 4]")
+                         "[grid] agents = [10, 20, 40]")
     for key, values in raw["grid"].items():
         if not isinstance(values, list) or not values:
             raise UsageError(f"experiment {path}: grid.{key} = {values!r}; expected a "

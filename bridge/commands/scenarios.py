@@ -8,6 +8,7 @@ import argparse
 EPILOG = """examples:
   touchswarm scenarios                          # built-ins, world keys, the thesis's keys
   touchswarm scenarios --behaviour aggregate    # that behaviour's own keys (spec.PARAMS)
+                                                # and studies (studies.py)
   touchswarm scenarios --behaviour ./mine       # a behaviour folder's keys"""
 
 
@@ -15,7 +16,8 @@ def register(sub) -> None:
     p = sub.add_parser("scenarios",
                        description="List the built-in scenarios, then every key of the "
                                    "world with its default and allowed range, then the "
-                                   "keys the behaviour declares (its spec.PARAMS).",
+                                   "keys the behaviour declares (its spec.PARAMS) and its "
+                                   "studies (its studies.py; `touchswarm sweep --study NAME`).",
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--behaviour", default=None, metavar="NAME|DIR",
                    help="whose own keys to list (default: the default scenario's, thesis)")
@@ -23,9 +25,10 @@ def register(sub) -> None:
 
 
 def cmd_scenarios(args: argparse.Namespace) -> int:
-    from sim_backend import arena, objects, params, scenario
+    from sim_backend import arena, objects, params, scenario, studies
     behaviour = args.behaviour or scenario.DEFAULT_BEHAVIOUR
     declared = params.declared(behaviour, scenario.WORLD_KEYS)   # ScenarioError: one line
+    own = studies.of(behaviour)                                  # StudyError: one line
     for name in scenario.builtin_names():
         sc = scenario.load(name)
         print(f"{name:10s} {sc.description}")
@@ -54,6 +57,12 @@ def cmd_scenarios(args: argparse.Namespace) -> int:
     for p in declared:
         default = str(p.default).lower() if p.kind == "bool" else p.default
         print(f"  {p.name:16s} {default!s:10s} {p.allowed():22s} {p.meaning}")
+    print(f"\nbehaviour {behaviour!r} studies (its studies.py; touchswarm sweep --study NAME):")
+    for st in own.values():
+        print(f"  {st.name:16s} {len(st.points)} points x {st.seeds} seeds, until {st.until}; "
+              f"{st.about}; figures: {', '.join(st.figure_names())}")
+    if not own:
+        print("  none (docs/writing-a-behaviour.md, \"Studies\")")
     print("\nshapes (object = NAME, or shape = NAME in [[objects]]; rows top to bottom):")
     for name in sorted(objects.SHAPES):
         print(f"  {name}:")

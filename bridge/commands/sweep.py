@@ -20,9 +20,8 @@ def register(sub) -> None:
                     "vectorised engine, spread over an executor; write one CSV row per run "
                     "(every parameter and every measured figure) and PNG plots.",
         epilog="examples:\n"
-               "  touchswarm sweep --grid fieldDefiance=0,2,4,8 --grid movementModel=firefly,ant "
-               "--seeds 150\n"
-               "  touchswarm sweep --thesis --out thesis-out\n"
+               "  touchswarm sweep --grid agents=10,20,40 --grid sigRadius=3,5 --seeds 150\n"
+               "  touchswarm sweep --study thesis --out thesis-out   # a study of the behaviour\n"
                "  touchswarm sweep --grid sigRadius=3,5,7 --seeds 101-200 --executor "
                "dask://10.0.0.5:8786\n"
                "  touchswarm sweep --grid sigRadius=3,5 --save-experiment exp.toml  # saved, run\n"
@@ -46,27 +45,32 @@ def register(sub) -> None:
                         "not a --grid key)")
     p.add_argument("--seeds", default=None, metavar="N|A-B|A,B,...",
                    help="seeds: a count N (seeds 1..N), a range A-B (A <= B) or a list of "
-                        "distinct seeds, each in 0..1000002 (default: 20; --thesis: 150)")
-    p.add_argument("--preset", choices=("faults", "breeds", "sizes", "obstacles", "field"),
-                   help="faults: the robustness sweep of issue 12 (each fault alone at rates "
-                        "0-0.5, and 25%% dead + 10%% non-complying + 10%% random; 40 seeds, "
-                        "until delivered, lostAfter 100); faults.png plots delivery rate and time. breeds: "
-                        "0, 5, 10, 15, 20 ants in a swarm of 20 with fireflies, 30 seeds, "
-                        "until converged; breeds.png. sizes: 20-300 robots in the default "
-                        "arena, 1,000 and 10,000 in arenas of the same density; obstacles: "
-                        "the wall scenario with and without its wall; field: static and "
-                        "dynamic field at 20-300 robots (issue 11; 10 seeds, until delivered, "
-                        "maxTicks 6000; <preset>.png: delivery rate, time, IoU)")
+                        "distinct seeds, each in 0..1000002 (default: 20; a study: its own)")
+    p.add_argument("--study", default=None, metavar="NAME",
+                   help="run a study of the scenario's behaviour: its own points, seeds, "
+                        "until, settings and figures, declared as data in the behaviour's "
+                        "studies.py (`touchswarm scenarios --behaviour NAME` lists them; "
+                        "docs/writing-a-behaviour.md, \"Studies\"); --seeds, --until and "
+                        "--set given as well override the study's")
+    p.add_argument("--preset", default=None, metavar="NAME",
+                   help="sizes: 20-300 robots in the default arena, 1,000 and 10,000 in "
+                        "arenas of the same density; obstacles: the wall scenario with and "
+                        "without its wall; field: static and dynamic field at 20-300 robots "
+                        "(the world's presets, issue 11; 10 seeds, until delivered, maxTicks "
+                        "6000; <preset>.png: delivery rate, time, IoU). Any other NAME is "
+                        "--study NAME (the thesis's faults: each fault alone and a mix, "
+                        "faults.png; breeds: the share of ants, breeds.png)")
     p.add_argument("--thesis", action="store_true",
-                   help="reproduce every graph and figure of the thesis's chapter 5 "
-                        "(150 seeds per point, both movement models, until convergence)")
+                   help="the same as --study thesis: every graph and figure of the thesis's "
+                        "chapter 5 (150 seeds per point, both movement models, until "
+                        "convergence)")
     p.add_argument("--activation", choices=["sync", "netlogo"], default=None,
                    help="sync: every robot decides on the tick-start world (the scenario's "
                         "default); netlogo: NetLogo's sequential `ask robots` "
                         "(docs/tick-semantics.md); the same as --set activation=...")
     p.add_argument("--until", choices=["delivered", "converged"], default=None,
                    help="stop each run when the object is home or when power first reaches "
-                        "its weight (default: delivered; --thesis: converged)")
+                        "its weight (default: delivered; a study: its own)")
     p.add_argument("--engine", choices=ENGINES, default=None,
                    help="soa: the struct-of-arrays transform of the behaviour's own "
                         "source, compiled once per machine and behaviour source "
@@ -151,7 +155,7 @@ def _grid(items: list[str]) -> dict:
         key = key.strip()
         if not eq or not key or not values.strip():
             raise UsageError(f"--grid {item!r}: expected KEY=V1,V2,..., "
-                             "e.g. --grid fieldDefiance=0,2,4")
+                             "e.g. --grid agents=10,20")
         if key in grid:
             raise UsageError(f"--grid {key} given twice; put all its values in one "
                              f"--grid {key}=V1,V2,...")
@@ -167,8 +171,8 @@ def _settings(args: argparse.Namespace) -> dict:
     if args.experiment is not None:
         if args.experiment.suffix != ".toml":
             raise UsageError(f"experiment {args.experiment}: expected a .toml experiment file")
-        if args.thesis:
-            raise UsageError("--thesis runs its own grid; drop the experiment file")
+        if _study_flag(args):
+            raise UsageError(f"{_study_flag(args)} runs its own grid; drop the experiment file")
         settings = experiment.load(args.experiment)
     if args.scenario is not None:
         settings["scenario"] = args.scenario
@@ -198,6 +202,20 @@ def _settings(args: argparse.Namespace) -> dict:
     return settings
 
 
+def _world_presets() -> tuple[str, ...]:
+    from sim_backend import arena_presets
+    return tuple(arena_presets.PRESETS)
+
+
+def _study_flag(args: argparse.Namespace) -> str | None:
+    """The option that names a study or a preset, as given (for errors)."""
+    if args.study:
+        return f"--study {args.study}"
+    if args.preset:
+        return f"--preset {args.preset}"
+    return "--thesis" if args.thesis else None
+
+
 def _compiling(behaviour: str, folder: Path) -> None:
     print(f"compiling the soa engine for behaviour {behaviour!r}: once per machine and "
           f"behaviour source, {SOA_COLD_COMPILE}; cached in {folder}", file=sys.stderr,
@@ -216,28 +234,16 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         overrides["activation"] = args.activation
         cfg["set"] = dict(cfg["set"], activation=args.activation)   # saved with the experiment
     grid: dict = {}
-    if args.preset and (args.thesis or cfg.get("grid")):
-        raise UsageError(f"--preset {args.preset} runs its own grid; drop --thesis and --grid")
-    if args.preset and args.save_experiment:
-        raise UsageError(f"--save-experiment saves a --grid sweep; --preset {args.preset} is "
-                         "its own experiment already")
-    if args.preset == "faults":
-        from sim_backend import robustness
-        points = robustness.fault_points()
-        seeds = _seeds(cfg["seeds"]) if "seeds" in cfg else \
-            list(range(1, robustness.PRESET_SEEDS + 1))
-        until = cfg.get("until") or "delivered"
-        overrides.setdefault("maxTicks", robustness.PRESET_MAX_TICKS)
-        overrides.setdefault("faultWindow", robustness.PRESET_FAULT_WINDOW)
-        overrides.setdefault("lostAfter", robustness.PRESET_LOST_AFTER)
-    elif args.preset == "breeds":
-        from sim_backend import robustness
-        points = robustness.breed_points()
-        seeds = _seeds(cfg["seeds"]) if "seeds" in cfg else \
-            list(range(1, robustness.BREED_SEEDS + 1))
-        until = cfg.get("until") or "converged"
-        overrides.setdefault("maxTicks", 5000)
-    elif args.preset:
+    flag = _study_flag(args)
+    study = None
+    if sum(map(bool, (args.preset, args.study, args.thesis))) > 1:
+        raise UsageError("--preset, --study and --thesis each run their own grid; give one")
+    if flag and cfg.get("grid"):
+        raise UsageError(f"{flag} runs its own grid; drop --grid")
+    if flag and args.save_experiment:
+        raise UsageError(f"--save-experiment saves a --grid sweep; {flag} is its own "
+                         "experiment already")
+    if args.preset in _world_presets():
         from sim_backend import arena_presets
         name, make = arena_presets.PRESETS[args.preset]
         if args.scenario is None and args.experiment is None:
@@ -247,17 +253,22 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             list(range(1, arena_presets.SEEDS + 1))
         until = cfg.get("until") or "delivered"
         overrides.setdefault("maxTicks", arena_presets.MAX_TICKS)
-    elif args.thesis:
-        if args.grid:
-            raise UsageError("--thesis runs its own grid; drop --grid")
-        if args.save_experiment:
-            raise UsageError("--save-experiment saves a --grid sweep; --thesis is its own "
-                             "experiment already")
-        points = sweep.thesis_points()
-        seeds = _seeds(cfg["seeds"]) if "seeds" in cfg else \
-            list(range(1, sweep.THESIS_SEEDS + 1))
-        until = cfg.get("until") or sweep.THESIS_UNTIL
-        overrides.setdefault("maxTicks", sweep.THESIS_MAX_TICKS)
+    elif flag:
+        from sim_backend import studies
+        behaviour = str(sweep.base_dict(base, overrides)["behaviour"])
+        try:
+            study = studies.get(behaviour, args.study or args.preset or "thesis")
+        except studies.StudyError as err:
+            if args.preset:      # neither the world's preset nor the behaviour's study
+                raise UsageError(f"--preset {args.preset}: not a world preset "
+                                 f"({', '.join(_world_presets())}); {err}") from None
+            raise
+        points = list(study.points)
+        seeds = _seeds(cfg["seeds"]) if "seeds" in cfg else list(range(1, study.seeds + 1))
+        until = cfg.get("until") or study.until
+        for key, value in study.overrides:
+            overrides.setdefault(key, value)
+        studies.check(study, base, overrides)     # errors name the study
     else:
         # no --grid: one point, the scenario with --set, over the seeds
         grid = cfg.get("grid") or {}
@@ -273,7 +284,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         raise UsageError(f"--chunk {chunk_arg}: expected at least 1 run per task")
     out: Path = cfg["out"]
     # every check that can refuse the sweep runs before the first run
-    sweep.validate_points(points, base, overrides)
+    if study is None:
+        sweep.validate_points(points, base, overrides)
     from bridge.commands.paths import check_out_dir, check_out_file
     check_out_dir(out, "--out")
     csv_path = out / "sweep.csv"
@@ -346,18 +358,12 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if not args.no_plots:
         from sim_backend import plots
         saved = sweep.read_csv(csv_path)
-        if args.preset == "faults":
-            from sim_backend import robustness
-            pngs = robustness.fault_plots(saved, out)
-        elif args.preset == "breeds":
-            from sim_backend import robustness
-            pngs = robustness.breed_plots(saved, out)
+        if study is not None:
+            from sim_backend import studies
+            pngs = studies.draw(study, saved, out)
         elif args.preset:
             from sim_backend import arena_presets
             pngs = arena_presets.plots(saved, out, args.preset)
-        elif args.thesis:
-            from sim_backend import thesis_figures
-            pngs = plots.thesis_plots(saved, out) + thesis_figures.plots(saved, out)
         else:
             pngs = plots.grid_plots(saved, list(grid), out)
     engines: dict[str, int] = {}
