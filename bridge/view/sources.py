@@ -339,6 +339,7 @@ class SimSource:
                 "world": w.w, "home": [self.sc.homeX, self.sc.homeY],
                 "states": list(names), "colours": hex_colours(names), "controls": True,
                 "seed": self.engine.seed, "params": panels.fields(self.sc),
+                "decoys": bool(w.decoy_cells), "obstacles": bool(w.obstacle_cells),
                 "plots": self.plots, **words_info(self.engine.behaviour)}
 
     def state(self) -> dict[str, Any]:

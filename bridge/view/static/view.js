@@ -138,8 +138,8 @@ function legends() {
   const map = $("map-legend");
   map.innerHTML = "";
   const items = [[COLOURS.object, info.source === "sim" ? "object (target)" : null],
-                 [COLOURS.decoy, info.source === "sim" ? "decoy" : null],
-                 [COLOURS.obstacle, info.source === "sim" ? "obstacle" : null],
+                 [COLOURS.decoy, info.decoys ? "decoy" : null],
+                 [COLOURS.obstacle, info.obstacles ? "obstacle" : null],
                  ["outline:" + COLOURS.estimate, info.shape ? "perceived estimate" : null],
                  [COLOURS.home, "home (radius 2)"],
                  ["outline:" + COLOURS.claimed, info.source === "sim" ? "held cell" : null]];
