@@ -231,6 +231,10 @@ def test_page_shows_a_touch_as_it_is_journalled(journal_server, browser):
     wait_for(browser, lambda d: text(d, "touch-count") == "1")
     assert text(browser, "touches").startswith("robot 3 at tick 17, segment (3, 3)")
     assert text(browser, "held") == "1.00" and text(browser, "need") == "5.00"
+    # the same plots as a simulated run's, from the host's journal
+    wait_for(browser, lambda d: json.loads(d.find_element("id", "plot-touches").get_attribute(
+        "data-last") or "{}") == {"touches": 1})
+    assert not browser.find_elements("id", "plot-shape")     # the host does not know the object
     assert text(browser, "held-word") == "power" and text(browser, "need-word") == "weight"
 
 
@@ -515,14 +519,14 @@ def test_page_sets_a_parameter_runs_to_delivery_and_inspects(sim, browser, capsy
     assert "heading" in text(browser, "insp-vars")
     # hover over a held cell: who holds it
     st = get(sim, "/state.json")
-    if st["claimed"]:
-        x, y, node = st["claimed"][0]
-        px, py = browser.execute_script(
-            "const g = geometry(document.getElementById('arena'));"
-            "return [g.px(arguments[0]), g.py(arguments[1])];", x, y)
-        ActionChains(browser).move_to_element_with_offset(
-            canvas, int(px - size["width"] / 2), int(py - size["height"] / 2)).perform()
-        wait_for(browser, lambda d: f"held by robot {node}" in text(d, "hover"))
+    assert st["claimed"], "the holders let go at delivery"
+    x, y, node = st["claimed"][0]
+    px, py = browser.execute_script(
+        "const g = geometry(document.getElementById('arena'));"
+        "return [g.px(arguments[0]), g.py(arguments[1])];", x, y)
+    ActionChains(browser).move_to_element_with_offset(
+        canvas, int(px - size["width"] / 2), int(py - size["height"] / 2)).perform()
+    wait_for(browser, lambda d: f"held by robot {node}" in text(d, "hover"))
 
     FIGURES.mkdir(exist_ok=True)
     for element, name in (("arena-col", "view_arena"), ("plots", "view_plots"),
