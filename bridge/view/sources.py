@@ -155,7 +155,8 @@ def robot_variables(robot: Any) -> dict[str, Any]:
     """A robot's own numbers (its timers, counters, modes), read off the
     object: whatever the behaviour's robot keeps as an int or a bool."""
     return {k: v for k, v in sorted(vars(robot).items())
-            if not k.startswith("_") and isinstance(v, (int, bool)) and k not in ("node", "state")}
+            if not k.startswith("_") and isinstance(v, (int, bool))
+            and k not in ("node", "state", "heading")}
 
 
 class SimSource:

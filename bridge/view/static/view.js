@@ -369,8 +369,8 @@ async function inspect() {
     const r = (view.st.robots || []).find((q) => q.node === view.selected);
     if (!r) return;
     $("insp-state").textContent = info.states[r.state] + (r.halted ? " (host sent HALT)" : "");
-    $("insp-vars").innerHTML = `<tr><td>pose</td><td>(${r.x}, ${r.y})</td></tr>` +
-      `<tr><td>heard at tick</td><td>${r.heard_tick}</td></tr>`;
+    $("insp-vars").innerHTML = `<div>pose <b>(${r.x}, ${r.y})</b></div>` +
+      `<div>heard at tick <b>${r.heard_tick}</b></div>`;
     $("insp-msgs").innerHTML = "";
     return;
   }
@@ -381,7 +381,7 @@ async function inspect() {
   const rows = [["tick", r.tick], ["pose", `(${r.x.toFixed(2)}, ${r.y.toFixed(2)})`],
                 ["heading", r.heading === null ? "-" : r.heading + "°"],
                 ...Object.entries(r.variables)];
-  $("insp-vars").innerHTML = rows.map(([k, v]) => `<tr><td>${k}</td><td id="insp-${k}">${v}</td></tr>`).join("");
+  $("insp-vars").innerHTML = rows.map(([k, v]) => `<div>${k} <b id="insp-${k}">${v}</b></div>`).join("");
   $("insp-msgs").innerHTML = r.messages.map((m) => `<li>tick ${m.tick} ${m.way}: ${m.text}</li>`).join("");
 }
 
