@@ -376,6 +376,8 @@ def test_info_lists_plots_and_parameters_from_the_declarations(sim):
     assert plots["states"] == [f"state:{n}" for n in info["states"]]
     assert plots["load"] == ["power", "weight"] and plots["shape"] == ["shape_iou"]
     assert plots["r-holders"] == ["holders"] and plots["r-home_d2"] == ["home_d2"]
+    # the engine's instruments' columns too: perception's shape estimate, as `run` has it
+    assert plots["i-estimate_iou"] == ["estimate_iou"]
     params = {p["name"]: p for p in info["params"]}
     assert (params["sigRadius"]["low"], params["sigRadius"]["high"]) == (0, 30)
     assert params["rPower"]["group"] == "behaviour thesis" and params["rPower"]["value"] == 1.0
@@ -481,8 +483,9 @@ def test_page_sets_a_parameter_runs_to_delivery_and_inspects(sim, browser, capsy
     power.clear()
     power.send_keys("2")
     browser.find_element("id", "reset").click()
+    # the page reloads the parameters after a reset: wait for the new values
     wait_for(browser, lambda d: d.execute_script(
-        "const e = document.getElementById('param-rPower'); return e && e.value") == "2")
+        "return info.params.find((p) => p.name === 'rPower').value") == 2)
     assert text(browser, "param-error") == ""
     assert sim.source.sc.rPower == 2.0
     summary = run_engine(sim.source.sc, SEED).summary()     # what summary.json holds

@@ -26,10 +26,13 @@ def state_key(name: str) -> str:
     return "state:" + name
 
 
-def plots(behaviour: Any, colours: list[str], shape: bool = True) -> list[dict[str, Any]]:
+def plots(behaviour: Any, colours: list[str], shape: bool = True,
+          instruments: tuple = ()) -> list[dict[str, Any]]:
     """The plot panels of a behaviour, in the order the page shows them.
     `shape`: whether the source can score the shape (a simulation knows the
-    true object; a host does not)."""
+    true object; a host does not). `instruments`: the engine's (each with
+    COLUMNS, ((name, meaning), ...), and row(); e.g. perception's shape
+    estimate and recognition), one plot per column."""
     from sim_backend import words
     w = words.of(behaviour)
     names = tuple(behaviour.spec.STATES)
@@ -49,7 +52,17 @@ def plots(behaviour: Any, colours: list[str], shape: bool = True) -> list[dict[s
     for name, title in w.reporters:
         out.append({"id": "r-" + name, "title": title, "unit": name,
                     "series": [{"key": name, "label": name, "colour": LINE}]})
+    for inst in instruments:
+        for name, title in inst.COLUMNS:
+            out.append({"id": "i-" + name, "title": title, "unit": name,
+                        "series": [{"key": name, "label": name, "colour": LINE}]})
     return out
+
+
+def instrument_values(instruments: tuple) -> dict[str, Any]:
+    """The instruments' columns now (their trace row), numbers only."""
+    return {name: _number(v) for inst in instruments
+            for (name, _), v in zip(inst.COLUMNS, inst.row())}
 
 
 def _number(v: Any) -> float | int | None:

@@ -178,6 +178,8 @@ class SimSource:
         self.sc = sc
         nodes = list(range(1, sc.agents + 1))
         self.engine = Engine(sc, seed, link=watched_link(nodes, lambda: self.engine.tick))
+        from perception.tracker import attach
+        attach(self.engine)     # the shape estimate and recognition, as `touchswarm run` has them
         self.bad_frames = 0
         self.events: list[str] = [f"tick 0: {sc.agents} robots, scenario {sc.name}, seed {seed}"]
         self._seen = {"touches": 0, "converged": False, "delivered": False}
@@ -186,15 +188,18 @@ class SimSource:
         # convergence is an event only for a behaviour that measures it
         self._seen["converged"] = "converged_tick" not in dict(said.measures)
         names = tuple(self.engine.behaviour.spec.STATES)
-        self.plots = panels.plots(self.engine.behaviour, hex_colours(names))
+        self.plots = panels.plots(self.engine.behaviour, hex_colours(names),
+                                  instruments=tuple(self.engine.instruments))
         self.history = panels.History()
         self.snap = self.engine.snapshot()
         self._sample(self.snap)
         self.engine.observe(self._observe)
 
     def _sample(self, snap: Any) -> None:
-        self.history.add(snap.tick, panels.sample(self.engine.behaviour, self.engine.coordinator,
-                                                  snap.states, snap.iou))
+        self.history.add(snap.tick, {
+            **panels.sample(self.engine.behaviour, self.engine.coordinator, snap.states,
+                            snap.iou),
+            **panels.instrument_values(tuple(self.engine.instruments))})
 
     # -- the engine's observer (called under the lock, inside step) ----------
 
@@ -308,7 +313,13 @@ class SimSource:
     def _claimed(self) -> list[list[int]]:
         """[x, y, node] of every object cell a robot holds now."""
         w = self.engine.world
-        return [[i % w.n - w.w, i // w.n - w.w, o] for i, o in enumerate(w.owner) if o]
+        # only cells of objects (the target, decoys) are held: look those up,
+        # not every patch of a large arena
+        out = []
+        for x, y in [*w.object_cells, *w.decoy_cells]:
+            if -w.w <= x <= w.w and -w.w <= y <= w.w and w.owner[w.idx(x, y)]:
+                out.append([x, y, w.owner[w.idx(x, y)]])
+        return out
 
     def _summary(self) -> dict[str, Any]:
         c = self.engine.coordinator
