@@ -175,7 +175,7 @@ def browser():
     from bridge.view.browser import headless
     # no skip: a missing chromium fails here, saying `make venv` installs it.
     # One chromium for the whole file: each test loads its own page.
-    driver = headless(1500, 1100)
+    driver = headless(1500, 1300)
     yield driver
     driver.quit()
 

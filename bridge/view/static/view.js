@@ -6,7 +6,7 @@
 
 const POLL_MS = 200;
 const MARGIN = {left: 36, bottom: 30, top: 6, right: 6};   // the arena's axes
-const PLOT = {w: 376, h: 112, left: 44, right: 8, top: 18, bottom: 20};
+const PLOT = {w: 376, h: 96, left: 44, right: 8, top: 18, bottom: 20};
 const COLOURS = {object: "#ffd800", decoy: "#c8a2c8", obstacle: "#808080", home: "rgba(0,180,180,0.35)",
                  estimate: "#1040d0", claimed: "#000000"};
 const $ = (id) => document.getElementById(id);
