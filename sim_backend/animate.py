@@ -33,8 +33,8 @@ SUFFIXES = (".gif", ".mp4")
 MAX_FRAMES = 120
 FPS = 10
 TRAIL_TICKS = 30          # how far back a frame draws each robot's trail
-FIGSIZE = (6.4, 5.6)      # inches; at DPI this gives 448 x 392 pixels
-DPI = 70
+FIGSIZE = (8.0, 7.6)      # inches; at DPI this gives 800 x 760 pixels: every label
+DPI = 100                 # is 8 pt or more, legible at 100 % (issue 32)
 
 
 def animation_format(path: Path) -> str:
@@ -62,11 +62,15 @@ class Frame:
     ys: tuple
     reporters: dict
     iou: float
+    phase: str = ""            # the host's status() at this tick
+    load: tuple | None = None  # the declared LOAD pair's values (spec.LOAD), weight units
 
 
-def _frame(s: Snapshot) -> Frame:
+def _frame(s: Snapshot, engine: Any, load: tuple | None) -> Frame:
+    c = engine.coordinator
     return Frame(s.tick, s.field(), s.obj(), s.touches, tuple(s.perceived), s.xs, s.ys,
-                 dict(s.reporters), s.iou)
+                 dict(s.reporters), s.iou, c.status(),
+                 None if load is None else tuple(getattr(c, n) / 100 for n in load))
 
 
 class Animation:
@@ -80,7 +84,8 @@ class Animation:
         self.trails = trails
         self.fixed = every is not None
         self.every = every or 1
-        self.frames = [_frame(engine.snapshot())]
+        self.engine = engine
+        self.frames = [self._frame(engine.snapshot())]
         self.last: Snapshot | None = None
         engine.observe(self.add)
 
@@ -88,7 +93,7 @@ class Animation:
         self.last = s
         if s.tick % self.every:
             return
-        self.frames.append(_frame(s))
+        self.frames.append(self._frame(s))
         if not self.fixed and len(self.frames) > MAX_FRAMES:
             self.every *= 2
             self.frames = [f for f in self.frames if f.tick % self.every == 0]
@@ -97,16 +102,21 @@ class Animation:
         """Keep the last tick's frame. Only valid once the run has ended: a
         snapshot's grids are read from the world as it stands."""
         if self.last is not None and self.frames[-1].tick != self.last.tick:
-            self.frames.append(_frame(self.last))
+            self.frames.append(self._frame(self.last))
+
+    def _frame(self, s: Snapshot) -> Frame:
+        return _frame(s, self.engine, self.words.load)
 
     def title(self, f: Frame) -> str:
-        """A frame's title: its tick, the behaviour's reporters, the shape's
-        score when the behaviour declares one (sim_backend/words.py)."""
+        """A frame's title: its tick and the host's phase, then the declared
+        load, the behaviour's reporters, the shape's score when the behaviour
+        declares one (sim_backend/words.py)."""
         from sim_backend import words
-        return words.frame_title(self.words, f.tick, f.reporters, f.iou)
+        return words.frame_title(self.words, f.tick, f.reporters, f.iou, f.phase, f.load)
 
-    def write(self, path: Path) -> int:
-        """Draw every kept frame and the last tick's to path; returns the count."""
+    def write(self, path: Path, progress: Callable[[int, int], None] | None = None) -> int:
+        """Draw every kept frame and the last tick's to path; returns the
+        count. progress(done, total) is called after each frame drawn."""
         from sim_backend import render as rd   # first: it selects the Agg backend
         import matplotlib.pyplot as plt
         from matplotlib.collections import LineCollection
@@ -129,20 +139,26 @@ class Animation:
                           linewidths=1.0, zorder=2)
         dots = ax.scatter(start_x, start_y, s=18, edgecolors="black", linewidths=0.4, zorder=3)
         # sized for tight_layout by the first frame's words
-        title = ax.set_title(self.title(frames[0]), fontsize=8)
+        title = ax.set_title(self.title(frames[0]), fontsize=10)
         shape = self.words.shape is not None
         has_object = bool(self.trails.centre)
         handles = []
         if has_object:
-            handles += [Patch(color=rd.OBJECT_RGB, label="object"),
+            handles += [Patch(color=rd.OBJECT_RGB,
+                              label="object or decoy" if w.decoy_cells else "object"),
                         Patch(color=rd.HELD_RGB, label="held segment")]
+        if w.obstacle_cells:
+            handles.append(Patch(color=rd.OBSTACLE_RGB, label="obstacle"))
+        handles.append(Patch(color="c", alpha=0.4, label="home"))
         if shape:
             handles.append(Line2D([], [], marker="s", mfc="none", mec="blue", ls="",
                                   label="perceived shape"))
         if has_object:
             handles.append(Line2D([], [], ls="--", color="darkcyan", label="object's path"))
+        # below the arena, not over it
         ax.legend(handles=[*handles, *rd.state_legend(self.names, colours)],
-                  loc="upper left", fontsize=5, framealpha=0.7)
+                  loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=4, fontsize=9,
+                  framealpha=0.9)
         fig.tight_layout()
         # blitting: the axes' tick labels and the colour bar are drawn once;
         # each frame redraws only the artists inside the axes (a full redraw
@@ -155,7 +171,7 @@ class Animation:
         background = fig.canvas.copy_from_bbox(fig.bbox)
         labels: list[Any] = []
         with _sink(fmt, path, fig.canvas.get_width_height()) as sink:
-            for f in frames:
+            for done, f in enumerate(frames, 1):
                 img.set_data(f.field)
                 objimg.set_data(rd.object_rgba(f.obj))
                 lo = max(0, f.tick - TRAIL_TICKS)
@@ -177,6 +193,8 @@ class Animation:
                 for a in sorted(dynamic + labels, key=lambda a: a.get_zorder()):
                     ax.draw_artist(a)
                 sink(np.asarray(fig.canvas.buffer_rgba())[..., :3])
+                if progress is not None:
+                    progress(done, len(frames))
         plt.close(fig)
         return len(frames)
 

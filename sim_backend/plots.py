@@ -70,6 +70,46 @@ def _mean_ci(vals: list[float]) -> tuple[float, float]:
     return m, 1.96 * sem
 
 
+def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float, float]:
+    """A proportion k/n and its Wilson score 95% interval (lo, hi), always
+    inside [0, 1] (a normal interval runs past 1 for a rate near 1)."""
+    if n == 0:
+        return math.nan, math.nan, math.nan
+    p = k / n
+    d = 1 + z * z / n
+    centre = (p + z * z / (2 * n)) / d
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / d
+    return p, max(0.0, centre - half), min(1.0, centre + half)
+
+
+def _rate_ci(vals: list[float]) -> tuple[float, float, float]:
+    """A rate's proportion and how far its Wilson interval reaches below and above."""
+    p, lo, hi = wilson(int(round(sum(vals))), len(vals))
+    return p, p - lo, hi - p
+
+
+def axis_label(factor: str, rows: Sequence[dict] = ()) -> str:
+    """A factor's axis label with its unit: a world key's from
+    scenario.UNITS, the sweep's derived columns', else the meaning the rows'
+    behaviours give the parameter in spec.PARAMS."""
+    from sim_backend import params, scenario
+    unit = scenario.UNITS.get(factor) or DERIVED_UNITS.get(factor)
+    if unit is None:
+        from sim_backend.scenario import DEFAULT_BEHAVIOUR
+        for b in dict.fromkeys(r.get("behaviour") or DEFAULT_BEHAVIOUR for r in rows):
+            unit = next((p.meaning for p in params.declared(b) if p.name == factor), None)
+            if unit:
+                break
+    if not unit:
+        return factor
+    import textwrap
+    return textwrap.shorten(f"{factor} ({unit}", 60, placeholder="...") + ")"
+
+
+# columns the sweep adds to its rows (sim_backend/sweep.py), with their units
+DERIVED_UNITS = {"required": "robots needed to hold the weight"}
+
+
 def _delivered(r) -> float:
     return 1.0 if str(r["delivered"]) in ("True", "true", "1") else 0.0
 
@@ -129,10 +169,10 @@ def _censored(rs: list[dict], panel: tuple[str, str, str]) -> list[float]:
 
 # the y axis says the statistic; the panel's title says the measure
 FACTOR_LABELS = {"tick": "tick (runs that got there: mean, 95% CI)",
-                 "rate": "fraction of runs (95% CI)",
+                 "rate": "fraction of runs (Wilson 95% CI)",
                  "value": "mean, 95% CI"}
 CATEGORY_LABELS = {"tick": "tick (runs that got there; box: quartiles)",
-                   "rate": "fraction of runs",
+                   "rate": "fraction of runs (Wilson 95% CI)",
                    "value": "box: quartiles"}
 
 
@@ -173,9 +213,15 @@ def factor_figure(rows: Sequence[dict], factor: str, others: Sequence[str]):
         # a small sideways shift per curve keeps overlapping points apart
         dx = span * 0.012 * (gi - (len(groups) - 1) / 2)
         for ax, panel in zip(axes[0], pans):
-            stats = [_mean_ci(_panel_values(by_x[x], panel)) for x in xs]
-            cont = ax.errorbar([x + dx for x in xs], [m for m, _ in stats],
-                               yerr=[ci for _, ci in stats], marker="o", capsize=3,
+            if panel[2] == "rate":
+                # a rate's interval is the Wilson score interval: inside [0, 1]
+                rates = [_rate_ci(_panel_values(by_x[x], panel)) for x in xs]
+                ys = [p for p, _, _ in rates]
+                yerr = [[lo for _, lo, _ in rates], [hi for _, _, hi in rates]]
+            else:
+                stats = [_mean_ci(_panel_values(by_x[x], panel)) for x in xs]
+                ys, yerr = [m for m, _ in stats], [ci for _, ci in stats]
+            cont = ax.errorbar([x + dx for x in xs], ys, yerr=yerr, marker="o", capsize=3,
                                label=label)
             cont.lines[0].set_gid("curve")
             color = cont.lines[0].get_color()
@@ -188,7 +234,7 @@ def factor_figure(rows: Sequence[dict], factor: str, others: Sequence[str]):
                 sc.set_gid("censored")
     for ax, (measure, label, kind) in zip(axes[0], pans):
         ax.set_xticks(xs_all)
-        ax.set_xlabel(factor)
+        ax.set_xlabel(axis_label(factor, rows), fontsize=9)
         ax.set_title(_panel_title(label), fontsize=9)
         ax.set_ylabel(FACTOR_LABELS[kind], fontsize=8)
         if kind == "rate":
@@ -196,7 +242,7 @@ def factor_figure(rows: Sequence[dict], factor: str, others: Sequence[str]):
         elif kind == "tick":
             ax.set_ylim(bottom=0)
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=6)
+        ax.legend(fontsize=8)
     fig.suptitle(f"{_title(rows, factor, pans)} "
                  f"({len(rows)} runs, {len(groups)} curve{'s' if len(groups) > 1 else ''})",
                  fontsize=10)
@@ -237,7 +283,9 @@ def category_figure(rows: Sequence[dict], factor: str, others: Sequence[str]):
                 vals = _panel_values(at, panel)
                 if panel[2] == "rate":
                     if vals:
-                        bars = ax.bar([x], [sum(vals) / len(vals)], width * 0.9, color=color,
+                        p, lo, hi = _rate_ci(vals)     # Wilson: inside [0, 1]
+                        bars = ax.bar([x], [p], width * 0.9, color=color,
+                                      yerr=[[lo], [hi]], capsize=3, ecolor="black",
                                       label=label if li == 0 else None)
                         for b in bars:
                             b.set_gid("bar")
@@ -262,15 +310,15 @@ def category_figure(rows: Sequence[dict], factor: str, others: Sequence[str]):
                     sc.set_gid("censored")
     ticks = [f"{lv}\n(n={'/'.join(str(n) for n in ns[lv])})" for lv in levels]
     for ax, (measure, label, kind) in zip(axes[0], pans):
-        ax.set_xticks(range(len(levels)), ticks, fontsize=7)
-        ax.set_xlabel(factor)
+        ax.set_xticks(range(len(levels)), ticks, fontsize=8)
+        ax.set_xlabel(axis_label(factor, rows), fontsize=9)
         ax.set_title(_panel_title(label), fontsize=9)
         ax.set_ylabel(CATEGORY_LABELS[kind], fontsize=8)
         if kind == "rate":
             ax.set_ylim(-0.05, 1.05)
         ax.grid(alpha=0.3, axis="y")
         if len(groups) > 1 and kind == "rate":
-            ax.legend(fontsize=6)
+            ax.legend(fontsize=8)
     fig.suptitle(f"{_title(rows, factor, pans)} per level ({len(rows)} runs"
                  + (f", {cens_all} censored at maxTicks: hollow markers" if cens_all else "")
                  + ")", fontsize=10)
@@ -385,7 +433,7 @@ def factor_plot(rows: Sequence[dict], fig: dict, path: Path) -> Path | None:
         name = "all runs" if value is None else value
         ax.set_title(f"({letter}) {name}, n={n}/point" + (f", {cens} censored" if cens else ""),
                      fontsize=9)
-        ax.set_xlabel(x)
+        ax.set_xlabel(axis_label(x, rows))
         ax.set_ylabel(fig.get("ylabel", f"{y} (ticks)"))
         ax.set_ylim(0, ymax)
         ax.grid(alpha=0.3)
@@ -442,7 +490,7 @@ def units_plot(rows: Sequence[dict], fig: dict, path: Path) -> Path | None:
         name = "all runs" if value is None else value
         ax.set_title(f"{name}, n={min(p[3] for p in pts)}/point; not reached: "
                      + ",".join(str(s) for s in stalled), fontsize=8)
-        ax.set_xlabel(fig["x"])
+        ax.set_xlabel(axis_label(fig["x"], rows))
         ax.set_ylabel(fig.get("ylabel", f"{fig['y'][0][0]} (mean of the runs that got there, "
                                         "95% CI)"), fontsize=8)
         ax.set_yscale("log")

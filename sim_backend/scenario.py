@@ -221,6 +221,18 @@ RANGES: dict[str, tuple[type, Any, Any]] = {
     "linkLoss": (float, 0.0, 0.9), "linkDup": (float, 0.0, 0.9), "linkReorder": (int, 1, 64),
     "linkDelay": (int, 0, 64),
 }
+# the unit of each numeric world key (figure axes, sim_backend/plots.py)
+UNITS: dict[str, str] = {
+    "agents": "robots", "sigRadius": "patches", "objectWeight": "weight units",
+    "worldSize": "patches from the centre", "homeX": "patches", "homeY": "patches",
+    "objectX": "patches", "objectY": "patches", "maxTicks": "ticks",
+    "deathRate": "share of robots", "deadlockRate": "share of robots",
+    "deadlockTicks": "ticks", "ignoreFieldRate": "share of robots",
+    "ignoreHostRate": "share of robots", "randomRate": "share of robots",
+    "probeMiss": "probability per probe", "probeGhost": "probability per probe",
+    "fieldNoise": "field units", "faultWindow": "ticks", "linkLoss": "probability per frame",
+    "linkDup": "probability per frame", "linkReorder": "frames", "linkDelay": "ticks",
+}
 LINK_FAULT_KEYS = ("linkLoss", "linkDup", "linkReorder", "linkDelay")
 
 

@@ -217,12 +217,19 @@ def result_line(behaviour: Any, summary: dict) -> str:
             + ("" if done or not outcome else f" ({outcome})"))
 
 
-def frame_title(w: Words, tick: int, reporters: dict, iou: float | None = None) -> str:
-    """The GIF's frame title: the tick, each reporter, the shape's score when declared."""
-    parts = [f"{name} {named_text(name, v)}" for name, v in reporters.items()]
+def frame_title(w: Words, tick: int, reporters: dict, iou: float | None = None,
+                phase: str | None = None, load: tuple | None = None) -> str:
+    """The GIF's frame title: the tick and the host's phase (its status()),
+    then on a second line the declared load (e.g. "power 2.00 of weight
+    5.00"), each reporter and the shape's score when declared."""
+    parts = []
+    if w.load is not None and load is not None:
+        parts.append(f"{w.load[0]} {load[0]:.2f} of {w.load[1]} {load[1]:.2f}")
+    parts += [f"{name} {named_text(name, v)}" for name, v in reporters.items()]
     if w.shape is not None and iou is not None:
         parts.append(f"{w.label(w.shape)} {iou:.2f}")
-    return f"tick {tick}" + (": " + ", ".join(parts) if parts else "")
+    head = f"tick {tick}" + (f": {phase}" if phase else "")
+    return head + ("\n" + ", ".join(parts) if parts else "")
 
 
 def shown_values(w: Words, values: dict) -> list[dict]:

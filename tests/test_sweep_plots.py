@@ -111,3 +111,35 @@ def test_cli_two_factor_sweep_and_categorical_sweep_plot(tmp_path):
     assert main(["sweep", "--grid", "object=bar,L,X", "--seeds", "2", "--set", "maxTicks=400",
                  "--executor", "inline", "--out", str(tmp_path / "b")]) == 0
     assert (tmp_path / "b" / "by_object.png").exists()
+
+
+# -- issue 32: rate intervals inside [0, 1], units on every axis -------------------
+
+
+@pytest.mark.parametrize("k, n", [(0, 5), (5, 5), (3, 5), (1, 1), (50, 50), (1, 100)])
+def test_wilson_interval_stays_inside_0_1_and_holds_the_rate(k, n):
+    p, lo, hi = plots.wilson(k, n)
+    assert 0.0 <= lo <= p <= hi <= 1.0 and p == k / n
+    assert hi - lo > 0                       # never a zero-width interval, even at 0 or n
+
+
+def test_wilson_matches_the_textbook_value():
+    # 8 of 10: Wilson 95% interval 0.490..0.943 (Newcombe 1998, method 3)
+    _, lo, hi = plots.wilson(8, 10)
+    assert (round(lo, 3), round(hi, 3)) == (0.49, 0.943)
+
+
+def test_a_rate_of_one_has_its_error_bar_inside_0_1_and_axes_have_units():
+    rows = fake_rows({"sigRadius": [3, 5]})              # every run delivered: rate 1
+    fig = plots.factor_figure(rows, "sigRadius", [])
+    deliv = fig.axes[1]
+    bars = [c for c in deliv.containers][0]
+    segs = bars.lines[2][0].get_segments()               # the error bars' vertical lines
+    assert all(0.0 <= y <= 1.0 for seg in segs for _, y in seg)
+    assert min(y for seg in segs for _, y in seg) < 1.0  # an interval, not a point
+    assert all(ax.get_xlabel() == "sigRadius (patches)" for ax in fig.axes)
+    assert plots.axis_label("required") == "required (robots needed to hold the weight)"
+    assert plots.axis_label("rPower", rows) == "rPower (power of one robot (weight units))"
+    cat = plots.category_figure(fake_rows({"movementModel": ["firefly", "ant"]}),
+                                "movementModel", [])
+    assert all(ax.get_xlabel().startswith("movementModel (") for ax in cat.axes)

@@ -10,6 +10,7 @@ endpoint, and the browser is waited on with WebDriverWait on a DOM condition
 from __future__ import annotations
 
 import json
+from pathlib import Path
 import socket
 import sqlite3
 import urllib.error
@@ -169,11 +170,12 @@ def test_host_journals_poses_and_bad_frames(tmp_path):
 # -- (2) and (3): the page in headless chromium -----------------------------------
 
 
-@pytest.fixture
+@pytest.fixture(scope="module")
 def browser():
     from bridge.view.browser import headless
-    # no skip: a missing chromium fails here, saying `make venv` installs it
-    driver = headless()
+    # no skip: a missing chromium fails here, saying `make venv` installs it.
+    # One chromium for the whole file: each test loads its own page.
+    driver = headless(1500, 1300)
     yield driver
     driver.quit()
 
@@ -229,6 +231,10 @@ def test_page_shows_a_touch_as_it_is_journalled(journal_server, browser):
     wait_for(browser, lambda d: text(d, "touch-count") == "1")
     assert text(browser, "touches").startswith("robot 3 at tick 17, segment (3, 3)")
     assert text(browser, "held") == "1.00" and text(browser, "need") == "5.00"
+    # the same plots as a simulated run's, from the host's journal
+    wait_for(browser, lambda d: json.loads(d.find_element("id", "plot-touches").get_attribute(
+        "data-last") or "{}") == {"touches": 1})
+    assert not browser.find_elements("id", "plot-shape")     # the host does not know the object
     assert text(browser, "held-word") == "power" and text(browser, "need-word") == "weight"
 
 
@@ -353,3 +359,189 @@ def test_page_of_aggregation_lists_its_measures_and_hides_the_load_bar(browser):
             assert word not in page, word
     finally:
         server.stop()
+
+
+# -- issue 32: plots over time, parameters and reset, inspection, axes ----------------
+
+FIGURES = Path(__file__).resolve().parents[1] / "docs" / "figures"
+
+
+def page_tick(driver) -> str:
+    return driver.execute_script("return document.body.dataset.tick")
+
+
+def test_info_lists_plots_and_parameters_from_the_declarations(sim):
+    info = get(sim, "/info.json")
+    plots = {p["id"]: [s["key"] for s in p["series"]] for p in info["plots"]}
+    assert plots["states"] == [f"state:{n}" for n in info["states"]]
+    assert plots["load"] == ["power", "weight"] and plots["shape"] == ["shape_iou"]
+    assert plots["r-holders"] == ["holders"] and plots["r-home_d2"] == ["home_d2"]
+    # the engine's instruments' columns too: perception's shape estimate, as `run` has it
+    assert plots["i-estimate_iou"] == ["estimate_iou"]
+    params = {p["name"]: p for p in info["params"]}
+    assert (params["sigRadius"]["low"], params["sigRadius"]["high"]) == (0, 30)
+    assert params["rPower"]["group"] == "behaviour thesis" and params["rPower"]["value"] == 1.0
+    assert params["activation"]["choices"] == ["sync", "netlogo"]
+    assert "linkLoss" not in params and info["seed"] == SEED
+    post(sim, "/control/step", {"ticks": 40})
+    cols = get(sim, "/state.json")["plots"]
+    assert cols["tick"][0] == 0 and cols["tick"][-1] == 40
+    assert all(sum(cols[f"state:{n}"][i] for n in info["states"]) == 20
+               for i in range(len(cols["tick"])))
+
+
+def test_aggregation_gets_its_own_plots():
+    server = ViewServer(SimSource(scenario.load("default").replace(behaviour="aggregate"), SEED),
+                        port=0).start()
+    try:
+        info = get(server, "/info.json")
+        ids = [p["id"] for p in info["plots"]]
+        assert "load" not in ids and "shape" not in ids and "states" in ids
+        assert {p["name"] for p in info["params"]} >= {"sigRadius", "agents"}
+        assert not any(p["group"] == "behaviour thesis" for p in info["params"])
+    finally:
+        server.stop()
+
+
+def test_reset_takes_the_cli_s_values_and_errors(sim, capsys):
+    post(sim, "/control/step", {"ticks": 5})
+    code, s = post(sim, "/control/reset", {"set": ["sigRadius=99"]})
+    assert code == 400 and get(sim, "/state.json")["tick"] == 5      # nothing happened
+    assert main(["run", "--set", "sigRadius=99"]) == 2
+    assert capsys.readouterr().err == f"touchswarm: error: {s['error']}\n"
+    code, s = post(sim, "/control/reset", {"seed": -1})
+    assert code == 400 and "--seed -1: outside 0..1000002" in s["error"]
+    code, s = post(sim, "/control/reset", {"set": ["rPower=2", "sigRadius=6"], "seed": 3})
+    assert code == 200 and s["tick"] == 0 and s["playing"] is False
+    info = get(sim, "/info.json")
+    assert info["seed"] == 3 and "seed 3" in info["title"]
+    values = {p["name"]: p["value"] for p in info["params"]}
+    assert values["rPower"] == 2.0 and values["sigRadius"] == 6
+    assert get(sim, "/state.json")["plots"]["tick"] == [0]
+
+
+def test_robot_inspector_and_claimed_cells(sim):
+    post(sim, "/control/step", {"ticks": 60})
+    st = get(sim, "/state.json")
+    r = get(sim, "/robot.json?node=4")
+    assert r["node"] == 4 and r["tick"] == 60
+    assert r["state"] == get(sim, "/info.json")["states"][st["robots"][3]["state"]]
+    assert (r["x"], r["y"]) == (st["robots"][3]["x"], st["robots"][3]["y"])
+    assert 0 <= r["heading"] < 360 and r["variables"]
+    assert all(m["way"] in ("sent", "received") and m["tick"] <= 60 for m in r["messages"])
+    assert r["messages"][0]["text"].startswith("HELLO (model")     # its first word to the host
+    holders = {t["node"] for t in st["touches"]}
+    assert {c[2] for c in st["claimed"]} <= holders
+    assert all([c[0], c[1]] in st["object"] for c in st["claimed"])
+    with pytest.raises(urllib.error.HTTPError):
+        get(sim, "/robot.json?node=21")
+
+
+def test_favicon_is_served(sim):
+    with urllib.request.urlopen(sim.url + "favicon.ico", timeout=HANG_GUARD) as r:
+        assert r.status == 200 and b"<svg" in r.read()
+
+
+def test_journal_plots_halts_and_one_line_per_decision(journal_server):
+    server, path = journal_server
+    with Journal(path) as j:
+        j.add_report(3, msg.TOUCH, (1, 2, 3, 3, 3, 100), 17)
+        for t in (30, 31, 32):      # the host repeats its halt decision tick after tick
+            j.add_decision(t, "halt", {"coordinator": {"delivered_tick": 30},
+                                       "host": {"halts_sent": t - 29}})
+        j.set_live({"tick": 40, "poses": {"3": [19, 3, 512, 768, 90, 0]}, "bad_frames": {}})
+    st = get(server, "/state.json")
+    assert [e for e in st["events"] if "decision" in e] == \
+        ["tick 30: decision halt (repeated to tick 32, 3 times)"]
+    halt = get(server, "/info.json")["states"].index("halt")
+    assert st["robots"][0]["state"] == halt and st["robots"][0]["halted"] is True
+    cols = st["plots"]
+    assert cols["tick"][-1] == 40 and cols["touches"][-1] == 1 and cols["power"][-1] == 1.0
+    assert cols["state:halt"][-1] == 1
+    assert "shape" not in [p["id"] for p in get(server, "/info.json")["plots"]]
+
+
+def test_page_sets_a_parameter_runs_to_delivery_and_inspects(sim, browser, capsys):
+    """The done-when of issue 32 in one page: a bad value shows the CLI's
+    line, a good one resets the run, the run is played to delivery, the
+    plots' last values are the run's summary, a clicked robot shows its
+    state; each panel is saved under docs/figures for docs/view.md."""
+    from selenium.webdriver.common.action_chains import ActionChains
+    from sim_backend.engine import run as run_engine
+    browser.get(sim.url)
+    wait_for(browser, lambda d: page_tick(d) == "0")
+    field = browser.find_element("id", "param-sigRadius")
+    field.clear()
+    field.send_keys("99")
+    browser.find_element("id", "reset").click()
+    wait_for(browser, lambda d: text(d, "param-error"))
+    assert main(["run", "--set", "sigRadius=99"]) == 2
+    assert capsys.readouterr().err == f"touchswarm: error: {text(browser, 'param-error')}\n"
+    field.clear()
+    field.send_keys("5")
+    power = browser.find_element("id", "param-rPower")
+    power.clear()
+    power.send_keys("2")
+    browser.find_element("id", "reset").click()
+    # the page reloads the parameters after a reset: wait for the new values
+    wait_for(browser, lambda d: d.execute_script(
+        "return info.params.find((p) => p.name === 'rPower').value") == 2)
+    assert text(browser, "param-error") == ""
+    assert sim.source.sc.rPower == 2.0
+    summary = run_engine(sim.source.sc, SEED).summary()     # what summary.json holds
+    speed = browser.find_element("id", "speed")
+    speed.clear()
+    speed.send_keys("1000\n")
+    wait_for(browser, lambda d: sim.source.speed == 1000)
+    browser.find_element("id", "play").click()
+    wait_for(browser, lambda d: text(d, "playing") == "finished"
+             and page_tick(d) == str(summary["ticks"])
+             and d.find_element("id", "plot-touches").get_attribute("data-tick")
+             == str(summary["ticks"]))
+    assert summary["delivered"] and "DELIVERED" in text(browser, "events")
+
+    def last(plot: str) -> dict:
+        return json.loads(browser.find_element("id", f"plot-{plot}").get_attribute("data-last"))
+    assert last("touches") == {"touches": len(summary["touches"])}
+    assert last("load") == {"power": summary["power"], "weight": 5.0}
+    assert last("shape")["shape_iou"] == pytest.approx(summary["shape_iou"])
+    assert sum(last("states").values()) == summary["robots"]
+    assert f"touches {len(summary['touches'])}" in text(browser, "last-touches")
+
+    # click robot 7 where the page draws it
+    robot = get(sim, "/state.json")["robots"][6]
+    canvas = browser.find_element("id", "arena")
+    px, py = browser.execute_script(
+        "const g = geometry(document.getElementById('arena'));"
+        "return [g.px(arguments[0]), g.py(arguments[1])];", robot["x"], robot["y"])
+    size = canvas.size
+    ActionChains(browser).move_to_element_with_offset(
+        canvas, int(px - size["width"] / 2), int(py - size["height"] / 2)).click().perform()
+    wait_for(browser, lambda d: text(d, "insp-node") == "7" and text(d, "insp-state"))
+    assert text(browser, "insp-state") == get(sim, "/robot.json?node=7")["state"]
+    assert "heading" in text(browser, "insp-vars")
+    # hover over a held cell: who holds it
+    st = get(sim, "/state.json")
+    assert st["claimed"], "the holders let go at delivery"
+    x, y, node = st["claimed"][0]
+    px, py = browser.execute_script(
+        "const g = geometry(document.getElementById('arena'));"
+        "return [g.px(arguments[0]), g.py(arguments[1])];", x, y)
+    ActionChains(browser).move_to_element_with_offset(
+        canvas, int(px - size["width"] / 2), int(py - size["height"] / 2)).perform()
+    wait_for(browser, lambda d: f"held by robot {node}" in text(d, "hover"))
+
+    FIGURES.mkdir(exist_ok=True)
+    for element, name in (("arena-col", "view_arena"), ("plots", "view_plots"),
+                          ("params", "view_params"), ("inspect", "view_inspect")):
+        browser.find_element("id", element).screenshot(str(FIGURES / f"{name}.png"))
+    # zoom in about the arena's centre (the wheel), then back (double-click)
+    zoom = browser.execute_script(
+        "const c = document.getElementById('arena'); const r = c.getBoundingClientRect();"
+        "c.dispatchEvent(new WheelEvent('wheel', {deltaY: -100, clientX: r.left + 320,"
+        " clientY: r.top + 320, bubbles: true, cancelable: true}));"
+        "return window.view.zoom;")
+    assert zoom == 1.25
+    browser.execute_script("document.getElementById('arena').dispatchEvent("
+                           "new MouseEvent('dblclick', {bubbles: true}));")
+    assert browser.execute_script("return window.view.zoom") == 1

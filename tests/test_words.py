@@ -125,15 +125,20 @@ def test_the_gif_titles_are_the_tick_and_the_reporters(tmp_path):
     engine = Engine(scenario.load("default").replace(behaviour="aggregate", maxTicks=30), 1)
     anim = Animation(engine, Trails(engine), every=10)
     engine.run()
-    assert anim.write(tmp_path / "run.gif") == 4
+    drawn: list[tuple[int, int]] = []
+    assert anim.write(tmp_path / "run.gif", progress=lambda *a: drawn.append(a)) == 4
+    assert drawn == [(1, 4), (2, 4), (3, 4), (4, 4)]        # --animate's progress bar
     title = anim.title(anim.frames[-1])
-    assert re.fullmatch(r"tick 30: stopped \d+, clusters \d+, largest \d+", title)
+    assert re.fullmatch(r"tick 30: .+\nstopped \d+, clusters \d+, largest \d+", title)
+    assert "weight" not in title
     thesis = Engine(scenario.load("default").replace(maxTicks=30), 1)
     anim = Animation(thesis, Trails(thesis), every=10)
     thesis.run()
     anim.finish()
-    assert re.fullmatch(r"tick 30: holders \d+, home_d2 -?\d+, shape IoU [\d.]+",
-                        anim.title(anim.frames[-1]))
+    # the phase, the load (power of weight), the reporters and the shape's score
+    assert re.fullmatch(r"tick 30: collecting touches, power [\d.]+ of weight 5\.00\n"
+                        r"power [\d.]+ of weight 5\.00, holders \d+, home_d2 -?\d+, "
+                        r"shape IoU [\d.]+", anim.title(anim.frames[-1]))
 
 
 # -- the sweep plots: one panel per declared measure -----------------------------------

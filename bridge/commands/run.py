@@ -257,7 +257,7 @@ def _run(args: argparse.Namespace, sc, engine, recorder) -> int:
     if trace is not None:
         trace.write(args.trace)
     if anim is not None:
-        frames = anim.write(args.animate)
+        frames = anim.write(args.animate, progress=_frames_bar(args))
     if args.json:
         print(json.dumps(summary, sort_keys=True))
     else:
@@ -272,6 +272,24 @@ def _run(args: argparse.Namespace, sc, engine, recorder) -> int:
             print(f"animation written to {args.animate} ({frames} frames, one every "
                   f"{anim.every} ticks)")
     return 0 if summary["delivered"] else 1
+
+
+def _frames_bar(args: argparse.Namespace):
+    """progress(done, total) for --animate: a bar of frames drawn on a
+    terminal (drawing takes longer than the run), nothing otherwise."""
+    if not sys.stderr.isatty() or args.json:
+        return None
+    from tqdm import tqdm
+    bar = None
+
+    def progress(done: int, total: int) -> None:
+        nonlocal bar
+        if bar is None:
+            bar = tqdm(total=total, unit="frame", desc=f"drawing {args.animate}", leave=False)
+        bar.update(1)
+        if done == total:
+            bar.close()
+    return progress
 
 
 def _perception_lines(s: dict) -> list[str]:

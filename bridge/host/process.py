@@ -133,10 +133,11 @@ class HostProcess:
         return {"host": {"tick": self.tick, "halts_sent": self.halts_sent},
                 "coordinator": self.coord.snapshot()}
 
-    def resume(self, journal: Journal) -> int:
+    def resume(self, journal: Journal, after: Callable[[Any], None] | None = None) -> int:
         """Replay a journal into this (fresh) host: its reports in order
         through the coordinator's own checks, each decision's snapshot
-        adopted at its place; return the reports the coordinator holds."""
+        adopted at its place; return the reports the coordinator holds.
+        `after(entry)` is called once each entry is in (the live view's plots)."""
         c = self.coord
         refused = sum(c.rejected.values())
         replayed = 0
@@ -150,6 +151,8 @@ class HostProcess:
                     log.warning("journal snapshot: ignoring unknown coordinator "
                                 "attributes %s", ", ".join(sorted(unknown)))
                 self.halts_sent = int(e.state.get("host", {}).get("halts_sent", 0))
+            if after is not None:
+                after(e)
         self.tick = max(self.tick, journal.last_tick())
         self.resumed = len(c.touches)
         dropped = sum(c.rejected.values()) - refused

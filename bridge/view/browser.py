@@ -45,7 +45,7 @@ def headless(width: int = 1200, height: int = 900) -> Any:
 def screenshot(url: str, out: Path, tick: int, timeout: float = 60.0) -> None:
     """Load the view at `url`, wait until the page shows `tick`, save a PNG."""
     from selenium.webdriver.support.ui import WebDriverWait
-    driver = headless()
+    driver = headless(1500, 1100)      # the arena, the plots and the side panel side by side
     try:
         driver.get(url)
         WebDriverWait(driver, timeout).until(

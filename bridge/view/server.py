@@ -3,8 +3,11 @@
 GET  /              the page (static/index.html), /view.js its script
 GET  /info.json     what does not change: arena, home, states and colours
 GET  /state.json    the source's state now (the page polls it)
+GET  /robot.json?node=N  one robot for the inspector (a simulated run)
+GET  /favicon.svg   the tab's icon (also at /favicon.ico)
 POST /control/ACTION  play, pause, step ({"ticks": n}), speed
-                    ({"ticks_per_second": x}); the answer is the run's summary
+                    ({"ticks_per_second": x}), reset ({"set": ["KEY=VALUE", ...],
+                    "seed": n}); the answer is the run's summary
 A bad request gets 400 and {"error": "<one line>"}.
 """
 
@@ -26,7 +29,9 @@ log = logging.getLogger(__name__)
 HOST = "127.0.0.1"
 MAX_BODY = 4096         # a control request is a few bytes of JSON
 STATIC = {"/": ("index.html", "text/html; charset=utf-8"),
-          "/view.js": ("view.js", "text/javascript; charset=utf-8")}
+          "/view.js": ("view.js", "text/javascript; charset=utf-8"),
+          "/favicon.svg": ("favicon.svg", "image/svg+xml"),
+          "/favicon.ico": ("favicon.svg", "image/svg+xml")}
 
 
 class Handler(BaseHTTPRequestHandler):
@@ -41,7 +46,11 @@ class Handler(BaseHTTPRequestHandler):
         self.send_header("Content-Length", str(len(body)))
         self.send_header("Cache-Control", "no-store")
         self.end_headers()
-        self.wfile.write(body)
+        try:
+            self.wfile.write(body)
+        except (BrokenPipeError, ConnectionResetError):
+            # the page went away mid-answer (a closed tab, a screenshot's browser quitting)
+            log.debug("%s went away before the answer", self.address_string())
 
     def _json(self, code: int, obj: Any) -> None:
         self._send(code, json.dumps(obj).encode(), "application/json")
@@ -66,8 +75,24 @@ class Handler(BaseHTTPRequestHandler):
                 self._error(500, f"{type(err).__name__}: {err}")
                 return
             self._json(200, state)
+        elif path == "/robot.json":
+            try:
+                self._json(200, self._robot())
+            except BadRequest as err:
+                self._error(400, str(err))
         else:
             self._error(404, f"no such page {path}")
+
+    def _robot(self) -> dict[str, Any]:
+        from urllib.parse import parse_qs, urlsplit
+        robot = getattr(self.server.source, "robot", None)
+        if robot is None:
+            raise BadRequest("robot: the journal source has no robot inspector (the host "
+                             "knows only each robot's last HEARTBEAT)")
+        node = parse_qs(urlsplit(self.path).query).get("node", [""])[0]
+        if not node.isdigit():
+            raise BadRequest(f"robot: node must be a robot number, got {node!r}")
+        return robot(int(node))
 
     def do_POST(self) -> None:
         path = self.path.split("?", 1)[0]

@@ -23,6 +23,7 @@ from typing import Any
 
 from bridge.errors import UsageError
 from firmware_logic import messages as msg
+from bridge.view import panels
 from firmware_logic import perception
 
 log = logging.getLogger(__name__)
@@ -116,34 +117,95 @@ def step_count(body: dict[str, Any]) -> int:
     return v
 
 
+LAST_MESSAGES = 6        # a robot's newest messages the inspector shows
+
+
+def watched_link(nodes: list[int], tick_of: Any) -> Any:
+    """The in-process link, keeping each robot's newest LAST_MESSAGES
+    messages, sent and received, for the robot inspector."""
+    from collections import deque
+
+    from sim_backend.engine import InprocLink
+
+    class WatchedLink(InprocLink):
+        def __init__(self) -> None:
+            super().__init__(nodes)
+            self.last = {n: deque(maxlen=LAST_MESSAGES) for n in nodes}
+
+        def robot_send(self, node: int, kind: int, fields: tuple) -> None:
+            super().robot_send(node, kind, fields)
+            self.last[node].append((tick_of(), "sent", kind, tuple(fields)))
+
+        def host_send(self, node: int, kind: int, fields: tuple) -> None:
+            super().host_send(node, kind, fields)
+            for n in (self.last if node == 0 else (node,)):
+                self.last[n].append((tick_of(), "received", kind, tuple(fields)))
+
+    return WatchedLink()
+
+
+def message_text(kind: int, fields: tuple, who: str = "") -> str:
+    """"TOUCH from robot 3 (seq 1, ...)": a message's name, `who`, its fields."""
+    name, layout = msg.SCHEMA[kind]
+    return name + who + (" (" + ", ".join(f"{f[0]} {v}" for f, v in zip(layout, fields)) + ")"
+                         if fields else "")
+
+
+def robot_variables(robot: Any) -> dict[str, Any]:
+    """A robot's own numbers (its timers, counters, modes), read off the
+    object: whatever the behaviour's robot keeps as an int or a bool."""
+    return {k: v for k, v in sorted(vars(robot).items())
+            if not k.startswith("_") and isinstance(v, (int, bool))
+            and k not in ("node", "state", "heading")}
+
+
 class SimSource:
     kind = "sim"
 
     def __init__(self, sc: Any, seed: int, playing: bool = False, speed: float = 20.0) -> None:
-        from sim_backend.engine import Engine
-        self.sc = sc
-        self.engine = Engine(sc, seed)
         self.lock = threading.Condition()
         self.playing = playing
         self.speed = speed_value({"ticks_per_second": speed})
         self.closed = False
+        self._setup(sc, seed)
+        self.runner = threading.Thread(target=self._run, name="view-sim", daemon=True)
+        self.runner.start()
+
+    def _setup(self, sc: Any, seed: int) -> None:
+        """A fresh engine for sc and seed (the start, and every reset)."""
+        from sim_backend import words
+        from sim_backend.engine import Engine
+        self.sc = sc
+        nodes = list(range(1, sc.agents + 1))
+        self.engine = Engine(sc, seed, link=watched_link(nodes, lambda: self.engine.tick))
+        from perception.tracker import attach
+        attach(self.engine)     # the shape estimate and recognition, as `touchswarm run` has them
         self.bad_frames = 0
         self.events: list[str] = [f"tick 0: {sc.agents} robots, scenario {sc.name}, seed {seed}"]
         self._seen = {"touches": 0, "converged": False, "delivered": False}
-        from sim_backend import words
         said = words.of(self.engine.behaviour)
         self.done_word = said.result[1]                 # e.g. DELIVERED
         # convergence is an event only for a behaviour that measures it
         self._seen["converged"] = "converged_tick" not in dict(said.measures)
+        names = tuple(self.engine.behaviour.spec.STATES)
+        self.plots = panels.plots(self.engine.behaviour, hex_colours(names),
+                                  instruments=tuple(self.engine.instruments))
+        self.history = panels.History()
         self.snap = self.engine.snapshot()
+        self._sample(self.snap)
         self.engine.observe(self._observe)
-        self.runner = threading.Thread(target=self._run, name="view-sim", daemon=True)
-        self.runner.start()
+
+    def _sample(self, snap: Any) -> None:
+        self.history.add(snap.tick, {
+            **panels.sample(self.engine.behaviour, self.engine.coordinator, snap.states,
+                            snap.iou),
+            **panels.instrument_values(tuple(self.engine.instruments))})
 
     # -- the engine's observer (called under the lock, inside step) ----------
 
     def _observe(self, snap: Any) -> None:
         self.snap = snap
+        self._sample(snap)
         self.bad_frames += snap.bad_frames
         c = self.engine.coordinator
         for i in range(self._seen["touches"], len(c.touches)):
@@ -199,11 +261,65 @@ class SimSource:
                     self.engine.step()
             elif action == "speed":
                 self.speed = speed_value(body)
+            elif action == "reset":
+                sc, seed = self._reset_args(body)
+                self.playing = False
+                self._setup(sc, seed)
             else:
-                raise BadRequest(f"unknown control {action!r}; expected play, pause, step "
-                                 "or speed")
+                raise BadRequest(f"unknown control {action!r}; expected play, pause, step, "
+                                 "speed or reset")
             self.lock.notify_all()
             return self._summary()
+
+    def _reset_args(self, body: dict[str, Any]) -> tuple[Any, int]:
+        """The scenario and seed a reset asks for: {"set": ["KEY=VALUE", ...],
+        "seed": n}, read and checked as `--set` and `--seed` are, so a bad
+        value is refused in the command line's own words."""
+        from bridge.commands.run import parse_overrides
+        from bridge.errors import UsageError
+        from firmware_logic.registry import BehaviourError
+        from sim_backend import scenario
+        from sim_backend.errors import SimError
+        items = body.get("set", [])
+        if not isinstance(items, list) or not all(isinstance(i, str) for i in items):
+            raise BadRequest(f"reset: set must be a list of \"KEY=VALUE\" texts, got {items!r}")
+        try:
+            seed = scenario.check_seed(body.get("seed", self.engine.seed), "--seed")
+            changes = parse_overrides(items)
+            if "behaviour" in changes:
+                raise UsageError("--set behaviour: the view's behaviour is fixed; restart "
+                                 "`touchswarm view --behaviour NAME`")
+            return (self.sc.replace(**changes) if changes else self.sc), seed
+        except (UsageError, SimError, BehaviourError) as err:
+            raise BadRequest(str(err)) from None
+
+    def robot(self, node: int) -> dict[str, Any]:
+        """What the inspector shows of one robot: state, pose, heading, its
+        own numbers (timers, counters), its newest messages."""
+        with self.lock:
+            e = self.engine
+            if not 1 <= node <= len(e.robots):
+                raise BadRequest(f"robot: node must be 1..{len(e.robots)}, got {node}")
+            r = e.robots[node - 1]
+            names = tuple(e.behaviour.spec.STATES)
+            s = self.snap
+            return {"node": node, "tick": e.tick, "state": names[r.state],
+                    "x": s.xs[node - 1], "y": s.ys[node - 1],
+                    "heading": getattr(r, "heading", None),
+                    "variables": robot_variables(r),
+                    "messages": [{"tick": t, "way": way, "text": message_text(k, f)}
+                                 for t, way, k, f in e.link.last[node]]}
+
+    def _claimed(self) -> list[list[int]]:
+        """[x, y, node] of every object cell a robot holds now."""
+        w = self.engine.world
+        # only cells of objects (the target, decoys) are held: look those up,
+        # not every patch of a large arena
+        out = []
+        for x, y in [*w.object_cells, *w.decoy_cells]:
+            if -w.w <= x <= w.w and -w.w <= y <= w.w and w.owner[w.idx(x, y)]:
+                out.append([x, y, w.owner[w.idx(x, y)]])
+        return out
 
     def _summary(self) -> dict[str, Any]:
         c = self.engine.coordinator
@@ -225,12 +341,18 @@ class SimSource:
     # -- what the page reads ------------------------------------------------------
 
     def info(self) -> dict[str, Any]:
+        with self.lock:
+            return self._info()
+
+    def _info(self) -> dict[str, Any]:
         w = self.engine.world
         names = tuple(self.engine.behaviour.spec.STATES)
         return {"source": self.kind, "title": f"scenario {self.sc.name}, seed {self.engine.seed}",
                 "world": w.w, "home": [self.sc.homeX, self.sc.homeY],
                 "states": list(names), "colours": hex_colours(names), "controls": True,
-                **words_info(self.engine.behaviour)}
+                "seed": self.engine.seed, "params": panels.fields(self.sc),
+                "decoys": bool(w.decoy_cells), "obstacles": bool(w.obstacle_cells),
+                "plots": self.plots, **words_info(self.engine.behaviour)}
 
     def state(self) -> dict[str, Any]:
         with self.lock:
@@ -244,11 +366,15 @@ class SimSource:
                 "robots": [{"node": i + 1, "x": x, "y": y, "state": st}
                            for i, (x, y, st) in enumerate(zip(s.xs, s.ys, s.states))],
                 "object": [list(c) for c in s.object_cells],
+                "decoys": [list(c) for c in self.engine.world.decoy_cells],
+                "obstacles": [list(c) for c in self.engine.world.obstacle_cells],
                 "field": {"n": int(field.shape[0]), "max": int(field.max()),
                           "cells": field.ravel().tolist()},
                 **({"iou": s.iou} if "perceived" in view else {}),
                 "bad_frames": {"link": self.bad_frames} if self.bad_frames else {},
                 "events": self.events[-EVENTS_SHOWN:],
+                "claimed": self._claimed(),
+                "plots": self.history.columns(panels.series_keys(self.plots)),
             }
         return out
 
@@ -273,6 +399,14 @@ class JournalSource:
         self.sc = sc.replace(behaviour=behaviour) if behaviour != sc.behaviour else sc
         self.lock = threading.Lock()
         self.cached: tuple[Any, dict[str, Any]] | None = None
+        from firmware_logic import registry
+        self.behaviour = registry.load(self.sc.behaviour)
+        names = tuple(self.behaviour.spec.STATES)
+        # the host does not know the object: no shape score to plot
+        self.plots = panels.plots(self.behaviour, hex_colours(names), shape=False)
+        # robots per state by live-view tick, as the polls see it (the
+        # journal keeps only the newest poses)
+        self.state_rows: dict[int, dict[str, int]] = {}
 
     def close(self) -> None:
         pass
@@ -287,7 +421,7 @@ class JournalSource:
         return {"source": self.kind, "title": f"host journal {self.path}",
                 "world": self.sc.worldSize, "home": [self.sc.homeX, self.sc.homeY],
                 "states": list(names), "colours": hex_colours(names), "controls": False,
-                **words_info(registry.load(self.sc.behaviour))}
+                "plots": self.plots, **words_info(registry.load(self.sc.behaviour))}
 
     def state(self) -> dict[str, Any]:
         from bridge.host.journal import Journal, JournalError
@@ -315,22 +449,55 @@ class JournalSource:
         host = HostProcess(None, self.sc.weight_centi, self.sc.homeX, self.sc.homeY,  # type: ignore[arg-type]
                            world_size=self.sc.worldSize, behaviour=self.sc.behaviour,
                            scenario=self.sc)
-        host.resume(j)
-        events = []
+        samples: list[tuple[int, dict[str, Any]]] = []
+        beh = self.behaviour
+        host.resume(j, after=lambda e: samples.append((e.tick, panels.sample(beh, host.coord))))
+        events: list[str] = []
+        last_decision: list[Any] = [None, 0, 0]     # kind, first tick, repeats
         for e in entries:
             if isinstance(e, Report):
-                name, layout = msg.SCHEMA[e.kind]
-                events.append(f"tick {e.tick}: {name} from robot {e.node} ("
-                              + ", ".join(f"{f[0]} {v}" for f, v in zip(layout, e.fields)) + ")")
+                last_decision[0] = None
+                events.append(f"tick {e.tick}: "
+                              + message_text(e.kind, e.fields, f" from robot {e.node}"))
+            elif e.kind == last_decision[0]:
+                # a decision repeated tick after tick (e.g. a halt) is one line
+                last_decision[2] += 1
+                events[-1] = (f"tick {last_decision[1]}: decision {e.kind} (repeated to tick "
+                              f"{e.tick}, {last_decision[2]} times)")
             else:
+                last_decision[:] = [e.kind, e.tick, 1]
                 events.append(f"tick {e.tick}: decision {e.kind}")
         tick = max(host.tick, int(live["tick"]) if live else 0)
+        robots = poses(live)
+        halted = self._halted(host)
+        if halted is not None:
+            for r in robots:
+                r["state"], r["halted"] = halted, True
+        if live:
+            counts = panels.sample(beh, host.coord, tuple(r["state"] for r in robots))
+            self.state_rows[int(live["tick"])] = {k: v for k, v in counts.items()
+                                                  if k.startswith("state:")}
+        samples += list(self.state_rows.items())
+        samples.sort(key=lambda ts: ts[0])
+        history = panels.History()
+        for t, values in samples:
+            history.add(t, values)
         return {"tick": tick, "playing": False, "finished": host.coord.done(),
-                **coordinator_view(host.coord, registry.load(self.sc.behaviour)),
-                "robots": poses(live), "object": None, "field": None,
+                **coordinator_view(host.coord, beh),
+                "robots": robots, "object": None, "field": None,
                 "bad_frames": (live or {}).get("bad_frames", {}),
                 "live": live is not None,
-                "events": events[-EVENTS_SHOWN:]}
+                "events": events[-EVENTS_SHOWN:],
+                "plots": history.columns(panels.series_keys(self.plots))}
+
+    def _halted(self, host: Any) -> int | None:
+        """The behaviour's halt state (spec.HALT) once the host is done and has
+        sent HALT: every robot is then drawn halted, whatever its last
+        HEARTBEAT said (it stops and may fall silent)."""
+        code = getattr(self.behaviour.spec, "HALT", None)
+        if code is None or not host.coord.done() or host.halts_sent == 0:
+            return None
+        return code
 
 
 def poses(live: dict[str, Any] | None) -> list[dict[str, Any]]:

@@ -388,7 +388,10 @@ class Coordinator(Recognising, Roster):
             return "delivered at tick %d" % self.delivered_tick
         if self.converged_tick >= 0:
             return "transport step %d (leader done %d)" % (self.step, self.leader_done)
-        return "collecting touches, power %d/%d" % (self.power, self.weight)
+        # power and weight are hundredths: say them in weight units, as the
+        # live view's bar and the summary do
+        return "collecting touches, power %d.%02d of weight %d.%02d" % (
+            self.power // 100, self.power % 100, self.weight // 100, self.weight % 100)
 
     def segments_now(self):
         """Touched segments where they are now (they move with the object)."""
