@@ -79,9 +79,16 @@ def test_a_dead_robots_decisions_are_recorded(tmp_path):
         assert any(t > die[n - 1] for t in rec.actions[n]), n
 
 
-def test_replay_from_the_cli_of_a_lossy_can_run(tmp_path, capsys):
-    f = tmp_path / "x.blf"
-    main(["run", *SMALL, "--link", "can", "--set", "linkLoss=0.05", "--record", str(f)])
+def test_the_documented_lossy_recording_replays(tmp_path, capsys, monkeypatch):
+    """docs/protocol.md's commands: a lossy CAN run recorded, then replayed."""
+    import shlex
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "protocol.md").read_text()
+    cmds = [shlex.split(line.split("#")[0]) for line in doc.splitlines()
+            if line.startswith("touchswarm ") and "lossy.blf" in line]
+    assert [c[1] for c in cmds] == ["run", "replay"] and "linkLoss=0.05" in cmds[0]
+    monkeypatch.chdir(tmp_path)
+    main(cmds[0][1:])
     capsys.readouterr()
-    assert main(["replay", str(f)]) == 0
-    assert "0 divergences" in capsys.readouterr().out
+    assert main(cmds[1][1:]) == 0
+    out = capsys.readouterr().out
+    assert "0 divergences" in out and "delivered at tick" in out
