@@ -42,8 +42,11 @@ BEACON_ON = 1
 BEACON_LEADER = 2
 
 # codes of the HAL's queries and actions, as a recording captures them
-# (SENSOR.query and ACTION.action, docs/protocol.md); index = code
-QUERY_NAMES = ("", "probe", "field_ahead", "field_here", "uphill", "holding", "recv", "x", "y")
+# (SENSOR.query and ACTION.action, docs/protocol.md); index = code.
+# recv_field is no query of its own: a recording's frames after a recv
+# reading, one per 16-bit part of the frame the robot was handed
+QUERY_NAMES = ("", "probe", "field_ahead", "field_here", "uphill", "holding", "recv", "x", "y",
+               "recv_field")
 ACTION_NAMES = ("", "forward", "claim", "carry", "beacon")
 PROBE = 1
 FIELD_AHEAD = 2
@@ -53,6 +56,7 @@ HOLDING = 5
 RECV = 6
 POS_X = 7
 POS_Y = 8
+RECV_FIELD = 9
 FORWARD = 1
 CLAIM = 2
 CARRY = 3

@@ -67,7 +67,7 @@ MESSAGES = (
     (SENSOR, "SENSOR", CAPTURE, "capture: one sensor reading the firmware took",
      (("tick", 2, 0, 1, "", None, None, ""),
       ("index", 1, 0, 1, "", None, None, ""),
-      ("query", 1, 0, 1, "", 1, 8, "query"),
+      ("query", 1, 0, 1, "", 1, 9, "query"),
       ("arg", 2, 1, 1, "", None, None, ""),
       ("value", 2, 1, 1, "", None, None, ""))),
     (ACTION, "ACTION", CAPTURE, "capture: one action the firmware decided",

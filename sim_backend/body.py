@@ -24,6 +24,7 @@ class SimBody(Hal):
         self.link = link
         self.tape = None           # optional list receiving (query, arg, value)
         self.acts = None           # optional list receiving (action, a, b)
+        self.sent = None           # optional list receiving (node, kind, fields) sent
         # faults (sim_backend/faults.py): this robot's share of the run's plan
         self.faulty = faults.active(world.sc)
         if self.faulty:
@@ -126,49 +127,56 @@ class SimBody(Hal):
 
     # -- acting (intents, applied by World.apply) ----------------------------------
 
+    # the tapes (self.acts, self.sent) take the firmware's decision before
+    # any fault filter: a recording holds what the firmware decided, the
+    # faults only what became of it (bridge/record/recorder.py)
+
     def forward(self, heading: int, step: int) -> None:
+        if self.acts is not None:
+            self.acts.append((hal.FORWARD, heading, step))
         if self.faulty and (self.dead() or self.s0 <= self.t < self.s1):
             return
         w = self.world
         w.mv_on[self.i] = 1
         w.mv_h[self.i] = heading
         w.mv_step[self.i] = step
-        if self.acts is not None:
-            self.acts.append((hal.FORWARD, heading, step))
 
     def claim(self, heading: int) -> None:
+        if self.acts is not None:
+            self.acts.append((hal.CLAIM, heading, 0))
         if self.faulty and self.dead():
             return
         w = self.world
         w.claim[self.i] = kernel.ahead_cell(w.w, w.n, w.xs[self.i], w.ys[self.i], heading,
                                             w.rules)
-        if self.acts is not None:
-            self.acts.append((hal.CLAIM, heading, 0))
 
     def carry(self, dx: int, dy: int) -> None:
+        if self.acts is not None:
+            self.acts.append((hal.CARRY, dx, dy))
         if self.faulty and self.dead():
             return
         w = self.world
         w.carry_on[self.i] = 1
         w.carry_dx[self.i] = dx
         w.carry_dy[self.i] = dy
-        if self.acts is not None:
-            self.acts.append((hal.CARRY, dx, dy))
 
     def beacon(self, on: int) -> None:
+        if self.acts is not None:
+            self.acts.append((hal.BEACON, on, 0))
         if self.faulty and self.dead():
             return
         self.world.beacon_set[self.i] = on
-        if self.acts is not None:
-            self.acts.append((hal.BEACON, on, 0))
 
     # -- messages ------------------------------------------------------------------
 
     def send(self, kind: int, a0: int, a1: int, a2: int, a3: int, a4: int, a5: int) -> None:
+        n = len(msg.fields(kind))
+        fields = (a0, a1, a2, a3, a4, a5)[:n]
+        if self.sent is not None:
+            self.sent.append((self.node, kind, fields))
         if self.faulty and self.dead():
             return
-        n = len(msg.fields(kind))
-        self.link.robot_send(self.node, kind, (a0, a1, a2, a3, a4, a5)[:n])
+        self.link.robot_send(self.node, kind, fields)
 
     def recv(self, buf: list) -> int:
         m = self.link.robot_recv(self.node)

@@ -3,7 +3,8 @@
 The node id is part of the identifier (kind << 7 | node), so every (kind, node)
 pair is its own DBC message, named KIND_NODE (e.g. TOUCH_5, ACK_0). Host
 commands exist for node 0 (broadcast) and every robot; robot reports and
-capture frames for robots 1..max_node.
+capture frames for robots 1..max_node, plus SENSOR_0: a recording's count of
+the frames the host received (bridge/record/recorder.py).
 """
 
 from __future__ import annotations
@@ -36,7 +37,7 @@ def build(max_node: int = msg.MAX_NODE, behaviour: Any = None):
     nodes = [Node(name, comment=None) for name in names]
     messages = []
     for kind, kname, _direction, comment, spec in sorted(rows):
-        first = 0 if kind in s.host_kinds else 1
+        first = 0 if kind in s.host_kinds or kind == msg.SENSOR else 1
         for node in range(first, max_node + 1):
             signals = []
             pos = 0
@@ -54,7 +55,7 @@ def build(max_node: int = msg.MAX_NODE, behaviour: Any = None):
                                       conversion=conv, minimum=lo / divisor,
                                       maximum=hi / divisor, unit=unit or None))
                 pos += size
-            sender = "HOST" if kind in s.host_kinds else f"R{node}"
+            sender = "HOST" if kind in s.host_kinds or node == 0 else f"R{node}"
             messages.append(Message(frame_id=msg.can_id(kind, node), name=f"{kname}_{node}",
                                     length=pos, signals=signals, senders=[sender],
                                     comment=comment, is_extended_frame=False))

@@ -1,6 +1,6 @@
-"""Replay a recording: every robot's firmware on its recorded sensor stream,
-the coordinator on the recorded reports; each decision that differs from the
-recording is reported.
+"""Replay a recording: every robot's firmware on its recorded sensor stream
+and receptions, the coordinator on the reports the host received; each
+decision that differs from the recording is reported.
 
 A robot's decisions are its actions (ACTION frames) and the messages it sent;
 the coordinator's are the commands it sent. A robot whose firmware asks for a
@@ -24,7 +24,7 @@ import can
 from bridge.errors import UsageError
 from bridge.links.codec import BadFrames, Decoder, Message
 from bridge.record.formats import meta_path, record_format
-from bridge.record.recorder import Q_RECV, Q_X, Q_Y
+from bridge.record.recorder import HOST, Q_RECV, Q_RECV_FIELD, Q_X, Q_Y, join_parts
 from firmware_logic import messages as msg
 from firmware_logic import hal, registry
 from firmware_logic.hal import Hal
@@ -52,6 +52,12 @@ class Recording:
     actions: dict[int, dict[int, list[tuple]]] = field(default_factory=lambda: defaultdict(dict))
     up: dict[int, list[Message]] = field(default_factory=lambda: defaultdict(list))
     down: dict[int, list[Message]] = field(default_factory=lambda: defaultdict(list))
+    # tick -> the frames the host received, where they differ from `up` (a
+    # faulty link); elsewhere the host received what the robots sent
+    host_in: dict[int, list[Message]] = field(default_factory=dict)
+    # robots' receptions recorded in full (recv_field frames): replay hands
+    # them over as recorded; older recordings pass the host's commands on
+    recv_fields: bool = False
     frames: int = 0
     bad: dict[str, int] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
@@ -164,6 +170,7 @@ def load(path: Path, folder: Path | None = None) -> Recording:
     rec.meta["scenario"]["behaviour"] = behaviour_ref(b)
     dec = Decoder("host", BadFrames("replay"), behaviour=b)
     tick = 0
+    host_left = 0        # frames still to come of those the host received
     try:
         with _quiet_python_can():
             for frame in can.LogReader(str(path)):
@@ -180,8 +187,16 @@ def load(path: Path, folder: Path | None = None) -> Recording:
                         tick = t
                         rec.ticks.append(t)
                         rec.stamps[t] = frame.timestamp
+                    if node == HOST and kind == msg.SENSOR and f[2] == Q_RECV:
+                        rec.host_in[t] = []
+                        host_left = f[3]
+                        continue
+                    rec.recv_fields |= kind == msg.SENSOR and f[2] == Q_RECV_FIELD
                     table = rec.sensors if kind == msg.SENSOR else rec.actions
                     table[node].setdefault(t, []).append(tuple(f[2:]))
+                elif host_left > 0 and kind not in dec.schema.host_kinds:
+                    rec.host_in[tick].append((node, kind, tuple(f)))
+                    host_left -= 1
                 elif kind in dec.schema.host_kinds:
                     rec.down[tick].append((node, kind, tuple(f)))
                 else:
@@ -223,9 +238,10 @@ def load(path: Path, folder: Path | None = None) -> Recording:
 class ReplayHal(Hal):
     """Answers the firmware from one robot's recorded sensor stream."""
 
-    def __init__(self, node: int, inbox: deque) -> None:
+    def __init__(self, node: int, inbox: deque, full: bool = False) -> None:
         self.node = node
         self.inbox = inbox
+        self.full = full        # the recording holds each reception in full
         self.tape: deque = deque()
         self.acts: list[tuple] = []
         self.sent: list[Message] = []
@@ -281,6 +297,21 @@ class ReplayHal(Hal):
         kind = self._next(Q_RECV, 0)
         if kind == 0:
             return 0
+        if kind not in msg.SCHEMA:
+            raise Diverged(f"the recording says message kind {kind} was received, "
+                           f"which the behaviour does not know")
+        parts = []
+        while self.tape and self.tape[0][0] == Q_RECV_FIELD:
+            parts.append(self.tape.popleft()[1:])
+        if parts or self.full:
+            # what the robot was handed, faults and all
+            try:
+                fields = join_parts(kind, parts)
+            except ValueError as err:
+                raise Diverged(f"the recorded {msg.SCHEMA[kind][0]} received: {err}") from None
+            for j, v in enumerate(fields):
+                buf[j] = v
+            return kind
         if not self.inbox:
             raise Diverged(f"the recording says {msg.SCHEMA[kind][0]} was received, "
                            f"but the host sent nothing more to robot {self.node}")
@@ -311,7 +342,7 @@ def replay(path: Path, realtime: bool = False, limit: int = 50,
     beh = behaviour(rec.meta, Path(path), folder)
     robots = {n: beh.make_robot(n, seed, sc) for n in nodes}
     inbox = {n: deque() for n in nodes}
-    hals = {n: ReplayHal(n, inbox[n]) for n in nodes}
+    hals = {n: ReplayHal(n, inbox[n], rec.recv_fields) for n in nodes}
     stopped: set[int] = set()
     # the recorded run was a simulation: the host may check touches against
     # the object's true cells
@@ -364,14 +395,16 @@ def replay(path: Path, realtime: bool = False, limit: int = 50,
         recorded_down = rec.down.get(t, [])
         counts["host_commands"] += len(recorded_down)
         if coord_ok:
-            for node, kind, f in rec.up.get(t, []):
+            host_in = rec.host_in[t] if t in rec.host_in else rec.up.get(t, [])
+            for node, kind, f in host_in:
                 coord.on_message(node, kind, f, t)
             out = [(node, kind, tuple(f)) for node, kind, f in coord.tick(t)]
             if out != recorded_down:
                 diverge(f"tick {t} host: sent {[_fmt(m) for m in out]}, "
                         f"recorded {[_fmt(m) for m in recorded_down]}")
         # what the host sent reaches the robots' inboxes for the next tick
-        for node, kind, f in recorded_down:
+        # (a recording without the robots' receptions in full)
+        for node, kind, f in ([] if rec.recv_fields else recorded_down):
             for n in (nodes if node == 0 else [node]):
                 if n in inbox:
                     inbox[n].append((kind, f))
