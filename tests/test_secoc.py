@@ -10,6 +10,7 @@ import json
 import can
 import pytest
 
+from bridge.errors import BridgeError
 from bridge.links import secoc
 from bridge.links.codec import BadFrames, Decoder, encode
 from firmware_logic import messages as msg
@@ -119,22 +120,94 @@ def test_a_restarted_host_continues_above_every_counter_it_used(tmp_path):
     assert bad.counts == {secoc.STALE: 1}
 
 
+K1 = "11" * 16
+
+
+def private(p, data):
+    """A file only its owner may read, as `touchswarm keys new` writes them."""
+    p.write_bytes(data if isinstance(data, bytes) else data.encode())
+    p.chmod(0o600)
+    return p
+
+
 @pytest.mark.parametrize("text, needle", [
     ("", "no [keys] table"),
     ("[keys]\n", "no [keys] table"),
     ("[keys]\n1 = \"00\"\n", "node 1: expected 32 hex digits"),
     ("[keys]\n1 = \"zz" + "0" * 30 + "\"\n", "node 1: expected 32 hex digits"),
-    ("[keys]\n0 = \"" + "0" * 32 + "\"\n", "key '0': expected a node id 1..127"),
-    ("[keys]\nx = \"" + "0" * 32 + "\"\n", "key 'x': expected a node id"),
+    ("[keys]\n0 = \"" + K1 + "\"\n", "key '0': expected a node id 1..127"),
+    ("[keys]\nx = \"" + K1 + "\"\n", "key 'x': expected a node id"),
     ("[keys]\n1 = 5\n", "node 1: expected 32 hex digits"),
     ("[keys\n", "not valid TOML"),
+    # issue 29: each of these was a traceback or silently accepted
+    ("[keys]\n\"\u00b2\" = \"" + K1 + "\"\n", "key '\u00b2': expected a node id"),
+    ("[keys]\n1 = \"\u00b2" + "1" * 31 + "\"\n", "node 1: expected 32 hex digits"),
+    ("[keys]\n1 = \"" + "0" * 32 + "\"\n", "node 1: an all-zero key is no secret"),
+    ("[keys]\n1 = \"" + K1 + "\"\n01 = \"" + "22" * 16 + "\"\n",
+     "node 1 is given twice ('1' and '01')"),
+    ("[keys]\n1 = \"" + K1 + "\"\n2 = \"" + K1 + "\"\n", "nodes 1 and 2 have the same key"),
 ])
 def test_bad_key_files_are_refused_in_one_line(tmp_path, text, needle):
-    p = tmp_path / "k.toml"
-    p.write_text(text)
+    p = private(tmp_path / "k.toml", text)
     with pytest.raises(secoc.KeyFileError) as err:
         secoc.load_keys(p)
     assert needle in str(err.value) and "\n" not in str(err.value)
+    assert isinstance(err.value, BridgeError)
+
+
+def test_key_files_others_may_read_devices_fifos_and_huge_files_are_refused(tmp_path):
+    import os
+    good = "[keys]\n1 = \"" + K1 + "\"\n"
+    shared = private(tmp_path / "shared.toml", good)
+    shared.chmod(0o644)
+    fifo = tmp_path / "fifo.toml"
+    os.mkfifo(fifo)          # reading it would wait for a writer for ever
+    huge = private(tmp_path / "huge.toml", "#" * (secoc.MAX_FILE + 1))
+    for path, needle in [(shared, "mode 0644 lets others read it; keys must be private: "
+                                  f"chmod 600 {shared}"),
+                         (fifo, "not a regular file"), ("/dev/zero", "not a regular file"),
+                         (huge, f"{secoc.MAX_FILE + 1} bytes; such a file is at most")]:
+        with pytest.raises(secoc.KeyFileError) as err:
+            secoc.load_keys(path)
+        assert needle in str(err.value) and "\n" not in str(err.value), err.value
+    shared.chmod(0o600)
+    assert secoc.load_keys(shared) == {1: bytes.fromhex(K1)}
+
+
+@pytest.mark.parametrize("text, needle", [
+    ('{"1": null}', "node 1: counter null; expected an integer 0..4294967295"),
+    ('{"1": -5}', "node 1: counter -5; expected an integer"),
+    ('{"1": 2.5}', "node 1: counter 2.5; expected an integer"),
+    ('{"1": true}', "node 1: counter true; expected an integer"),
+    ('{"1": 4294967296}', "node 1: counter 4294967296; expected an integer"),
+    ('{"1": 5, "01": 6}', "node 1 is given twice"),
+    ('{"\u00b2": 5}', "expected a node id"),
+    ('[1, 2]', "expected an object of node: counter"),
+    ('{"1": ', "not JSON"),
+])
+def test_bad_freshness_files_are_refused_in_one_line_before_any_command(tmp_path, text, needle):
+    p = tmp_path / "k.toml.fv.json"
+    p.write_text(text)
+    with pytest.raises(secoc.KeyFileError) as err:
+        secoc.Sealer(KEYS, secoc.FreshnessStore(p))
+    msg_ = str(err.value)
+    assert needle in msg_ and "\n" not in msg_ and "rekey" in msg_, msg_
+
+
+def test_a_spent_counter_is_refused_at_start_and_reaching_the_end_is_a_typed_stop(tmp_path):
+    p = tmp_path / "k.toml.fv.json"
+    p.write_text(json.dumps({"1": secoc.FV_MAX}))
+    with pytest.raises(secoc.FreshnessExhausted, match="node 1: freshness counter at its "
+                                                       "end .*rekey: `touchswarm keys new"):
+        secoc.Sealer(KEYS, secoc.FreshnessStore(p))
+    p.write_text(json.dumps({"1": secoc.FV_MAX - 2}))
+    sealer = secoc.Sealer(KEYS, secoc.FreshnessStore(p))
+    opener, decoder, bad = robot_side()
+    for seq in (1, 2):
+        assert passed(opener, decoder, sealer.seal(encode(1, msg.ACK, (seq,)))[0])
+    with pytest.raises(secoc.FreshnessExhausted) as err:
+        sealer.seal(encode(1, msg.ACK, (3,)))
+    assert "\n" not in str(err.value) and isinstance(err.value, BridgeError)
 
 
 def test_keys_new_writes_owner_only_keys_that_load(tmp_path):

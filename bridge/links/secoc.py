@@ -30,6 +30,7 @@ import json
 import logging
 import os
 import secrets
+import stat
 import tomllib
 from pathlib import Path
 
@@ -37,6 +38,7 @@ import can
 from cryptography.hazmat.primitives.ciphers.algorithms import AES
 from cryptography.hazmat.primitives.cmac import CMAC
 
+from bridge.errors import BridgeError
 from firmware_logic import messages as msg
 
 log = logging.getLogger(__name__)
@@ -45,6 +47,7 @@ MAC_BYTES = 3          # 24-bit MAC: SecOC profile 1's length
 FV_MAX = 0xFFFFFFFF    # a 32-bit freshness counter per robot
 RESERVE = 256          # host counters are persisted this many frames ahead
 KEY_BYTES = 16         # AES-128
+MAX_FILE = 64 * 1024   # a key or freshness file is never larger (127 keys: ~6 kB)
 
 # what a robot counts when it drops a host command (BadFrames fault names)
 UNAUTHENTICATED = "unauthenticated host command"
@@ -53,8 +56,55 @@ STALE = "stale freshness (replayed or reordered)"
 UNKEYED = "host command for a node without a key"
 
 
-class KeyFileError(ValueError):
-    """A key file that cannot be used; the message is one line."""
+class SecocError(BridgeError):
+    """Base of the errors of authenticated frames; every message is one line."""
+
+
+class KeyFileError(SecocError, ValueError):
+    """A key or freshness file that cannot be used."""
+
+
+class FreshnessExhausted(SecocError):
+    """A node's 32-bit freshness counter reached its end: the node needs a new key."""
+
+
+REKEY = ("rekey: `touchswarm keys new --out NEW.toml`, give NEW.toml to the robots "
+         "and the host, and start without the old freshness file")
+
+
+def _read_small(path: Path, what: str) -> bytes:
+    """A regular file's bytes, at most MAX_FILE; a FIFO or device is refused
+    before it is opened (a read could hang or never end); `private`: refuse a
+    file others may read."""
+    where = f"{what} {str(path)!r}"
+    try:
+        st = os.stat(path)
+    except OSError as err:
+        raise KeyFileError(f"{where}: {err.strerror}") from None
+    if not stat.S_ISREG(st.st_mode):
+        raise KeyFileError(f"{where}: not a regular file; expected the TOML written by "
+                           "`touchswarm keys new`")
+    if st.st_size > MAX_FILE:
+        raise KeyFileError(f"{where}: {st.st_size} bytes; such a file is at most "
+                           f"{MAX_FILE} bytes")
+    try:
+        with open(path, "rb") as f:
+            data = f.read(MAX_FILE + 1)
+    except OSError as err:
+        raise KeyFileError(f"{where}: {err.strerror}") from None
+    if len(data) > MAX_FILE:
+        raise KeyFileError(f"{where}: more than {MAX_FILE} bytes")
+    return data
+
+
+def _check_private(path: Path) -> None:
+    """Refuse a key file that its group or others may read or write."""
+    if os.name != "posix":
+        return
+    mode = os.stat(path).st_mode & 0o777
+    if mode & 0o077:
+        raise KeyFileError(f"key file {str(path)!r}: mode {mode:04o} lets others read it; "
+                           f"keys must be private: chmod 600 {path}")
 
 
 def down_kinds() -> set[int]:
@@ -81,12 +131,13 @@ def _mac(key: bytes, arbitration_id: int, payload: bytes, fv: int) -> bytes:
 
 
 def load_keys(path: Path) -> dict[int, bytes]:
-    """{node: key} from a TOML key file ([keys] NODE = "32 hex digits")."""
+    """{node: key} from a TOML key file ([keys] NODE = "32 hex digits"),
+    private to its owner, one distinct non-zero key per node."""
     where = f"key file {str(path)!r}"
+    data = _read_small(Path(path), "key file")
+    _check_private(Path(path))
     try:
-        raw = tomllib.loads(Path(path).read_text())
-    except OSError as err:
-        raise KeyFileError(f"{where}: {err.strerror}") from None
+        raw = tomllib.loads(data.decode("utf-8"))
     except UnicodeDecodeError:
         raise KeyFileError(f"{where}: not UTF-8 text; expected TOML from "
                            "`touchswarm keys new`") from None
@@ -97,18 +148,40 @@ def load_keys(path: Path) -> dict[int, bytes]:
         raise KeyFileError(f"{where}: no [keys] table; expected NODE = \"32 hex digits\" "
                            "lines from `touchswarm keys new`")
     keys: dict[int, bytes] = {}
+    named: dict[int, str] = {}
+    owner: dict[bytes, int] = {}
     for name, value in table.items():
-        if not name.isdigit() or not 1 <= int(name) <= msg.MAX_NODE:
+        node = _node_id(name)
+        if node is None:
             raise KeyFileError(f"{where}: key {name!r}: expected a node id 1..{msg.MAX_NODE}")
-        try:
-            key = bytes.fromhex(value) if isinstance(value, str) else b""
-        except ValueError:
-            key = b""
+        if node in keys:
+            raise KeyFileError(f"{where}: node {node} is given twice ({named[node]!r} and "
+                               f"{name!r}); one key per node")
+        key = b""
+        if isinstance(value, str) and value.isascii():
+            try:
+                key = bytes.fromhex(value)
+            except ValueError:
+                pass
         if len(key) != KEY_BYTES:
             raise KeyFileError(f"{where}: node {name}: expected {2 * KEY_BYTES} hex digits "
                                "(an AES-128 key)")
-        keys[int(name)] = key
+        if not any(key):
+            raise KeyFileError(f"{where}: node {name}: an all-zero key is no secret; make "
+                               "keys with `touchswarm keys new`")
+        if key in owner:
+            raise KeyFileError(f"{where}: nodes {owner[key]} and {node} have the same key; "
+                               "a shared key lets one robot forge the host to the other")
+        keys[node], named[node], owner[key] = key, name, node
     return keys
+
+
+def _node_id(name: str) -> int | None:
+    """A node id 1..MAX_NODE written in ASCII digits, else None."""
+    if not (name.isascii() and name.isdigit()) or len(name) > 4:
+        return None
+    n = int(name)
+    return n if 1 <= n <= msg.MAX_NODE else None
 
 
 def new_key_file(path: Path, nodes: list[int]) -> None:
@@ -131,13 +204,31 @@ class FreshnessStore:
         self.path = path
         self.reserved: dict[int, int] = {}
         if path is not None and Path(path).exists():
-            try:
-                raw = json.loads(Path(path).read_text())
-                self.reserved = {int(k): int(v) for k, v in raw.items()}
-            except (OSError, ValueError, AttributeError) as err:
-                raise KeyFileError(f"freshness file {str(path)!r}: unreadable ({err}); "
-                                   "delete it only if no robot has seen this host's "
-                                   "commands, or rekey") from None
+            self.reserved = self._load(Path(path))
+
+    @staticmethod
+    def _load(path: Path) -> dict[int, int]:
+        where = f"freshness file {str(path)!r}"
+        keep = ("; delete it only if no robot has seen this host's commands, else " + REKEY)
+        try:
+            raw = json.loads(_read_small(path, "freshness file").decode("utf-8"))
+        except (UnicodeDecodeError, ValueError) as err:
+            raise KeyFileError(f"{where}: not JSON ({err}){keep}") from None
+        if not isinstance(raw, dict):
+            raise KeyFileError(f"{where}: expected an object of node: counter{keep}")
+        out: dict[int, int] = {}
+        for name, value in raw.items():
+            node = _node_id(name)
+            if node is None:
+                raise KeyFileError(f"{where}: {name!r}: expected a node id 1..{msg.MAX_NODE}"
+                                   f"{keep}")
+            if node in out:
+                raise KeyFileError(f"{where}: node {node} is given twice{keep}")
+            if type(value) is not int or not 0 <= value <= FV_MAX:
+                raise KeyFileError(f"{where}: node {name}: counter {json.dumps(value)}; "
+                                   f"expected an integer 0..{FV_MAX}{keep}")
+            out[node] = value
+        return out
 
     def start(self, node: int) -> int:
         """The first counter this process may use for `node`."""
@@ -165,12 +256,17 @@ class Sealer:
         self.store = store or FreshnessStore(None)
         self.down = down_kinds()
         self.fv = {n: self.store.start(n) for n in keys}
+        spent = [n for n, fv in self.fv.items() if fv >= FV_MAX]
+        if spent:
+            raise FreshnessExhausted(f"node {spent[0]}: freshness counter at its end "
+                                     f"({FV_MAX}) in {self.store.path}; {REKEY}")
         self.limit = dict(self.fv)
 
     def _next_fv(self, node: int) -> int:
         fv = self.fv[node] + 1
         if fv > FV_MAX:
-            raise KeyFileError(f"node {node}: freshness counter exhausted; rekey the robot")
+            raise FreshnessExhausted(f"node {node}: freshness counter exhausted ({FV_MAX} "
+                                     f"commands sealed with its key); {REKEY}")
         if fv > self.limit[node]:
             self.limit[node] = min(FV_MAX, fv + RESERVE)
             self.store.reserve(node, self.limit[node])
