@@ -12,6 +12,9 @@ import pytest
 
 from bridge.errors import BridgeError
 from bridge.links import secoc
+from bridge.host.transport import CanTransport
+from bridge.links import open_bus
+from bridge.links.canlink import private_channel
 from bridge.links.codec import BadFrames, Decoder, encode
 from firmware_logic import messages as msg
 
@@ -219,3 +222,130 @@ def test_keys_new_writes_owner_only_keys_that_load(tmp_path):
     assert sorted(keys) == list(range(1, 8)) and len(set(keys.values())) == 7
     assert main(["keys", "new", "--out", str(out)]) == 2        # never overwritten
     assert secoc.load_keys(out) == keys
+
+
+# -- HELLO: key confirmation and the robots' freshness floor (issue 29 §3) ----
+
+def hello(node, opener):
+    return opener.hello(encode(node, msg.HELLO, (1, 100, 1)))
+
+
+def test_commands_captured_before_a_robot_restart_or_in_a_past_mission_are_refused(tmp_path):
+    """The robots keep their counters (simulated: KEYS.robots.fv.json; a real
+    robot: flash), reserved ahead like the host's, and their HELLO names the
+    floor, so the host continues above it and nothing sealed replays."""
+    store = tmp_path / "keys.toml.robots.fv.json"
+    sealer = secoc.Sealer(KEYS)                    # one host throughout
+    opener, decoder, bad = robot_side()
+    opener = secoc.Opener(KEYS, bad, secoc.FreshnessStore(store))
+    assert sealer.open_hello(hello(2, opener), 2) is not None
+    captured = [sealer.seal(encode(2, k, f))[0] for k, f in
+                [(msg.ACK, (0,)), (msg.TRANSPORT, (1, 1, 0)), (msg.HALT, (0,))]]
+    assert all(passed(opener, decoder, f) for f in captured)
+    for _ in range(2):                             # robots restarted, then a next mission
+        opener = secoc.Opener(KEYS, bad, secoc.FreshnessStore(store))
+        assert [passed(opener, decoder, f) for f in captured] == [None] * 3
+        # the restarted robot's HELLO moves the host above its floor at once
+        assert sealer.open_hello(hello(2, opener), 2) is not None
+        assert passed(opener, decoder, sealer.seal(encode(2, msg.ACK, (1,)))[0]) == \
+            (2, msg.ACK, (1,))
+    assert bad.counts.get(secoc.BAD_MAC, 0) + bad.counts.get(secoc.STALE, 0) == 6
+
+
+def test_a_host_that_lost_its_freshness_file_recovers_from_the_hello_with_a_message(
+        tmp_path, caplog):
+    opener, decoder, bad = robot_side()
+    old = secoc.Sealer(KEYS, secoc.FreshnessStore(tmp_path / "k.fv.json"))
+    for seq in range(1, 2000):
+        assert passed(opener, decoder, old.seal(encode(4, msg.ACK, (seq % 250,)))[0])
+    lost = secoc.Sealer(KEYS, secoc.FreshnessStore(tmp_path / "gone.fv.json"))
+    assert passed(opener, decoder, lost.seal(encode(4, msg.ACK, (1,)))[0]) is None  # stale
+    with caplog.at_level("WARNING"):
+        assert lost.open_hello(hello(4, opener), 4) is not None
+    assert "robot 4 has taken commands of this key file up to counter" in caplog.text
+    assert "gone.fv.json lost or older?): continuing above it" in caplog.text
+    assert passed(opener, decoder, lost.seal(encode(4, msg.ACK, (2,)))[0]) == (4, msg.ACK, (2,))
+
+
+def test_the_one_block_hello_macs_are_the_cmac():
+    for b in (0, 1, 255, 4095, 0xFFFFFF):
+        assert secoc._hello_macs(KEYS[1], 0x281, b"\x01\x64\x00\x01", range(b, b + 1)) == \
+            secoc._mac(KEYS[1], 0x281, b"\x01\x64\x00\x01", b)
+
+
+def test_mac_failures_are_counted_per_robot_and_lock_it_out_past_the_threshold(caplog):
+    sealer = secoc.Sealer(KEYS)
+    bad = BadFrames("robot")
+    opener, decoder = secoc.Opener(KEYS, bad, lockout=8), Decoder("robot", bad)
+    forged = secoc.Sealer(OTHER)
+    with caplog.at_level("WARNING"):
+        for i in range(8):
+            assert passed(opener, decoder, forged.seal(encode(3, msg.HALT, (0,)))[0]) is None
+    assert opener.failed[3] == 8 and opener.failed[2] == 0 and opener.locked == {3}
+    assert "robot 3: 8 host commands failed their MAC" in caplog.text and "locked out" in \
+        caplog.text
+    # locked out: not even the host is obeyed (a brute force cannot go on)
+    assert passed(opener, decoder, sealer.seal(encode(3, msg.HALT, (0,)))[0]) is None
+    assert bad.counts[secoc.LOCKED] == 1
+    assert passed(opener, decoder, sealer.seal(encode(2, msg.HALT, (0,)))[0]) == (2, msg.HALT, (0,))
+
+
+def test_the_host_drops_forged_hellos_and_locks_out_a_node_forged_past_the_threshold(caplog):
+    bus_url = f"virtual://{private_channel('lock')}"
+    with open_bus(bus_url) as robots_bus, open_bus(bus_url) as host_bus:
+        host = CanTransport(host_bus, sealer=secoc.Sealer(KEYS))
+        opener = secoc.Opener(KEYS, BadFrames("robot"))
+        robots_bus.send(hello(1, opener))
+        assert [m[:2] for m in host.poll(1.0)] == [(1, msg.HELLO)]       # confirmed
+        alien = secoc.Opener(OTHER, BadFrames("alien"))
+        with caplog.at_level("WARNING"):
+            for _ in range(secoc.HELLO_LOCKOUT):
+                robots_bus.send(hello(1, alien))
+                robots_bus.send(encode(1, msg.HELLO, (1, 100, 1)))       # plain
+            robots_bus.send(encode(1, msg.HEARTBEAT, (1, 0, 0, 0, 0)))
+            robots_bus.send(hello(2, opener))
+            got = []
+            while len(got) < 1:
+                got += host.poll(1.0)
+        assert [m[:2] for m in got] == [(2, msg.HELLO)]
+        bad = host.bad_frames()
+        assert bad[secoc.HELLO_BAD_MAC] + bad[secoc.HELLO_PLAIN] == secoc.HELLO_LOCKOUT
+        assert bad[secoc.LOCKED_NODE] == secoc.HELLO_LOCKOUT + 1
+        assert "robot 1: 16 HELLOs failed authentication" in caplog.text
+
+
+@pytest.mark.parametrize("host_keys, robot_keys, needle", [
+    (KEYS20 := {n: bytes([n, 9]) * 8 for n in range(1, 21)}, None,
+     "sends HELLO without a MAC: it has no key file; give `touchswarm robots` the same "
+     "--keys FILE"),
+    (None, KEYS20, "sends authenticated HELLOs: it has a key file; give `touchswarm host` "
+                   "the same --keys FILE"),
+    (KEYS20, {n: bytes([n, 10]) * 8 for n in range(1, 21)},
+     "'s MAC fails with this key file: host and robots have different key files"),
+])
+def test_a_key_mismatch_ends_the_host_in_one_line_within_a_few_ticks(host_keys, robot_keys,
+                                                                     needle):
+    """Host keyed and robots not, robots keyed and host not, or two key files:
+    the robots would drop every host command (issue 29: the host said
+    DELIVERED, exit 0). The host stops with KeyMismatch, a BridgeError: the
+    CLI prints its one line and exits 1."""
+    from bridge.host.process import HostProcess
+    from bridge.host.swarm import swarm_engine
+    from bridge.links.errors import KeyMismatch
+    from hil_tests.test_can_mission import TICK, Lockstep, SimClock
+    from sim_backend import scenario
+
+    sc = scenario.load("default")
+    url = f"virtual://{private_channel('mismatch')}"
+    clock = SimClock()
+    with open_bus(url) as rb:
+        engine = swarm_engine(sc, 1, rb, keys=robot_keys)
+        sealer = secoc.Sealer(host_keys) if host_keys is not None else None
+        host = HostProcess(Lockstep(CanTransport(open_bus(url), sealer=sealer), engine, clock),
+                           sc.weight_centi, sc.homeX, sc.homeY, tick_seconds=TICK)
+        with host.transport, pytest.raises(KeyMismatch) as err:
+            host.run(max_ticks=400, clock=clock)
+    text = str(err.value)
+    assert text.startswith("robot ") and needle in text and "\n" not in text
+    assert isinstance(err.value, BridgeError)
+    assert host.tick <= 12 and not host.coord.done()

@@ -66,6 +66,7 @@ def keys_from_args(args: argparse.Namespace, agents: int) -> dict[int, bytes] | 
     return keys
 
 
-def freshness_file(keys_path: Path) -> Path:
-    """Where the host keeps its freshness counters: beside the key file."""
-    return Path(f"{keys_path}.fv.json")
+def freshness_file(keys_path: Path, side: str = "host") -> Path:
+    """Where the host (KEYS.fv.json) or the simulated robots
+    (KEYS.robots.fv.json) keep their freshness counters: beside the key file."""
+    return Path(f"{keys_path}.fv.json" if side == "host" else f"{keys_path}.{side}.fv.json")

@@ -29,6 +29,7 @@ import can
 from bridge.links.canbus import converted, shutdown_quietly
 from bridge.links.codec import BadFrames, Decoder, Message, encode
 from bridge.links.errors import LinkTimeoutError
+from firmware_logic.messages import HELLO
 
 RECV_TIMEOUT = 2.0   # seconds a frame known to be on a virtual bus may take
 
@@ -113,24 +114,29 @@ class Gateway:
 
     def __init__(self, bus: can.BusABC, nodes: list[int], faults: Faults | None = None,
                  bad: BadFrames | None = None, faults_down: Faults | None = None,
-                 keys: dict[int, bytes] | None = None) -> None:
+                 keys: dict[int, bytes] | None = None, fresh: Any = None) -> None:
         self.bus = bus
         self.nodes = list(nodes)
         self.faults = faults
         self.faults_down = faults_down     # applied to what the gateway receives
         self.decoder = Decoder("robot", bad or BadFrames("gateway"))
-        # with keys, host commands are obeyed only when authenticated
+        # with keys, host commands are obeyed only when authenticated, and a
+        # HELLO carries a MAC and the robot's freshness floor; `fresh`: a
+        # secoc.FreshnessStore that keeps the robots' counters across restarts
         self.opener = None
         if keys is not None:
             from bridge.links.secoc import Opener   # cryptography only when keyed
-            self.opener = Opener(keys, self.decoder.bad)
+            self.opener = Opener(keys, self.decoder.bad, fresh)
         self.up: list[can.Message] = []
         self.inbox: dict[int, deque] = {n: deque() for n in nodes}
         self.sent = 0
         self.received = 0
 
     def robot_send(self, node: int, kind: int, fields: tuple) -> None:
-        self.up.append(encode(node, kind, fields))
+        frame = encode(node, kind, fields)
+        if kind == HELLO and self.opener is not None:
+            frame = self.opener.hello(frame)
+        self.up.append(frame)
 
     def robot_recv(self, node: int) -> tuple[int, tuple] | None:
         q = self.inbox[node]
