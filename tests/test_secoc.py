@@ -349,3 +349,43 @@ def test_a_key_mismatch_ends_the_host_in_one_line_within_a_few_ticks(host_keys, 
     assert text.startswith("robot ") and needle in text and "\n" not in text
     assert isinstance(err.value, BridgeError)
     assert host.tick <= 12 and not host.coord.done()
+
+
+def test_robots_that_get_stale_commands_say_hello_again_so_a_host_without_counters_recovers(
+        tmp_path, caplog):
+    """The host restarted without its freshness file while the robots ran on:
+    its commands are stale to them; a robot then repeats its HELLO (every
+    RESYNC ticks at most), which names its floor, and the host continues
+    above it with a one-line warning instead of being refused for ever."""
+    from bridge.links.canlink import Gateway
+    url = f"virtual://{private_channel('resync')}"
+    with open_bus(url) as rb, open_bus(url) as hb:
+        gw = Gateway(rb, [1, 2], keys=KEYS, fresh=secoc.FreshnessStore(tmp_path / "r.json"))
+        first = CanTransport(hb, sealer=secoc.Sealer(KEYS))
+        gw.robot_send(1, msg.HELLO, (1, 100, 1, 0, 0, 0))
+        gw.flush()
+        assert [m[:2] for m in first.poll(1.0)] == [(1, msg.HELLO)]
+        for seq in range(1, 300):
+            first.send(1, msg.ACK, (seq % 200,))
+        gw.drain(299)
+        assert gw.received == 299
+        again = CanTransport(hb, sealer=secoc.Sealer(KEYS, secoc.FreshnessStore(
+            tmp_path / "lost.fv.json")))                 # restarted, counters lost
+        again.send(1, msg.ACK, (1,))
+        gw.drain(1)
+        assert gw.received == 299 and gw.decoder.bad.counts == {secoc.STALE: 1}
+        assert gw.flush() == 1                            # the robot's HELLO again
+        with caplog.at_level("WARNING"):
+            assert [m[:2] for m in again.poll(1.0)] == [(1, msg.HELLO)]
+        assert "robot 1 has taken commands of this key file up to counter" in caplog.text
+        again.send(1, msg.ACK, (2,))
+        gw.drain(1)
+        assert gw.received == 300 and gw.robot_recv(1) is not None
+        # replayed commands make no HELLO storm: one per RESYNC ticks
+        replay = again.sealer.seal(encode(1, msg.ACK, (3,)))[0]
+        sent = []
+        for _ in range(secoc.RESYNC + 1):
+            hb.send(replay)
+            gw.drain(1)
+            sent.append(gw.flush())
+        assert sum(sent) == 1 and sent[:secoc.RESYNC - 2] == [0] * (secoc.RESYNC - 2)

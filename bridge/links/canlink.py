@@ -128,6 +128,9 @@ class Gateway:
             from bridge.links.secoc import Opener   # cryptography only when keyed
             self.opener = Opener(keys, self.decoder.bad, fresh)
         self.up: list[can.Message] = []
+        self.hellos: dict[int, can.Message] = {}     # each robot's HELLO, for a resync
+        self.resynced: dict[int, int] = {}
+        self.flushes = 0
         self.inbox: dict[int, deque] = {n: deque() for n in nodes}
         self.sent = 0
         self.received = 0
@@ -135,6 +138,7 @@ class Gateway:
     def robot_send(self, node: int, kind: int, fields: tuple) -> None:
         frame = encode(node, kind, fields)
         if kind == HELLO and self.opener is not None:
+            self.hellos[node] = frame
             frame = self.opener.hello(frame)
         self.up.append(frame)
 
@@ -144,6 +148,9 @@ class Gateway:
 
     def flush(self) -> int:
         """Put this tick's robot frames on the bus; return how many went."""
+        self.flushes += 1
+        if self.opener is not None and self.opener.stale:
+            self._resync()
         frames, self.up = self.up, []
         if self.faults is not None:
             frames = self.faults.apply(frames)
@@ -152,6 +159,20 @@ class Gateway:
                 self.bus.send(f)
         self.sent += len(frames)
         return len(frames)
+
+    def _resync(self) -> None:
+        """A robot that got genuine but stale host commands says HELLO again
+        (at most every RESYNC ticks): its HELLO names its freshness floor,
+        and a host that lost its counters continues above it."""
+        from bridge.links.secoc import RESYNC
+        opener = self.opener
+        assert opener is not None
+        for node in sorted(opener.stale):
+            plain = self.hellos.get(node)
+            if plain is not None and self.flushes - self.resynced.get(node, -RESYNC) >= RESYNC:
+                self.resynced[node] = self.flushes
+                self.up.append(opener.hello(plain))
+        opener.stale.clear()
 
     def deliver(self, frame: can.Message) -> None:
         if self.opener is not None:

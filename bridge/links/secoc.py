@@ -74,6 +74,7 @@ LOCKOUT = 1024
 HELLO_LOCKOUT = 16
 MISMATCH_AFTER = 2
 BLOCK = 8              # a HELLO names the robot's freshness floor in blocks of 256
+RESYNC = 16            # ticks between a robot's HELLOs after stale host commands
 WINDOW = 64            # blocks below the host's counter tried before a full search
 
 
@@ -453,6 +454,10 @@ class Opener:
         self.lockout = lockout
         self.failed = {n: 0 for n in keys}       # host commands whose MAC failed
         self.locked: set[int] = set()
+        # nodes that got a genuine but stale command: the host may have lost
+        # its counters (restarted without its freshness file), so the robot
+        # says HELLO again, which names its floor (Gateway, every RESYNC ticks)
+        self.stale: set[int] = set()
 
     def hello(self, frame: can.Message) -> can.Message:
         """A robot's HELLO sealed (seal_hello) with its key and its floor."""
@@ -500,6 +505,7 @@ class Opener:
             return None
         if fv <= last:
             self.bad.add(STALE, frame)
+            self.stale.add(node)
             return None
         self.last[node] = fv
         if fv > self.limit[node]:
