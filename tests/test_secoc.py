@@ -389,3 +389,11 @@ def test_robots_that_get_stale_commands_say_hello_again_so_a_host_without_counte
             gw.drain(1)
             sent.append(gw.flush())
         assert sum(sent) == 1 and sent[:secoc.RESYNC - 2] == [0] * (secoc.RESYNC - 2)
+
+
+def test_with_keys_a_hello_of_a_node_the_key_file_lacks_is_dropped():
+    sealer = secoc.Sealer({1: KEYS[1]})
+    sealer.bad = BadFrames("host")
+    forged = secoc.Opener({9: KEYS[2]}, BadFrames("f")).hello(encode(9, msg.HELLO, (1, 100, 1)))
+    assert sealer.open_hello(forged, 9) is None
+    assert sealer.bad.counts == {secoc.HELLO_UNKEYED: 1}

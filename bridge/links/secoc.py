@@ -61,6 +61,7 @@ LOCKED = "host command to a locked-out robot"
 # what a keyed host counts when it drops a robot's HELLO
 HELLO_BAD_MAC = "HELLO with a bad MAC"
 HELLO_PLAIN = "HELLO without a MAC"
+HELLO_UNKEYED = "HELLO from a node without a key"
 LOCKED_NODE = "frame of a locked-out node"
 
 # Brute force: a 24-bit MAC is guessed in 2^23 trials on average. A robot
@@ -335,8 +336,9 @@ class Sealer:
         data = bytes(frame.data)
         n = self.hello_kind_len
         key = self.keys.get(node)
-        if key is None:
-            return frame            # a node of no key: the coordinator judges it
+        if key is None:             # with keys, an id the key file lacks is no robot
+            self._count(HELLO_UNKEYED, frame)
+            return None
         if len(data) != n + 1 + MAC_BYTES:
             if len(data) == n:
                 return self._hello_failed(node, frame, HELLO_PLAIN)
