@@ -31,8 +31,10 @@ class CanTransport:
         self.sealer = sealer        # authenticated host commands (bridge/links/secoc.py)
         self.clock = clock          # what poll's deadline is measured on
         self.decoder = Decoder("host", bad or BadFrames("host"))
+        self._locked: set[int] = set()
         if sealer is not None:
             sealer.bad = self.decoder.bad
+            self._locked = sealer.locked      # the same set: filled as nodes are locked out
         self.keyed_hellos: dict[int, int] = {}    # a host without keys: sealed HELLOs per node
         self.frames_in = 0
         self.frames_out = 0
@@ -73,11 +75,17 @@ class CanTransport:
 
     def _decode_keyed(self, frame: can.Message) -> Message | None:
         """With keys: a HELLO is verified first (secoc.Sealer.open_hello);
-        frames of a locked-out node are dropped."""
+        frames of a locked-out node are dropped. Other frames cost one range
+        test and one set test more than without keys."""
+        if frame.arbitration_id in _HELLO_IDS or self._locked:
+            return self._keyed_slow(frame)
+        return self.decoder.decode(frame)
+
+    def _keyed_slow(self, frame: can.Message) -> Message | None:
         sealer = self.sealer
         assert sealer is not None
         ident = frame.arbitration_id
-        if sealer.locked and (ident & 0x7F) in sealer.locked:
+        if (ident & 0x7F) in sealer.locked:
             from bridge.links.secoc import LOCKED_NODE
             self.decoder.bad.add(LOCKED_NODE, frame)
             return None

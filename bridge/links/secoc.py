@@ -20,8 +20,10 @@ broadcast command (node 0) is sent once per keyed robot, and a broadcast on
 the bus is refused by the robots. The host keeps its counters across
 restarts by reserving them in blocks of RESERVE in a small JSON file, written
 before a reserved value is used: a restarted host starts above anything it
-sent. Robot reports (HELLO, TOUCH, HEARTBEAT) stay plain; the host validates
-them (docs/protocol.md, "Valid reports").
+sent; the robots keep theirs the same way (seal_hello). A robot's HELLO
+carries a MAC and its freshness floor, so the host confirms the key and
+continues above what the robot took. TOUCH and HEARTBEAT stay plain; the
+host validates them (docs/protocol.md, "Valid reports").
 """
 
 from __future__ import annotations
@@ -265,7 +267,8 @@ class FreshnessStore:
     @staticmethod
     def _load(path: Path) -> dict[int, int]:
         where = f"freshness file {str(path)!r}"
-        keep = ("; delete it only if no robot has seen this host's commands, else " + REKEY)
+        keep = ("; delete it only if no command sealed with these keys was ever sent, "
+                "else " + REKEY)
         try:
             raw = json.loads(_read_small(path, "freshness file").decode("utf-8"))
         except (UnicodeDecodeError, ValueError) as err:
