@@ -78,7 +78,9 @@ def forged_mission(keys: dict[int, bytes] | None, max_ticks: int = 6000) -> dict
                            sc.weight_centi, sc.homeX, sc.homeY, tick_seconds=TICK)
         with host.transport:
             out = host.run(max_ticks=max_ticks, clock=clock)
+        opener = engine.link.opener
         return {"host": out, "robots": swarm_summary(engine), "forged": forger.sent,
+                "failed": opener.failed if opener is not None else {},
                 "halt": engine.behaviour.halt_state,
                 "states": [r.state for r in engine.robots]}
 
@@ -102,6 +104,8 @@ def test_with_keys_every_forged_command_is_dropped_and_the_mission_delivers_exac
     assert set(bad) == {secoc.UNAUTHENTICATED, secoc.BAD_MAC, secoc.STALE}, bad
     # everything the forger sent was dropped: plain, alien-keyed and replayed
     assert sum(bad.values()) == out["forged"]
+    # counted per robot; this forger stays below the brute-force lockout
+    assert r["locked_out"] == [] and 0 < max(out["failed"].values()) < secoc.LOCKOUT
     # the host sees the forger's host commands as what they are
     assert h["bad_frames"].get("wrong direction", 0) > 0
 
@@ -141,3 +145,6 @@ def test_host_and_robots_processes_with_keys_deliver_and_drop_nothing_genuine(tm
     assert {tuple(t) for t in r["reported"]} == {tuple(t) for t in h["touches"]}
     fv = json.loads((tmp_path / "keys.toml.fv.json").read_text())
     assert set(fv) == {str(n) for n in range(1, 21)}     # HALT went to every robot
+    # the robots keep their floor too (a next mission refuses this one's frames)
+    floor = json.loads((tmp_path / "keys.toml.robots.fv.json").read_text())
+    assert set(floor) == set(fv) and min(floor.values()) > 0

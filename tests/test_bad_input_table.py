@@ -25,8 +25,16 @@ FIXTURES = {
     "bad.toml": b"agents = [\n", "badkey.toml": b"colour = 3\n",
     "badtype.toml": b'agents = "many"\n', "bin.toml": bytes([0xff, 0xfe, 0x00, 0x81]) * 50,
     "journal.sqlite": b"this is not sqlite at all" * 100, "plainfile": b"x",
-    "fewkeys.toml": b'[keys]\n1 = "' + b"0" * 32 + b'"\n',
+    "fewkeys.toml": b'[keys]\n1 = "' + b"1" * 32 + b'"\n',
+    "zerokey.toml": b'[keys]\n1 = "' + b"0" * 32 + b'"\n',
+    "dupkeys.toml": b'[keys]\n1 = "' + b"1" * 32 + b'"\n01 = "' + b"2" * 32 + b'"\n',
+    "supkey.toml": '[keys]\n"\u00b2" = "'.encode() + b"1" * 32 + b'"\n',
+    "fvnull.toml": b"[keys]\n" + b"".join(b'%d = "%032x"\n' % (n, n) for n in range(1, 21)),
+    "fvnull.toml.fv.json": b'{"1": null}',
+    "shared.toml": b'[keys]\n1 = "' + b"1" * 32 + b'"\n',
 }
+# key files are private (`touchswarm keys new` writes them 0600); shared.toml is not
+PUBLIC = {"shared.toml"}
 
 ROWS = [
     # run: numbers, scenario keys, scenario files, behaviours, outputs
@@ -201,6 +209,18 @@ ROWS = [
     (["robots", "--bus", "slcan:///dev/null", "--keys", "{T}/bin.toml"], "not UTF-8 text"),
     (["robots", "--bus", "slcan:///dev/null", "--keys", "{T}/fewkeys.toml"],
      "no key for node 2 (the scenario has 20 robots, the file 1 keys)"),
+    (["host", "--bus", "slcan:///dev/null", "--keys", "{T}/zerokey.toml"],
+     "node 1: an all-zero key is no secret"),
+    (["host", "--bus", "slcan:///dev/null", "--keys", "{T}/dupkeys.toml"],
+     "node 1 is given twice ('1' and '01')"),
+    (["robots", "--bus", "slcan:///dev/null", "--keys", "{T}/supkey.toml"],
+     "expected a node id 1..127"),
+    (["host", "--bus", "slcan:///dev/null", "--keys", "{T}/shared.toml"],
+     "mode 0644 lets others read it; keys must be private: chmod 600"),
+    (["host", "--bus", "slcan:///dev/null", "--keys", "/dev/zero"], "not a regular file"),
+    (["robots", "--bus", "slcan:///dev/null", "--keys", "{T}/fifo.toml"], "not a regular file"),
+    (["host", "--bus", "slcan:///dev/null", "--keys", "{T}/fvnull.toml"],
+     "node 1: counter null; expected an integer 0..4294967295"),
     # top level
     (["nosuchcommand"], "invalid choice: 'nosuchcommand'"),
     (["-v", "run", "--seed"], "argument --seed: expected one argument"),
@@ -212,6 +232,8 @@ def bad_files(tmp_path_factory):
     folder = tmp_path_factory.mktemp("bad")
     for name, data in FIXTURES.items():
         (folder / name).write_bytes(data)
+        (folder / name).chmod(0o644 if name in PUBLIC else 0o600)
+    os.mkfifo(folder / "fifo.toml")     # reading it would wait for a writer for ever
     (folder / "adir.log").mkdir()  # a directory named like a recording
     return str(folder)
 

@@ -90,12 +90,12 @@ def cmd_host(args: argparse.Namespace) -> int:
     keys = keys_from_args(args, sc.agents)
     sealer = None
     if keys is not None:
-        from bridge.links.secoc import FreshnessStore, KeyFileError, Sealer
+        from bridge.links.secoc import FreshnessStore, SecocError, Sealer
         fv_path = freshness_file(args.keys)
         check_out_file(fv_path, "--keys (freshness file)", fv_path.name)
         try:
             sealer = Sealer(keys, FreshnessStore(fv_path))
-        except KeyFileError as err:
+        except SecocError as err:
             raise UsageError(f"--keys: {err}") from None
     if args.resume is not None and not args.resume.exists():
         raise UsageError(f"--resume {args.resume}: no such journal")

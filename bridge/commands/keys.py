@@ -17,8 +17,10 @@ def register(sub) -> None:
                                    "HALT, ACK or TRANSPORT and they obey (CAN frames carry no "
                                    "sender). With `host --keys FILE` and `robots --keys FILE`, "
                                    "every host command carries a freshness counter and a "
-                                   "24-bit AES-CMAC, and robots drop any that does not verify "
-                                   "(docs/protocol.md, 'Authenticated host commands').")
+                                   "24-bit AES-CMAC, and robots drop any that does not verify; "
+                                   "a robot's HELLO carries its MAC too, so a key mismatch "
+                                   "stops the host at once (docs/protocol.md, 'Authenticated "
+                                   "host commands'; docs/security.md).")
     verbs = p.add_subparsers(dest="verb", metavar="SUBCOMMAND", required=True)
     new = verbs.add_parser("new", help="write a new key file (one AES-128 key per robot)")
     new.add_argument("--nodes", type=N.count(1, None, "a robot count"), default=20, metavar="N",
@@ -46,8 +48,10 @@ def cmd_new(args: argparse.Namespace) -> int:
 
 def add_keys_arg(p: argparse.ArgumentParser) -> None:
     p.add_argument("--keys", type=path_arg, metavar="FILE",
-                   help="authenticate host commands with this key file (`touchswarm keys new`); "
-                        "host and robots need the same file")
+                   help="authenticate host commands and HELLOs with this key file (`touchswarm "
+                        "keys new`; owner-only); host and robots need the same file; "
+                        "freshness counters are kept beside it in FILE.fv.json (host) and "
+                        "FILE.robots.fv.json (robots)")
 
 
 def keys_from_args(args: argparse.Namespace, agents: int) -> dict[int, bytes] | None:
@@ -66,6 +70,7 @@ def keys_from_args(args: argparse.Namespace, agents: int) -> dict[int, bytes] | 
     return keys
 
 
-def freshness_file(keys_path: Path) -> Path:
-    """Where the host keeps its freshness counters: beside the key file."""
-    return Path(f"{keys_path}.fv.json")
+def freshness_file(keys_path: Path, side: str = "host") -> Path:
+    """Where the host (KEYS.fv.json) or the simulated robots
+    (KEYS.robots.fv.json) keep their freshness counters: beside the key file."""
+    return Path(f"{keys_path}.fv.json" if side == "host" else f"{keys_path}.{side}.fv.json")

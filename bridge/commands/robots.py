@@ -10,7 +10,8 @@ import threading
 import time
 
 from bridge.commands import numbers as N
-from bridge.commands.keys import add_keys_arg, keys_from_args
+from bridge.commands.keys import add_keys_arg, freshness_file, keys_from_args
+from bridge.commands.paths import check_out_file
 from bridge.commands.run import add_scenario_args, check_link_limits, scenario_from_args
 
 
@@ -50,6 +51,17 @@ def cmd_robots(args: argparse.Namespace) -> int:
     sc = scenario_from_args(args)
     check_link_limits(sc, "CAN")
     keys = keys_from_args(args, sc.agents)
+    fresh = None
+    if keys is not None:
+        # the robots' counters survive a restart (a real robot: its flash),
+        # so nothing the host sealed before is taken again
+        from bridge.links.secoc import FreshnessStore, KeyFileError
+        fv_path = freshness_file(args.keys, "robots")
+        check_out_file(fv_path, "--keys (the robots' freshness file)", fv_path.name)
+        try:
+            fresh = FreshnessStore(fv_path)
+        except KeyFileError as err:
+            raise UsageError(f"--keys: {err}") from None
     try:
         up = Faults(args.seed, args.loss, args.dup, args.reorder)
         down = Faults(args.seed + 1, args.loss, args.dup, args.reorder)
@@ -61,7 +73,7 @@ def cmd_robots(args: argparse.Namespace) -> int:
         signal.signal(signal.SIGTERM, lambda *a: stopping.append(1))
     with open_bus(args.bus) as bus:
         engine = swarm_engine(sc, args.seed, bus, up if faulty else None,
-                              down if faulty else None, keys=keys)
+                              down if faulty else None, keys=keys, fresh=fresh)
         print(f"{sc.agents} robots on {args.bus}, tick {args.tick_ms} ms"
               f"{', host commands authenticated' if keys else ''}", file=sys.stderr,
               flush=True)

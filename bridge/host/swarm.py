@@ -12,7 +12,8 @@ from bridge.links.canlink import Faults, Gateway
 
 
 def swarm_engine(sc: Any, seed: int, bus: can.BusABC, faults_up: Faults | None = None,
-                 faults_down: Faults | None = None, keys: dict[int, bytes] | None = None):
+                 faults_down: Faults | None = None, keys: dict[int, bytes] | None = None,
+                 fresh: Any = None):
     from sim_backend.engine import Engine
 
     class SwarmEngine(Engine):
@@ -24,7 +25,7 @@ def swarm_engine(sc: Any, seed: int, bus: can.BusABC, faults_up: Faults | None =
             return self.tick >= self.sc.maxTicks or all_halted(self)
 
     gw = Gateway(bus, list(range(1, sc.agents + 1)), faults_up, faults_down=faults_down,
-                 keys=keys)
+                 keys=keys, fresh=fresh)
     return SwarmEngine(sc, seed, link=gw)
 
 
@@ -72,6 +73,8 @@ def swarm_summary(engine: Any) -> dict[str, Any]:
         "frames_received": gw.received,
         "bad_frames": dict(gw.decoder.bad.counts),
     }
+    if gw.opener is not None:
+        out["locked_out"] = sorted(gw.opener.locked)
     for name, f in (("faults_up", gw.faults), ("faults_down", gw.faults_down)):
         if f is not None:
             out[name] = {"dropped": f.dropped, "duplicated": f.duplicated}

@@ -9,13 +9,16 @@ import can
 
 from bridge.links.canbus import converted, shutdown_quietly
 from bridge.links.codec import BadFrames, Decoder, Message, encode
-from bridge.links.errors import LinkOperationError
+from bridge.links.errors import KeyMismatch, LinkOperationError
+from firmware_logic import messages as msg
 
 if TYPE_CHECKING:
     from bridge.links.secoc import Sealer
 
 BATCH = 4096       # at most this many frames per poll, so a flood cannot starve the tick
 MALFORMED = "malformed adapter line"
+KEYED_HELLO = "authenticated HELLO to a host without keys"
+_HELLO_IDS = range(msg.HELLO << 7, (msg.HELLO + 1) << 7)
 
 
 class CanTransport:
@@ -28,6 +31,11 @@ class CanTransport:
         self.sealer = sealer        # authenticated host commands (bridge/links/secoc.py)
         self.clock = clock          # what poll's deadline is measured on
         self.decoder = Decoder("host", bad or BadFrames("host"))
+        self._locked: set[int] = set()
+        if sealer is not None:
+            sealer.bad = self.decoder.bad
+            self._locked = sealer.locked      # the same set: filled as nodes are locked out
+        self.keyed_hellos: dict[int, int] = {}    # a host without keys: sealed HELLOs per node
         self.frames_in = 0
         self.frames_out = 0
         self._closed = False
@@ -42,7 +50,7 @@ class CanTransport:
         clock = self.clock
         deadline = clock() + max(timeout, 0.0)
         out: list[Message] = []
-        decode = self.decoder.decode
+        decode = self.decoder.decode if self.sealer is None else self._decode_keyed
         recv = self.bus.recv
         append = out.append
         n = 0
@@ -54,6 +62,8 @@ class CanTransport:
                     m = decode(frame)
                     if m is not None:
                         append(m)
+                    elif self.sealer is None and frame.arbitration_id in _HELLO_IDS:
+                        self._plain_host_hello(frame)
                     if n >= BATCH or clock() >= deadline:
                         break
                     frame = recv(0.0)
@@ -62,6 +72,43 @@ class CanTransport:
         finally:
             self.frames_in += n
         return out
+
+    def _decode_keyed(self, frame: can.Message) -> Message | None:
+        """With keys: a HELLO is verified first (secoc.Sealer.open_hello);
+        frames of a locked-out node are dropped. Other frames cost one range
+        test and one set test more than without keys."""
+        if frame.arbitration_id in _HELLO_IDS or self._locked:
+            return self._keyed_slow(frame)
+        return self.decoder.decode(frame)
+
+    def _keyed_slow(self, frame: can.Message) -> Message | None:
+        sealer = self.sealer
+        assert sealer is not None
+        ident = frame.arbitration_id
+        if (ident & 0x7F) in sealer.locked:
+            from bridge.links.secoc import LOCKED_NODE
+            self.decoder.bad.add(LOCKED_NODE, frame)
+            return None
+        if ident in _HELLO_IDS and not (frame.is_extended_id or frame.is_remote_frame
+                                        or frame.is_error_frame):
+            opened = sealer.open_hello(frame, ident & 0x7F)
+            if opened is None:
+                return None
+            frame = opened
+        return self.decoder.decode(frame)
+
+    def _plain_host_hello(self, frame: can.Message) -> None:
+        """A host without keys that hears sealed HELLOs (8 bytes) twice from
+        one node: the robots have a key file and will drop its commands."""
+        from bridge.links.secoc import MAC_BYTES, MISMATCH_AFTER
+        if frame.is_extended_id or len(frame.data) != msg.dlc(msg.HELLO) + 1 + MAC_BYTES:
+            return
+        node = frame.arbitration_id & 0x7F
+        self.decoder.bad.add(KEYED_HELLO, frame)
+        k = self.keyed_hellos[node] = self.keyed_hellos.get(node, 0) + 1
+        if k >= MISMATCH_AFTER:
+            raise KeyMismatch(f"robot {node} sends authenticated HELLOs: it has a key file; "
+                              "give `touchswarm host` the same --keys FILE as the robots")
 
     def send(self, node: int, kind: int, fields: tuple) -> None:
         if self._closed:

@@ -29,6 +29,7 @@ import can
 from bridge.links.canbus import converted, shutdown_quietly
 from bridge.links.codec import BadFrames, Decoder, Message, encode
 from bridge.links.errors import LinkTimeoutError
+from firmware_logic.messages import HELLO
 
 RECV_TIMEOUT = 2.0   # seconds a frame known to be on a virtual bus may take
 
@@ -113,24 +114,33 @@ class Gateway:
 
     def __init__(self, bus: can.BusABC, nodes: list[int], faults: Faults | None = None,
                  bad: BadFrames | None = None, faults_down: Faults | None = None,
-                 keys: dict[int, bytes] | None = None) -> None:
+                 keys: dict[int, bytes] | None = None, fresh: Any = None) -> None:
         self.bus = bus
         self.nodes = list(nodes)
         self.faults = faults
         self.faults_down = faults_down     # applied to what the gateway receives
         self.decoder = Decoder("robot", bad or BadFrames("gateway"))
-        # with keys, host commands are obeyed only when authenticated
+        # with keys, host commands are obeyed only when authenticated, and a
+        # HELLO carries a MAC and the robot's freshness floor; `fresh`: a
+        # secoc.FreshnessStore that keeps the robots' counters across restarts
         self.opener = None
         if keys is not None:
             from bridge.links.secoc import Opener   # cryptography only when keyed
-            self.opener = Opener(keys, self.decoder.bad)
+            self.opener = Opener(keys, self.decoder.bad, fresh)
         self.up: list[can.Message] = []
+        self.hellos: dict[int, can.Message] = {}     # each robot's HELLO, for a resync
+        self.resynced: dict[int, int] = {}
+        self.flushes = 0
         self.inbox: dict[int, deque] = {n: deque() for n in nodes}
         self.sent = 0
         self.received = 0
 
     def robot_send(self, node: int, kind: int, fields: tuple) -> None:
-        self.up.append(encode(node, kind, fields))
+        frame = encode(node, kind, fields)
+        if kind == HELLO and self.opener is not None:
+            self.hellos[node] = frame
+            frame = self.opener.hello(frame)
+        self.up.append(frame)
 
     def robot_recv(self, node: int) -> tuple[int, tuple] | None:
         q = self.inbox[node]
@@ -138,6 +148,9 @@ class Gateway:
 
     def flush(self) -> int:
         """Put this tick's robot frames on the bus; return how many went."""
+        self.flushes += 1
+        if self.opener is not None and self.opener.stale:
+            self._resync()
         frames, self.up = self.up, []
         if self.faults is not None:
             frames = self.faults.apply(frames)
@@ -146,6 +159,20 @@ class Gateway:
                 self.bus.send(f)
         self.sent += len(frames)
         return len(frames)
+
+    def _resync(self) -> None:
+        """A robot that got genuine but stale host commands says HELLO again
+        (at most every RESYNC ticks): its HELLO names its freshness floor,
+        and a host that lost its counters continues above it."""
+        from bridge.links.secoc import RESYNC
+        opener = self.opener
+        assert opener is not None
+        for node in sorted(opener.stale):
+            plain = self.hellos.get(node)
+            if plain is not None and self.flushes - self.resynced.get(node, -RESYNC) >= RESYNC:
+                self.resynced[node] = self.flushes
+                self.up.append(opener.hello(plain))
+        opener.stale.clear()
 
     def deliver(self, frame: can.Message) -> None:
         if self.opener is not None:

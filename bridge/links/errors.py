@@ -24,3 +24,8 @@ class LinkTimeoutError(LinkError, TimeoutError):
 
 class LinkURLError(LinkInitError, UsageError):
     """A link URL is malformed or has an unknown option; names the expected form."""
+
+
+class KeyMismatch(LinkError):
+    """Host and robots do not share a key file (one of them has none, or they
+    have different ones): the robots would drop every host command."""

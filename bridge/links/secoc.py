@@ -20,8 +20,10 @@ broadcast command (node 0) is sent once per keyed robot, and a broadcast on
 the bus is refused by the robots. The host keeps its counters across
 restarts by reserving them in blocks of RESERVE in a small JSON file, written
 before a reserved value is used: a restarted host starts above anything it
-sent. Robot reports (HELLO, TOUCH, HEARTBEAT) stay plain; the host validates
-them (docs/protocol.md, "Valid reports").
+sent; the robots keep theirs the same way (seal_hello). A robot's HELLO
+carries a MAC and its freshness floor, so the host confirms the key and
+continues above what the robot took. TOUCH and HEARTBEAT stay plain; the
+host validates them (docs/protocol.md, "Valid reports").
 """
 
 from __future__ import annotations
@@ -30,13 +32,18 @@ import json
 import logging
 import os
 import secrets
+import stat
 import tomllib
 from pathlib import Path
 
 import can
+from cryptography.hazmat.primitives.ciphers import Cipher
 from cryptography.hazmat.primitives.ciphers.algorithms import AES
+from cryptography.hazmat.primitives.ciphers.modes import ECB
 from cryptography.hazmat.primitives.cmac import CMAC
 
+from bridge.errors import BridgeError
+from bridge.links.errors import KeyMismatch
 from firmware_logic import messages as msg
 
 log = logging.getLogger(__name__)
@@ -45,16 +52,84 @@ MAC_BYTES = 3          # 24-bit MAC: SecOC profile 1's length
 FV_MAX = 0xFFFFFFFF    # a 32-bit freshness counter per robot
 RESERVE = 256          # host counters are persisted this many frames ahead
 KEY_BYTES = 16         # AES-128
+MAX_FILE = 64 * 1024   # a key or freshness file is never larger (127 keys: ~6 kB)
 
 # what a robot counts when it drops a host command (BadFrames fault names)
 UNAUTHENTICATED = "unauthenticated host command"
 BAD_MAC = "bad MAC"
 STALE = "stale freshness (replayed or reordered)"
 UNKEYED = "host command for a node without a key"
+LOCKED = "host command to a locked-out robot"
+# what a keyed host counts when it drops a robot's HELLO
+HELLO_BAD_MAC = "HELLO with a bad MAC"
+HELLO_PLAIN = "HELLO without a MAC"
+HELLO_UNKEYED = "HELLO from a node without a key"
+LOCKED_NODE = "frame of a locked-out node"
+
+# Brute force: a 24-bit MAC is guessed in 2^23 trials on average. A robot
+# counts the host commands to it that fail their MAC and, at LOCKOUT, takes
+# no host command any more until it is restarted (an attacker's chance
+# before that: LOCKOUT / 2^24); the host locks a node out after
+# HELLO_LOCKOUT bad HELLOs once its key was confirmed. Two bad HELLOs from a
+# node whose key was never confirmed are a key mismatch (the robots
+# retransmit HELLO every 4 ticks until it is acknowledged).
+LOCKOUT = 1024
+HELLO_LOCKOUT = 16
+MISMATCH_AFTER = 2
+BLOCK = 8              # a HELLO names the robot's freshness floor in blocks of 256
+RESYNC = 16            # ticks between a robot's HELLOs after stale host commands
+WINDOW = 64            # blocks below the host's counter tried before a full search
 
 
-class KeyFileError(ValueError):
-    """A key file that cannot be used; the message is one line."""
+class SecocError(BridgeError):
+    """Base of the errors of authenticated frames; every message is one line."""
+
+
+class KeyFileError(SecocError, ValueError):
+    """A key or freshness file that cannot be used."""
+
+
+class FreshnessExhausted(SecocError):
+    """A node's 32-bit freshness counter reached its end: the node needs a new key."""
+
+
+REKEY = ("rekey: `touchswarm keys new --out NEW.toml`, give NEW.toml to the robots "
+         "and the host, and start without the old freshness file")
+
+
+def _read_small(path: Path, what: str) -> bytes:
+    """A regular file's bytes, at most MAX_FILE; a FIFO or device is refused
+    before it is opened (a read could hang or never end); `private`: refuse a
+    file others may read."""
+    where = f"{what} {str(path)!r}"
+    try:
+        st = os.stat(path)
+    except OSError as err:
+        raise KeyFileError(f"{where}: {err.strerror}") from None
+    if not stat.S_ISREG(st.st_mode):
+        raise KeyFileError(f"{where}: not a regular file; expected the TOML written by "
+                           "`touchswarm keys new`")
+    if st.st_size > MAX_FILE:
+        raise KeyFileError(f"{where}: {st.st_size} bytes; such a file is at most "
+                           f"{MAX_FILE} bytes")
+    try:
+        with open(path, "rb") as f:
+            data = f.read(MAX_FILE + 1)
+    except OSError as err:
+        raise KeyFileError(f"{where}: {err.strerror}") from None
+    if len(data) > MAX_FILE:
+        raise KeyFileError(f"{where}: more than {MAX_FILE} bytes")
+    return data
+
+
+def _check_private(path: Path) -> None:
+    """Refuse a key file that its group or others may read or write."""
+    if os.name != "posix":
+        return
+    mode = os.stat(path).st_mode & 0o777
+    if mode & 0o077:
+        raise KeyFileError(f"key file {str(path)!r}: mode {mode:04o} lets others read it; "
+                           f"keys must be private: chmod 600 {path}")
 
 
 def down_kinds() -> set[int]:
@@ -80,13 +155,47 @@ def _mac(key: bytes, arbitration_id: int, payload: bytes, fv: int) -> bytes:
     return c.finalize()[:MAC_BYTES]
 
 
+def _hello_macs(key: bytes, arbitration_id: int, payload: bytes, blocks: range) -> bytes:
+    """The truncated MACs of a HELLO for many floor blocks, in one AES-ECB
+    call: (identifier, payload, block) is 10 bytes, one CMAC block, so
+    CMAC = AES(key, padded message XOR K2) (RFC 4493); _mac for each would
+    take 65,536 CMAC objects (a quarter second) for a full search."""
+    enc = Cipher(AES(key), ECB()).encryptor()
+    k = int.from_bytes(enc.update(bytes(16)), "big")
+    for _ in range(2):                        # L -> K1 -> K2
+        k = ((k << 1) & ((1 << 128) - 1)) ^ (0x87 if k >> 127 else 0)
+    head = arbitration_id.to_bytes(2, "big") + payload
+    pad = b"\x80" + bytes(16 - len(head) - 5)
+    k2 = k.to_bytes(16, "big")
+    mask = int.from_bytes(k2, "big")
+    base = int.from_bytes(head + bytes(4) + pad, "big") ^ mask
+    shift = 8 * len(pad)
+    msgs = b"".join((base ^ (b << shift)).to_bytes(16, "big") for b in blocks)
+    out = enc.update(msgs)
+    return b"".join(out[i:i + MAC_BYTES] for i in range(0, len(out), 16))
+
+
+def seal_hello(key: bytes, frame: can.Message, last: int) -> can.Message:
+    """A robot's HELLO with keys: payload (4) | floor block, low byte (1) |
+    MAC (3) over (identifier, payload, the whole block). The block is
+    last >> 8, `last` the highest host counter the robot may have taken, so
+    the host starts above it (after a robot restart, a lost freshness file,
+    a next mission) and, from the MAC, knows the robot holds its key."""
+    payload = bytes(frame.data)
+    block = last >> BLOCK
+    data = payload + bytes([block & 0xFF]) + _mac(key, frame.arbitration_id, payload, block)
+    return can.Message(arbitration_id=frame.arbitration_id, is_extended_id=False, data=data,
+                       dlc=len(data), timestamp=frame.timestamp)
+
+
 def load_keys(path: Path) -> dict[int, bytes]:
-    """{node: key} from a TOML key file ([keys] NODE = "32 hex digits")."""
+    """{node: key} from a TOML key file ([keys] NODE = "32 hex digits"),
+    private to its owner, one distinct non-zero key per node."""
     where = f"key file {str(path)!r}"
+    data = _read_small(Path(path), "key file")
+    _check_private(Path(path))
     try:
-        raw = tomllib.loads(Path(path).read_text())
-    except OSError as err:
-        raise KeyFileError(f"{where}: {err.strerror}") from None
+        raw = tomllib.loads(data.decode("utf-8"))
     except UnicodeDecodeError:
         raise KeyFileError(f"{where}: not UTF-8 text; expected TOML from "
                            "`touchswarm keys new`") from None
@@ -97,18 +206,40 @@ def load_keys(path: Path) -> dict[int, bytes]:
         raise KeyFileError(f"{where}: no [keys] table; expected NODE = \"32 hex digits\" "
                            "lines from `touchswarm keys new`")
     keys: dict[int, bytes] = {}
+    named: dict[int, str] = {}
+    owner: dict[bytes, int] = {}
     for name, value in table.items():
-        if not name.isdigit() or not 1 <= int(name) <= msg.MAX_NODE:
+        node = _node_id(name)
+        if node is None:
             raise KeyFileError(f"{where}: key {name!r}: expected a node id 1..{msg.MAX_NODE}")
-        try:
-            key = bytes.fromhex(value) if isinstance(value, str) else b""
-        except ValueError:
-            key = b""
+        if node in keys:
+            raise KeyFileError(f"{where}: node {node} is given twice ({named[node]!r} and "
+                               f"{name!r}); one key per node")
+        key = b""
+        if isinstance(value, str) and value.isascii():
+            try:
+                key = bytes.fromhex(value)
+            except ValueError:
+                pass
         if len(key) != KEY_BYTES:
             raise KeyFileError(f"{where}: node {name}: expected {2 * KEY_BYTES} hex digits "
                                "(an AES-128 key)")
-        keys[int(name)] = key
+        if not any(key):
+            raise KeyFileError(f"{where}: node {name}: an all-zero key is no secret; make "
+                               "keys with `touchswarm keys new`")
+        if key in owner:
+            raise KeyFileError(f"{where}: nodes {owner[key]} and {node} have the same key; "
+                               "a shared key lets one robot forge the host to the other")
+        keys[node], named[node], owner[key] = key, name, node
     return keys
+
+
+def _node_id(name: str) -> int | None:
+    """A node id 1..MAX_NODE written in ASCII digits, else None."""
+    if not (name.isascii() and name.isdigit()) or len(name) > 4:
+        return None
+    n = int(name)
+    return n if 1 <= n <= msg.MAX_NODE else None
 
 
 def new_key_file(path: Path, nodes: list[int]) -> None:
@@ -131,13 +262,32 @@ class FreshnessStore:
         self.path = path
         self.reserved: dict[int, int] = {}
         if path is not None and Path(path).exists():
-            try:
-                raw = json.loads(Path(path).read_text())
-                self.reserved = {int(k): int(v) for k, v in raw.items()}
-            except (OSError, ValueError, AttributeError) as err:
-                raise KeyFileError(f"freshness file {str(path)!r}: unreadable ({err}); "
-                                   "delete it only if no robot has seen this host's "
-                                   "commands, or rekey") from None
+            self.reserved = self._load(Path(path))
+
+    @staticmethod
+    def _load(path: Path) -> dict[int, int]:
+        where = f"freshness file {str(path)!r}"
+        keep = ("; delete it only if no command sealed with these keys was ever sent, "
+                "else " + REKEY)
+        try:
+            raw = json.loads(_read_small(path, "freshness file").decode("utf-8"))
+        except (UnicodeDecodeError, ValueError) as err:
+            raise KeyFileError(f"{where}: not JSON ({err}){keep}") from None
+        if not isinstance(raw, dict):
+            raise KeyFileError(f"{where}: expected an object of node: counter{keep}")
+        out: dict[int, int] = {}
+        for name, value in raw.items():
+            node = _node_id(name)
+            if node is None:
+                raise KeyFileError(f"{where}: {name!r}: expected a node id 1..{msg.MAX_NODE}"
+                                   f"{keep}")
+            if node in out:
+                raise KeyFileError(f"{where}: node {node} is given twice{keep}")
+            if type(value) is not int or not 0 <= value <= FV_MAX:
+                raise KeyFileError(f"{where}: node {name}: counter {json.dumps(value)}; "
+                                   f"expected an integer 0..{FV_MAX}{keep}")
+            out[node] = value
+        return out
 
     def start(self, node: int) -> int:
         """The first counter this process may use for `node`."""
@@ -165,12 +315,103 @@ class Sealer:
         self.store = store or FreshnessStore(None)
         self.down = down_kinds()
         self.fv = {n: self.store.start(n) for n in keys}
+        spent = [n for n, fv in self.fv.items() if fv >= FV_MAX]
+        if spent:
+            raise FreshnessExhausted(f"node {spent[0]}: freshness counter at its end "
+                                     f"({FV_MAX}) in {self.store.path}; {REKEY}")
         self.limit = dict(self.fv)
+        self.hello_kind_len = msg.dlc(msg.HELLO)
+        self.confirmed: set[int] = set()        # nodes whose HELLO MAC verified
+        self.hello_failed: dict[int, int] = {}
+        self.searched: set[int] = set()         # nodes given the one full search
+        self.locked: set[int] = set()
+        self.bad = None                         # the transport's BadFrames
+
+    def _count(self, fault: str, frame: can.Message) -> None:
+        if self.bad is not None:
+            self.bad.add(fault, frame)
+
+    def open_hello(self, frame: can.Message, node: int) -> can.Message | None:
+        """A robot's HELLO, verified and stripped to its plain layout, or None
+        (counted). Moves the node's counter above the floor it names. Raises
+        KeyMismatch when a node whose key was never confirmed fails
+        MISMATCH_AFTER times."""
+        data = bytes(frame.data)
+        n = self.hello_kind_len
+        key = self.keys.get(node)
+        if key is None:             # with keys, an id the key file lacks is no robot
+            self._count(HELLO_UNKEYED, frame)
+            return None
+        if len(data) != n + 1 + MAC_BYTES:
+            if len(data) == n:
+                return self._hello_failed(node, frame, HELLO_PLAIN)
+            return frame            # the decoder names a wrong length
+        payload, low, tag = data[:n], data[n], data[n + 1:]
+        block = self._find_block(key, frame.arbitration_id, payload, low, tag, node)
+        if block is None:
+            return self._hello_failed(node, frame, HELLO_BAD_MAC)
+        self.confirmed.add(node)
+        floor = min(FV_MAX, ((block + 1) << BLOCK) - 1)
+        if floor > self.fv[node]:
+            if block > (self.fv[node] >> BLOCK) + 1:
+                log.warning("robot %d has taken commands of this key file up to counter "
+                            "%d, beyond this host's %d (%s): continuing above it", node, floor,
+                            self.fv[node],
+                            f"freshness file {self.store.path} lost or older?"
+                            if self.store.path else "this host keeps no freshness file")
+            self.fv[node] = floor
+        return can.Message(arbitration_id=frame.arbitration_id, is_extended_id=False,
+                           data=payload, dlc=n, timestamp=frame.timestamp)
+
+    def _find_block(self, key, ident, payload, low, tag, node) -> int | None:
+        """The robot's floor block: the one with low byte `low` whose MAC
+        matches, tried from the most the robot can have seen (the host's
+        counter + one block) down WINDOW blocks; once per node, failing that,
+        every block (a host that lost its freshness file)."""
+        top = (self.fv[node] >> BLOCK) + 1
+        b = top - ((top - low) & 0xFF)
+        for _ in range(WINDOW):
+            if b < 0:
+                break
+            if secrets.compare_digest(_mac(key, ident, payload, b), tag):
+                return b
+            b -= 256
+        if node in self.searched:
+            return None
+        self.searched.add(node)
+        blocks = range(low, (FV_MAX >> BLOCK) + 1, 256)
+        macs = _hello_macs(key, ident, payload, blocks)
+        best = None
+        at = macs.find(tag)
+        while at >= 0:            # the highest: starting too high only skips counters
+            if at % MAC_BYTES == 0:
+                best = blocks[at // MAC_BYTES]
+            at = macs.find(tag, at + 1)
+        return best
+
+    def _hello_failed(self, node: int, frame: can.Message, fault: str) -> None:
+        self._count(fault, frame)
+        k = self.hello_failed[node] = self.hello_failed.get(node, 0) + 1
+        if node not in self.confirmed:
+            if k >= MISMATCH_AFTER:
+                if fault == HELLO_PLAIN:
+                    raise KeyMismatch(f"robot {node} sends HELLO without a MAC: it has no key "
+                                      "file; give `touchswarm robots` the same --keys FILE "
+                                      "as the host")
+                raise KeyMismatch(f"robot {node}'s MAC fails with this key file: host and "
+                                  "robots have different key files")
+        elif k >= HELLO_LOCKOUT and node not in self.locked:
+            self.locked.add(node)
+            log.warning("robot %d: %d HELLOs failed authentication after its key was "
+                        "confirmed (forgery or brute force on its identifier): node locked "
+                        "out, its frames are dropped from now on", node, k)
+        return None
 
     def _next_fv(self, node: int) -> int:
         fv = self.fv[node] + 1
         if fv > FV_MAX:
-            raise KeyFileError(f"node {node}: freshness counter exhausted; rekey the robot")
+            raise FreshnessExhausted(f"node {node}: freshness counter exhausted ({FV_MAX} "
+                                     f"commands sealed with its key); {REKEY}")
         if fv > self.limit[node]:
             self.limit[node] = min(FV_MAX, fv + RESERVE)
             self.store.reserve(node, self.limit[node])
@@ -204,12 +445,30 @@ class Opener:
     is fresh, stripped back to its plain layout; anything else is counted in
     `bad` and dropped. Frames of other kinds pass unchanged."""
 
-    def __init__(self, keys: dict[int, bytes], bad) -> None:
+    def __init__(self, keys: dict[int, bytes], bad, store: FreshnessStore | None = None,
+                 lockout: int = LOCKOUT) -> None:
         check_layout()
         self.keys = keys
         self.bad = bad
         self.down = down_kinds()
-        self.last = {n: 0 for n in keys}
+        # the robots' counters survive a restart: a robot reserves RESERVE
+        # above what it takes and, restarted, refuses everything up to there
+        self.store = store or FreshnessStore(None)
+        self.last = {n: self.store.start(n) for n in keys}
+        self.limit = dict(self.last)
+        self.lockout = lockout
+        self.failed = {n: 0 for n in keys}       # host commands whose MAC failed
+        self.locked: set[int] = set()
+        # nodes that got a genuine but stale command: the host may have lost
+        # its counters (restarted without its freshness file), so the robot
+        # says HELLO again, which names its floor (Gateway, every RESYNC ticks)
+        self.stale: set[int] = set()
+
+    def hello(self, frame: can.Message) -> can.Message:
+        """A robot's HELLO sealed (seal_hello) with its key and its floor."""
+        node = msg.split_id(frame.arbitration_id)[1]
+        key = self.keys.get(node)
+        return frame if key is None else seal_hello(key, frame, self.last[node])
 
     def open(self, frame: can.Message) -> can.Message | None:
         if frame.is_extended_id or frame.is_remote_frame or frame.is_error_frame:
@@ -227,6 +486,9 @@ class Opener:
         if key is None:
             self.bad.add(UNKEYED, frame)
             return None
+        if node in self.locked:
+            self.bad.add(LOCKED, frame)
+            return None
         payload, low = data[:n], int.from_bytes(data[n:n + k], "big")
         last = self.last[node]
         if k == 4:
@@ -239,10 +501,20 @@ class Opener:
         if not secrets.compare_digest(_mac(key, frame.arbitration_id, payload, fv),
                                       data[n + k:]):
             self.bad.add(BAD_MAC, frame)
+            self.failed[node] += 1
+            if self.failed[node] >= self.lockout:
+                self.locked.add(node)
+                log.warning("robot %d: %d host commands failed their MAC (forgery or brute "
+                            "force): locked out, it takes no host command until restarted",
+                            node, self.failed[node])
             return None
         if fv <= last:
             self.bad.add(STALE, frame)
+            self.stale.add(node)
             return None
         self.last[node] = fv
+        if fv > self.limit[node]:
+            self.limit[node] = min(FV_MAX, fv + RESERVE)
+            self.store.reserve(node, self.limit[node])
         return can.Message(arbitration_id=frame.arbitration_id, is_extended_id=False,
                            data=payload, dlc=n, timestamp=frame.timestamp)
