@@ -26,7 +26,7 @@ The port is whatever the board offers, passed in by the board's main.py:
 an object with `read(timeout_ms)` -> a byte or -1 on timeout,
 `write(buf, n)`, and `ms()` -> a millisecond counter that wraps at a
 multiple of 2**30 (MicroPython's `time.ticks_ms()`), which gives a
-request's answer a deadline (see bridge/serial/board_main.py).
+request's answer a deadline (see firmware_logic/board_main.py).
 """
 
 from firmware_logic import framing
@@ -253,9 +253,9 @@ def run(port, node, robot, spec, max_ticks, linger, guard=None):
     behaviour's "halt" state; then one ACTION STOP frame says the loop has
     ended. Returns the HAL (its counters), with the robot as `hal.robot`.
     robot: the behaviour's FSM, built from its robot_args (main.py builds it
-    from robot_config.ARGS, bridge/serial/board_main.py); spec: its spec.py
+    from robot_config.ARGS, firmware_logic/board_main.py); spec: its spec.py
     (its own message kinds are put in use here, its STATES name "halt").
-    guard: a heap check (bridge/serial/board_main.py HeapGuard): after
+    guard: a heap check (firmware_logic/board_main.py HeapGuard): after
     guard.warmup ticks, guard.tick(robot, hal) runs each whole tick under
     heap_lock() and counts the ticks that tried to allocate."""
     if hasattr(spec, "MESSAGES"):

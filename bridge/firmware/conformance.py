@@ -38,7 +38,7 @@ from pathlib import Path
 from bridge.errors import BridgeError
 from bridge.firmware import mp_runner
 from bridge.firmware.subset_check import firmware_files, package_dir
-from bridge.serial.board_main import PACKAGE
+from firmware_logic.board_main import PACKAGE
 from bridge.serial.deploy import BOARD_MAIN, behaviour_source, config_text
 from firmware_logic.messages import DOWN
 

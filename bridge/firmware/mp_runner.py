@@ -109,7 +109,7 @@ def main(argv):
     for a in argv[3:]:
         nums.append(int(a))
     sys.path.insert(0, fwdir)
-    import main as board_main     # the board's main.py (bridge/serial/board_main.py)
+    import main as board_main     # the board's main.py (firmware_logic/board_main.py)
 
     c = board_main.config()
 

@@ -41,7 +41,7 @@ log = logging.getLogger(__name__)
 
 ROOT = Path(__file__).resolve().parents[2]
 FIRMWARE_DIR = ROOT / "firmware_logic"
-BOARD_MAIN = Path(__file__).resolve().parent / "board_main.py"
+BOARD_MAIN = FIRMWARE_DIR / "board_main.py"     # the board's main.py
 # what the board runs besides the behaviour: helpers, schema, framing, runtime
 CORE_MODULES = ("__init__", "fixedpoint", "rng", "messages", "hal", "framing", "board")
 REMOTE_PKG = "firmware_logic"
@@ -56,7 +56,7 @@ CONFIG_KEYS = ("NODE", "SEED") + LOOP_KEYS
 
 def remote_package() -> str:
     """The behaviour's package name on the board (board_main.PACKAGE)."""
-    from bridge.serial import board_main
+    from firmware_logic import board_main
     return board_main.PACKAGE
 
 
