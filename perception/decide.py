@@ -44,10 +44,7 @@ Cell = tuple[int, int]
 def library_for(sc: Any) -> tuple[Library, list[str]]:
     """The scenario's library and the names of the entries that are the target's shape."""
     pieces = sc.pieces()
-    known = {}
-    for p in pieces:
-        known[p.name] = list(p.cells)
-    lib = Library.builtin(known)
+    lib = Library.of(sc, pieces=True)
     target = set(orientations(pieces[0].cells))
     names = [n for n in lib.names
              if set(tuple(p.cells) for p in lib.poses[n]) == target]

@@ -58,7 +58,7 @@ class Perceiver:
         self.computed = -1                # the tick of the last recognition
         self.pending = False              # free evidence near the touches not yet used
         self.engine = engine
-        self.library = library if library is not None else Library.builtin()
+        self.library = library if library is not None else Library.of(engine.sc)
         self.threshold = threshold
         self.free_every = free_every
         self.ev = Evidence(engine.sc.worldSize)

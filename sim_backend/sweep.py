@@ -47,7 +47,7 @@ EVENTS = ("compiling", "compiled", "failed", "left")
 MEASURES = ["ticks", "found_tick", "converged_tick", "home_tick", "n_touches", "power",
             "shape_iou", "leader", "delivered", "segments", "touches", "converged_moves"]
 # the drawn pieces (tables, not values) go in one text column, `pieces`
-PIECE_KEYS = ("objects", "obstacles")
+PIECE_KEYS = ("objects", "obstacles", "library")
 # [[breeds]] tables go in one text column too, `breeds`; the world's keys,
 # then each behaviour's own parameters (columns())
 SCENARIO_KEYS = [k for k in Scenario.__dataclass_fields__
