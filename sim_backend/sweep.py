@@ -45,7 +45,8 @@ REFERENCE_CHUNK = 4
 # what a sweep's on_event(kind, text) hears about a background compile
 EVENTS = ("compiling", "compiled", "failed", "left")
 MEASURES = ["ticks", "found_tick", "converged_tick", "home_tick", "n_touches", "power",
-            "shape_iou", "leader", "delivered", "segments", "touches", "converged_moves"]
+            "shape_iou", "leader", "delivered", "segments", "touches", "converged_moves",
+            "estimate_iou", "recognised", "p"]
 # the drawn pieces (tables, not values) go in one text column, `pieces`
 PIECE_KEYS = ("objects", "obstacles", "library")
 # [[breeds]] tables go in one text column too, `breeds`; the world's keys,
@@ -783,6 +784,10 @@ def make_row(pt: Point, sc: Scenario, seed: int, s: dict, until: str,
     # convergence in robot moves (activation netlogo: more than one per tick)
     row["touches"] = " ".join(f"{x}:{y}" for x, y in s["touches"])
     row["converged_moves"] = s.get("converged_moves")
+    # the host's shape estimate and verdict (perception/tracker.py end_fields;
+    # empty for a behaviour that perceives no object)
+    for name in ("estimate_iou", "recognised", "p"):
+        row[name] = s.get(name)
     # the measures the behaviour declares (spec.MEASURES) that the columns
     # above do not already hold, e.g. aggregation's stopped/clusters/largest
     from firmware_logic import registry
