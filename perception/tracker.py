@@ -207,9 +207,11 @@ class Perceiver:
                          "conflicts": self.ev.conflicts},
         }
 
-    def estimate_cells(self) -> set:
-        """The estimate now, in the object's own frame (for drawing)."""
-        return set(self.verdict()[0])
+    def estimate_view(self) -> tuple[set, str | None, float]:
+        """The estimate now, in the object's own frame, with its verdict and
+        posterior: what world.png and the animation draw (sim_backend/render.py)."""
+        est, name, p, _ = self.verdict()
+        return set(est), name, p
 
 
 Verdict = tuple  # (estimate cells, recognised or None, p, estimate kind)

@@ -62,11 +62,20 @@ class Frame:
     ys: tuple
     reporters: dict
     iou: float
+    estimate: tuple = ()       # the host's shape estimate, where the object is now
+    verdict: str = ""
 
 
-def _frame(s: Snapshot) -> Frame:
+def _frame(s: Snapshot, instruments: Any = ()) -> Frame:
+    from sim_backend import render as rd
+    est, verdict = (), ""
+    view = rd.estimate_of(instruments)
+    if view is not None:
+        dx, dy = rd.displacement(s._world)
+        est = tuple((x + dx, y + dy) for x, y in view[0])
+        verdict = rd.verdict_text(view[1], view[2]) if view[0] else ""
     return Frame(s.tick, s.field(), s.obj(), s.touches, tuple(s.perceived), s.xs, s.ys,
-                 dict(s.reporters), s.iou)
+                 dict(s.reporters), s.iou, est, verdict)
 
 
 class Animation:
@@ -80,7 +89,8 @@ class Animation:
         self.trails = trails
         self.fixed = every is not None
         self.every = every or 1
-        self.frames = [_frame(engine.snapshot())]
+        self.instruments = getattr(engine, "instruments", ())
+        self.frames = [_frame(engine.snapshot(), self.instruments)]
         self.last: Snapshot | None = None
         engine.observe(self.add)
 
@@ -88,7 +98,7 @@ class Animation:
         self.last = s
         if s.tick % self.every:
             return
-        self.frames.append(_frame(s))
+        self.frames.append(_frame(s, self.instruments))
         if not self.fixed and len(self.frames) > MAX_FRAMES:
             self.every *= 2
             self.frames = [f for f in self.frames if f.tick % self.every == 0]
@@ -97,13 +107,14 @@ class Animation:
         """Keep the last tick's frame. Only valid once the run has ended: a
         snapshot's grids are read from the world as it stands."""
         if self.last is not None and self.frames[-1].tick != self.last.tick:
-            self.frames.append(_frame(self.last))
+            self.frames.append(_frame(self.last, self.instruments))
 
     def title(self, f: Frame) -> str:
         """A frame's title: its tick, the behaviour's reporters, the shape's
         score when the behaviour declares one (sim_backend/words.py)."""
         from sim_backend import words
-        return words.frame_title(self.words, f.tick, f.reporters, f.iou)
+        title = words.frame_title(self.words, f.tick, f.reporters, f.iou)
+        return f"{title}; estimate: {f.verdict}" if f.verdict else title
 
     def write(self, path: Path) -> int:
         """Draw every kept frame and the last tick's to path; returns the count."""
@@ -125,8 +136,11 @@ class Animation:
         start_x, start_y = self.trails.xs[0], self.trails.ys[0]
         ax.plot(start_x, start_y, "o", mfc="none", mec="gray", ms=3)
         path_line, = ax.plot([], [], "--", color="darkcyan", lw=2)
+        est = ax.scatter([], [], marker="s", s=22, color=rd.ESTIMATE_RGB, alpha=0.5,
+                         linewidths=0, zorder=2)
         seen = ax.scatter([], [], marker="s", s=22, facecolors="none", edgecolors="blue",
                           linewidths=1.0, zorder=2)
+        estimated = any(f.estimate for f in frames)
         dots = ax.scatter(start_x, start_y, s=18, edgecolors="black", linewidths=0.4, zorder=3)
         # sized for tight_layout by the first frame's words
         title = ax.set_title(self.title(frames[0]), fontsize=8)
@@ -139,6 +153,9 @@ class Animation:
         if shape:
             handles.append(Line2D([], [], marker="s", mfc="none", mec="blue", ls="",
                                   label="perceived shape"))
+        if estimated:
+            handles.append(Line2D([], [], marker="s", color=rd.ESTIMATE_RGB, alpha=0.5, ls="",
+                                  label="host's estimate"))
         if has_object:
             handles.append(Line2D([], [], ls="--", color="darkcyan", label="object's path"))
         ax.legend(handles=[*handles, *rd.state_legend(self.names, colours)],
@@ -167,6 +184,7 @@ class Animation:
                 path_line.set_data(centre[:, 0], centre[:, 1])
                 if shape:
                     seen.set_offsets(np.array(f.perceived, dtype=float).reshape(-1, 2))
+                est.set_offsets(np.array(f.estimate, dtype=float).reshape(-1, 2))
                 dots.set_offsets(np.column_stack([f.xs, f.ys]))
                 dots.set_facecolor([colours[s] for s in self.trails.states[f.tick]])
                 for t in labels:
