@@ -133,6 +133,31 @@ def summarise(rows: list[dict]) -> dict:
     return out
 
 
+def per_shape(rows: list[dict]) -> list[dict]:
+    """The drawn shapes, one entry each over the seeds."""
+    out = []
+    for name in dict.fromkeys(r["shape"] for r in rows if r["group"] == "drawn"):
+        rs = [r for r in rows if r["group"] == "drawn" and r["shape"] == name]
+        out.append({"shape": name, "cells": rs[0]["cells"], "holders": rs[0]["touches"],
+                    "estimate_iou": round(sum(r["estimate_iou"] for r in rs) / len(rs), 3),
+                    "hull_iou": round(sum(r["hull_iou"] for r in rs) / len(rs), 3),
+                    "verdicts": " ".join(f"{r['best']} {r['p']:.3f}" for r in rs)})
+    return out
+
+
+def markdown(out: dict, shapes: list[dict]) -> str:
+    """docs/perception.md's two tables."""
+    lines = ["| shape | cells | holders (seed 1) | estimate IoU | hull IoU | verdict, p (per seed) |",
+             "|---|---|---|---|---|---|"]
+    lines += [f"| {d['shape']} | {d['cells']} | {d['holders']} | {d['estimate_iou']:.2f} | "
+              f"{d['hull_iou']:.2f} | {d['verdicts']} |" for d in shapes]
+    lines += ["", "| posterior of the call | calls | right | fraction right |", "|---|---|---|---|"]
+    lines += [f"| {b['p']} | {b['calls']} | {b['right']} | "
+              f"{b['right'] / b['calls'] if b['calls'] else float('nan'):.2f} |"
+              for b in out["calibration"]]
+    return "\n".join(lines)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=3)
@@ -146,6 +171,9 @@ def main() -> None:
     out = {"command": f"bench/open_set.py --seeds {a.seeds} --workers {a.workers}",
            "polyomino_seed": SEED, "shapes": SHAPES, **summarise(rows),
            "wall_s": round(time.time() - t0, 1)}
+    shapes = per_shape(rows)
+    out["drawn_shapes"] = shapes
+    out["markdown"] = markdown(out, shapes)
     if a.rows:
         out["rows"] = [{k: v for k, v in r.items() if k != "calls"} for r in rows]
     print(json.dumps(out, indent=1))

@@ -121,3 +121,32 @@ def test_a_run_on_a_drawn_shape_reports_it_unknown_and_a_library_entry_names_it(
         out[key] = p.summary()
     assert out["open"]["recognised"] == UNKNOWN and out["open"]["estimate_iou"] >= 0.8
     assert out["added"]["recognised"] == "thing6" and out["added"]["estimate_iou"] == 1.0
+
+
+def test_the_bench_measures_one_run_and_tables_it():
+    """bench/open_set.py (docs/perception.md's tables) on one small shape:
+    the run, its calls and the calibration table; the 24-shape figures are
+    the bench's, not the suite's."""
+    import importlib.util
+    from pathlib import Path
+    path = Path(__file__).resolve().parents[1] / "bench" / "open_set.py"
+    spec = importlib.util.spec_from_file_location("open_set_bench", path)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    assert len(bench.jobs(1)) == bench.SHAPES + bench.ADDED + len(objects.SHAPES)
+    row = bench.one(("drawn", "poly17", SHAPES[17], 1, UNKNOWN))
+    assert row["converged"] and row["best"] == UNKNOWN and row["estimate_iou"] >= 0.8
+    assert len(row["calls"]) == row["touches"]
+    out = bench.summarise([row])
+    assert out["drawn"]["right_at_convergence"] == 1 and out["drawn"]["wrong_library_sure"] == 0
+    assert sum(b["calls"] for b in out["calibration"]) == row["touches"]
+
+
+def test_the_crate_is_reported_unknown_with_its_outline():
+    """docs/perception.md's example: `touchswarm run --scenario crate --seed 1`."""
+    from tests.test_watch import run_cli
+    import json
+    rc, out, err = run_cli("run", "--scenario", "crate", "--seed", "1", "--json")
+    s = json.loads(out)
+    assert s["recognised"] == UNKNOWN and s["p"] >= 0.999
+    assert s["estimate_iou"] == 1.0 and round(s["shape_iou"], 2) == 0.55
