@@ -32,8 +32,10 @@ from __future__ import annotations
 import logging
 from typing import Any, Iterable
 
+from typing import NamedTuple
+
 from perception.evidence import Evidence
-from perception.recognise import recognise
+from perception.recognise import estimate, recognise
 from perception.shapes import Library, orientations
 
 log = logging.getLogger(__name__)
@@ -44,29 +46,47 @@ Cell = tuple[int, int]
 def library_for(sc: Any) -> tuple[Library, list[str]]:
     """The scenario's library and the names of the entries that are the target's shape."""
     pieces = sc.pieces()
-    known = {}
-    for p in pieces:
-        known[p.name] = list(p.cells)
-    lib = Library.builtin(known)
+    lib = Library.of(sc, pieces=True)
     target = set(orientations(pieces[0].cells))
     names = [n for n in lib.names
              if set(tuple(p.cells) for p in lib.poses[n]) == target]
     return lib, names
 
 
+class Call(NamedTuple):
+    """One verdict: the cluster's evidence, the permille answered, the
+    posterior behind it and the estimate it gives."""
+    ev: Evidence
+    permille: int
+    rec: Any
+    estimate: set
+
+
+def key(cells: Iterable[Cell]) -> tuple[Cell, ...]:
+    return tuple(sorted(set((int(x), int(y)) for x, y in cells)))
+
+
 class Decider:
-    """decider(cells, free) -> permille that the cluster is the target."""
+    """decider(cells, free) -> permille that the cluster is the target.
+
+    Every call is kept (`answers`, by the cluster's cells), so the run's
+    perception reports the very verdict the decision used (one verdict per
+    run, issue 30 §2: `verdict(cells)`)."""
 
     def __init__(self, sc: Any) -> None:
         self.w = sc.worldSize
         self.library, self.target = library_for(sc)
+        self.target_name = sc.pieces()[0].name
         self.calls = 0
+        self.answers: dict[tuple[Cell, ...], Call] = {}
+        self.best: Call | None = None       # the call with the highest permille so far
         n = max(2, len(sc.pieces()))
         share = len(self.target) / len(self.library.names)
         # prior odds of the target: the scenario's 1 : (n - 1) over the library's
         self.odds = (1 / (n - 1)) / (share / (1 - share))
 
     def __call__(self, cells: Iterable[Cell], free: Iterable[Cell] = ()) -> int:
+        cells = list(cells)
         ev = Evidence(self.w)
         for x, y in cells:
             ev.touch(x, y)
@@ -76,12 +96,22 @@ class Decider:
         self.calls += 1
         p = sum(rec.posterior[n] for n in self.target)
         if p >= 1.0:
-            return 1000
-        odds = p / (1 - p) * self.odds
-        q = odds / (1 + odds)
-        log.debug("cluster %s: target p %.3f, with the scenario's prior %.3f (best %s %.3f)",
-                  sorted(ev.touched), p, q, rec.best, rec.p)
-        return int(q * 1000)
+            permille = 1000
+        else:
+            odds = p / (1 - p) * self.odds
+            q = odds / (1 + odds)
+            log.debug("cluster %s: target p %.3f, with the scenario's prior %.3f (best %s %.3f)",
+                      sorted(ev.touched), p, q, rec.best, rec.p)
+            permille = int(q * 1000)
+        call = Call(ev, permille, rec, estimate(ev, rec))
+        self.answers[key(cells)] = call
+        if self.best is None or permille >= self.best.permille:
+            self.best = call
+        return permille
+
+    def verdict(self, cells: Iterable[Cell]) -> Call | None:
+        """The call made on exactly these cells, if any."""
+        return self.answers.get(key(cells))
 
 
 def equip(coordinator: Any, sc: Any) -> Any:

@@ -109,6 +109,48 @@ class Evidence:
         """The estimate without a library: the hull minus every known-free cell."""
         return {c for c in self.hull_cells() if self.at(*c) != FREE}
 
+    def joined(self) -> set[Cell]:
+        """The smallest-looking shape the touches allow: the touched cells
+        joined into one 4-connected piece by shortest paths that avoid
+        known-free cells (a shape is one piece), within the touches' box
+        widened by 2. The open-set posterior's leanest hypothesis."""
+        if not self.touched:
+            return set()
+        xs = [c[0] for c in self.touched]
+        ys = [c[1] for c in self.touched]
+        x0, x1, y0, y1 = min(xs) - 2, max(xs) + 2, min(ys) - 2, max(ys) + 2
+        shape = {self.touched[0]}
+        rest = set(self.touched[1:])
+        while rest:
+            prev: dict[Cell, Cell | None] = {c: None for c in shape}
+            frontier = list(shape)
+            hit = None
+            while frontier and hit is None:
+                nxt = []
+                for x, y in frontier:
+                    for a, b in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+                        c = (x + a, y + b)
+                        if c in prev or not (x0 <= c[0] <= x1 and y0 <= c[1] <= y1) \
+                                or self.at(*c) == FREE:
+                            continue
+                        prev[c] = (x, y)
+                        if c in rest:
+                            hit = c
+                            break
+                        nxt.append(c)
+                    if hit is not None:
+                        break
+                frontier = nxt
+            if hit is None:             # walled off by free cells: take the touches as they are
+                return shape | rest
+            c: Cell | None = hit
+            while c is not None and c not in shape:
+                shape.add(c)
+                c = prev[c]
+            shape |= {t for t in rest if t in shape}
+            rest -= shape
+        return shape
+
     def uncertainty(self) -> dict[str, int]:
         """Cells inside the hull: known object, known free, unknown."""
         counts = {"object": 0, "free": 0, "unknown": 0}
@@ -122,3 +164,4 @@ def iou(a: Iterable[Cell], b: Iterable[Cell]) -> float:
     """IoU of two cell sets, rounded to 6 places as summaries have it."""
     inter, union = perception.iou_counts(a, b)
     return round(inter / union, 6) if union else 0.0
+

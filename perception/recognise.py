@@ -15,6 +15,15 @@ The model (docs/perception.md, "Recognition", says why this one):
     normalised over the shapes. Placements that overlap no touched cell's
     bounding box explain no touch; they are summed in closed form (each has
     every touch false), so nothing is dropped from the normalisation.
+  - open set (issue 30): one more hypothesis, UNKNOWN, "a shape not in the
+    library", with prior P_OPEN. Its shape is the evidence's own outline E
+    (the touches' hull minus known-free cells, `Evidence.hull_estimate`),
+    priced by a prior over all polyominoes of |E| cells (about 4.06^n / n
+    of them, so each costs ~1.4 nats a cell) and a uniform placement; the
+    touches are drawn from E's touchable cells by the same size principle,
+    and no free cell lies in E. A library shape that fits the evidence
+    beats it by its far smaller prior cost; one that must cover free cells
+    or leave touches unexplained loses to it.
 """
 
 from __future__ import annotations
@@ -26,11 +35,15 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from perception.evidence import FREE, OBJECT, Evidence
-from perception.shapes import Library, Pose
+from perception.shapes import UNKNOWN, Library, Pose
 
 EPS_TOUCH = 0.01     # a touch reported on a cell that is not the object's
 EPS_FREE = 0.02      # a pose reported on a cell that is the object's
 THRESHOLD = 0.95     # the posterior at which a shape counts as recognised
+P_OPEN = 0.5         # its prior; the library's shapes share the rest
+# fixed polyominoes of n cells: about POLY_C * POLY_GROWTH^n / n (Jensen 2001)
+POLY_C, POLY_GROWTH = 0.3169, 4.0626
+POLY_SIZES = 64      # the prior over an unknown shape's size: uniform on 1..POLY_SIZES
 
 Cell = tuple[int, int]
 
@@ -45,6 +58,11 @@ class Recognition:
     map_pose: Pose | None = None
     map_origin: Cell = (0, 0)
 
+    @property
+    def unknown(self) -> bool:
+        """The most probable hypothesis is "not in the library"."""
+        return self.best == UNKNOWN
+
     def recognised(self, threshold: float = THRESHOLD) -> bool:
         return self.best is not None and self.p >= threshold
 
@@ -58,14 +76,39 @@ def _logsumexp(a: np.ndarray) -> float:
     return m + math.log(float(np.exp(a - m).sum()))
 
 
+def touchable(cells: set[Cell]) -> int:
+    """Cells of a shape with a 4-neighbour outside it."""
+    return sum(1 for x, y in cells
+               if any((x + a, y + b) not in cells for a, b in ((1, 0), (-1, 0), (0, 1), (0, -1))))
+
+
+def log_polyomino_prior(n: int) -> float:
+    """log P(one particular n-cell shape) under the open-set prior: a size
+    uniform on 1..POLY_SIZES, then any of the ~POLY_C x POLY_GROWTH^n / n
+    fixed polyominoes of that size."""
+    return -math.log(POLY_SIZES) - (math.log(POLY_C) + n * math.log(POLY_GROWTH) - math.log(n))
+
+
+def priors(library: Library, p_open: float) -> dict[str, float]:
+    """The prior of every hypothesis: the library's shapes share 1 - p_open
+    uniformly, UNKNOWN has p_open (0: a closed library)."""
+    if not 0.0 <= p_open < 1.0:
+        raise ValueError(f"p_open {p_open}: expected in [0, 1)")
+    out = {n: (1.0 - p_open) / len(library.names) for n in library.names}
+    if p_open > 0.0:
+        out[UNKNOWN] = p_open
+    return out
+
+
 def recognise(ev: Evidence, library: Library, eps_touch: float = EPS_TOUCH,
-              eps_free: float = EPS_FREE) -> Recognition:
-    """The posterior over the library's shapes given the evidence."""
+              eps_free: float = EPS_FREE, p_open: float = P_OPEN) -> Recognition:
+    """The posterior over the library's shapes and UNKNOWN given the evidence."""
     if not 0.0 < eps_touch < 1.0 or not 0.0 < eps_free < 1.0:
         raise ValueError(f"eps_touch {eps_touch}, eps_free {eps_free}: expected in (0, 1)")
+    prior = priors(library, p_open)
     names = library.names
     if not ev.touched:
-        return Recognition({n: 1.0 / len(names) for n in names})
+        return Recognition(dict(prior))
     w, n = ev.w, ev.n
     area = n * n
     obj = (ev.grid == OBJECT).astype(np.int32)
@@ -89,7 +132,7 @@ def recognise(ev: Evidence, library: Library, eps_touch: float = EPS_TOUCH,
             fits = (n - pose.width + 1) * (n - pose.height + 1)
             if fits <= 0:
                 continue
-            prior = -math.log(len(poses)) - math.log(fits)
+            place = -math.log(len(poses)) - math.log(fits)
             # origins (patch coordinates) whose placement overlaps the touches' box
             ox0 = max(-w, xmin - pose.width + 1)
             ox1 = min(w - pose.width + 1, xmax)
@@ -109,27 +152,50 @@ def recognise(ev: Evidence, library: Library, eps_touch: float = EPS_TOUCH,
                 t = len(pose.touchable)
                 k = np.minimum(on_t, t)
                 ll = (k * log_true - (lfact[t] - lfact[t - k]) + (n_obj - k) * log_false
-                      + on_f * log_free + prior)
+                      + on_f * log_free + place)
                 terms.append(_logsumexp(ll))
                 j = int(np.argmax(ll))
                 if float(ll.flat[j]) > best[0]:
                     best = (float(ll.flat[j]), pose, (ox0 + j % hx, oy0 + j // hx))
             rest = fits - inside
             if rest > 0:   # placements away from every touch: all touches false
-                terms.append(prior + math.log(rest) + n_obj * log_false)
-        per_shape[name] = _logsumexp(np.array(terms)) if terms else -math.inf
+                terms.append(place + math.log(rest) + n_obj * log_false)
+        per_shape[name] = (_logsumexp(np.array(terms)) + math.log(prior[name])
+                           if terms else -math.inf)
         best_of[name] = best
+    outline: set[Cell] = set()
+    if UNKNOWN in prior:
+        outline = ev.hull_estimate()
+        # the sum over every shape not in the library, bounded below by two
+        # of its terms: the outline itself and the leanest shape the
+        # touches allow (their cells joined into one piece)
+        per_shape[UNKNOWN] = math.log(prior[UNKNOWN]) + _logsumexp(np.array(
+            [_free_form(cs, n, n_obj, log_true) for cs in (outline, ev.joined())]))
     total = _logsumexp(np.array(list(per_shape.values())))
     post = {k: math.exp(v - total) for k, v in per_shape.items()}
     top = max(post, key=post.get)
+    if top == UNKNOWN:
+        return Recognition(post, top, post[top], outline, None, (0, 0))
     _, pose, origin = best_of[top]      # the MAP placement of the most probable shape
     cells = pose.placed(*origin) if pose is not None else set()
     return Recognition(post, top, post[top], cells, pose, origin)
 
 
+def _free_form(cells: set[Cell], n: int, n_obj: int, log_true: float) -> float:
+    """log P(this free-form shape, placed here | UNKNOWN) + log P(the touches
+    | it): the polyomino prior, a uniform placement on the n x n grid, and
+    the n_obj touches drawn from its touchable cells (no free cell is in it)."""
+    wide = max(c[0] for c in cells) - min(c[0] for c in cells) + 1
+    high = max(c[1] for c in cells) - min(c[1] for c in cells) + 1
+    t = max(touchable(cells), n_obj)
+    return (log_polyomino_prior(len(cells)) - math.log(max(1, (n - wide + 1) * (n - high + 1)))
+            + n_obj * log_true - (math.lgamma(t + 1) - math.lgamma(t - n_obj + 1)))
+
+
 def estimate(ev: Evidence, rec: Recognition, threshold: float = THRESHOLD) -> set[Cell]:
-    """The best shape estimate: the MAP placement of a recognised shape,
-    otherwise the touched cells' hull minus every known-free cell."""
+    """The best shape estimate: the MAP placement of a recognised library
+    shape, otherwise (undecided, or UNKNOWN) the evidence's own outline, the
+    touched cells' hull minus every known-free cell."""
     if rec.recognised(threshold) and rec.map_pose is not None:
         return set(rec.map_cells)
     return ev.hull_estimate()

@@ -24,6 +24,8 @@ TRANSFORMS = (
     lambda x, y: (-x, y), lambda x, y: (y, x), lambda x, y: (x, -y), lambda x, y: (-y, -x),
 )
 STEPS4 = ((1, 0), (-1, 0), (0, 1), (0, -1))
+# the open-set hypothesis's name (recognise.py): "a shape not in the library"
+UNKNOWN = objects.UNKNOWN
 
 
 def normalise(cells: Iterable[Cell]) -> tuple[Cell, ...]:
@@ -82,6 +84,8 @@ class Library:
     def __init__(self, shapes: Mapping[str, Iterable[Cell]]) -> None:
         if not shapes:
             raise ValueError("a shape library needs at least one shape")
+        if UNKNOWN in shapes:
+            raise ValueError(f"shape name {UNKNOWN!r} is taken: it names a shape not in the library")
         self.names = list(shapes)
         self.poses: dict[str, list[Pose]] = {
             name: [_pose(name, i, o) for i, o in enumerate(orientations(cells))]
@@ -99,6 +103,18 @@ class Library:
         shapes: dict[str, Iterable[Cell]] = {n: objects.offsets(n) for n in objects.SHAPES}
         shapes.update(known or {})
         return cls(shapes)
+
+    @classmethod
+    def of(cls, sc, pieces: bool = False) -> "Library":
+        """A scenario's library: the built-ins, the shapes its [[library]]
+        tables name, and with pieces=True every object it draws (the host
+        that fetches by shape knows them, perception/decide.py)."""
+        known: dict[str, Iterable[Cell]] = {p.name: list(p.cells)
+                                            for p in getattr(sc, "library", ())}
+        if pieces:
+            for p in sc.pieces():
+                known.setdefault(p.name, list(p.cells))
+        return cls.builtin(known)
 
     def extent(self) -> int:
         """The largest width or height of any pose."""

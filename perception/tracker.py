@@ -26,7 +26,10 @@ log = logging.getLogger(__name__)
 
 COLUMNS = (("estimate_iou", "IoU of the new shape estimate (recognised shape's MAP placement, "
                             "else the hull minus known-free cells) with the true shape"),
-           ("recognised_p", "posterior of the most probable library shape (0 before a touch)"))
+           ("recognised", "the verdict: the recognised shape (or unknown) once its posterior "
+                          "reaches the threshold, else empty"),
+           ("p", "the verdict's posterior: the most probable hypothesis's (0 before a touch); "
+                 "with recognise = true the decision's P(target)"))
 
 
 class AtTouches(NamedTuple):
@@ -58,15 +61,23 @@ class Perceiver:
         self.computed = -1                # the tick of the last recognition
         self.pending = False              # free evidence near the touches not yet used
         self.engine = engine
-        self.library = library if library is not None else Library.builtin()
+        # with recognise = true the host's decider judges the touches: its
+        # verdict is the run's, one posterior for the decision and for what
+        # the run reports (issue 30 §2)
+        self.decider = getattr(engine.coordinator, "decider", None)
+        if library is None:
+            library = self.decider.library if self.decider is not None else Library.of(engine.sc)
+        self.library = library
+        if self.decider is not None:
+            threshold = getattr(engine.coordinator, "confidence", threshold * 1000) / 1000
         self.threshold = threshold
         self.free_every = free_every
         self.ev = Evidence(engine.sc.worldSize)
         w = engine.world
         # the truth in the object's frame: where it stands at the start
         # (the target's cells as the world placed them: a built-in or a drawn object)
-        self.truth = set(w.object_cells)
-        self.start = w.object_cells[0]
+        self.truth = set(w.start_cells)
+        self.start = w.start_cells[0]
         self.extent = self.library.extent()
         self.rec = recognise(self.ev, self.library)
         self.est: set[tuple[int, int]] = set()
@@ -74,7 +85,7 @@ class Perceiver:
         self.tick = -1                    # the tick the evidence is up to
         self.recognised_tick: int | None = None
         self.recognised_as: str | None = None
-        self.curve: list[tuple[int, float, float]] = []   # (tick, estimate IoU, p)
+        self.curve: list[tuple[int, float, str | None, float]] = []  # tick, IoU, verdict, p
         # per number of touches k: what the host knew when the k-th arrived
         self.by_touches: dict[int, AtTouches] = {}
         if watch:
@@ -95,9 +106,9 @@ class Perceiver:
         c = e.coordinator
         touches = getattr(c, "touches", ())
         touched = False
-        for t in touches[self.seen:]:
+        for t in touches:          # a released touch leaves the list: no index into it
             touched |= self.ev.touch(t.sx, t.sy)
-        self.seen = len(touches)
+        self.seen = len(self.ev.touched)
         if self.free_every and e.tick % self.free_every == 0:
             w = e.world
             cx, cy = w.object_cells[0]
@@ -125,10 +136,25 @@ class Perceiver:
             self.recognised_as = self.rec.best
             log.info("recognised %s (p %.3f) at tick %d", self.rec.best, self.rec.p, e.tick)
 
+    def verdict(self) -> tuple[set, str | None, float, str]:
+        """The run's verdict now: (estimate cells, recognised or None, p,
+        kind). With a decider, its call on the cluster the decision took
+        (before the decision: its surest call so far); else this
+        perceiver's own posterior."""
+        if self.decider is not None:
+            return decision_verdict(self.engine.coordinator)
+        if not self.ev.touched:
+            return self.est, None, 0.0, "none"
+        rec = self.rec
+        sure = rec.recognised(self.threshold)
+        kind = "map" if sure and not rec.unknown else "hull-free"
+        return self.est, rec.best if sure else None, round(rec.p, 6), kind
+
     def _record(self) -> None:
         e = self.engine
-        est_iou = iou(self.est, self.truth)
-        self.curve.append((e.tick, est_iou, self.rec.p if self.ev.touched else 0.0))
+        est, name, p, _ = self.verdict()
+        est_iou = iou(est, self.truth)
+        self.curve.append((e.tick, est_iou, name, p))
         k = len(self.ev.touched)
         if k and k not in self.by_touches:
             entry = AtTouches(e.tick, est_iou, iou(self.ev.hull_estimate(), self.truth),
@@ -152,28 +178,97 @@ class Perceiver:
 
     def row(self) -> list[Any]:
         self.update()
-        _, est_iou, p = self.curve[-1]
-        return [est_iou, round(p, 6)]
+        _, est_iou, name, p = self.curve[-1]
+        return [est_iou, name or "", p]
 
     def recognition(self) -> Recognition:
         return self.rec
 
     def summary(self) -> dict[str, Any]:
         self.update()
-        rec = self.rec
+        est, name, p, kind = self.verdict()
+        c = self.engine.coordinator
+        if self.decider is not None:
+            when = c.target_tick if c.target_tick >= 0 else None
+            first = self.decider.target_name if when is not None else None
+        else:
+            when, first = self.recognised_tick, self.recognised_as
         return {
-            "estimate_iou": iou(self.est, self.truth),
-            "estimate_kind": ("none" if not self.ev.touched else
-                              "map" if rec.recognised(self.threshold) else "hull-free"),
+            "estimate_iou": iou(est, self.truth),
+            "estimate_kind": kind,
             "hull_free_iou": iou(self.ev.hull_estimate(), self.truth),
-            "recognised": rec.best if rec.recognised(self.threshold) else None,
-            "recognised_p": round(rec.p, 6) if self.ev.touched else 0.0,
-            "recognised_tick": self.recognised_tick,
-            "recognised_as": self.recognised_as,
+            "recognised": name,
+            "p": p,
+            "recognised_tick": when,
+            "recognised_as": first,
             "recognition_threshold": self.threshold,
+            "verdict_by": "decision" if self.decider is not None else "perception",
             "evidence": {**self.ev.uncertainty(), "free_seen": self.ev.free_cells,
                          "conflicts": self.ev.conflicts},
         }
+
+    def estimate_view(self) -> tuple[set, str | None, float]:
+        """The estimate now, in the object's own frame, with its verdict and
+        posterior: what world.png and the animation draw (sim_backend/render.py)."""
+        est, name, p, _ = self.verdict()
+        return set(est), name, p
+
+
+Verdict = tuple  # (estimate cells, recognised or None, p, estimate kind)
+
+
+def decision_verdict(c: Any) -> Verdict:
+    """A recognising coordinator's verdict: its decider's call on the
+    cluster the decision took (before the decision, its surest call so
+    far). The decision and the run's perception fields are this one call."""
+    d = c.decider
+    call = d.verdict(c.target_cells) if c.target_tick >= 0 else None
+    if call is None:
+        call = d.best
+    if call is None:
+        return set(), None, 0.0, "none"
+    sure = c.target_tick >= 0 and call.permille >= c.confidence
+    kind = "map" if call.rec.recognised(THRESHOLD) and not call.rec.unknown else "hull-free"
+    return call.estimate, d.target_name if sure else None, round(call.permille / 1000, 6), kind
+
+
+def perceives(c: Any) -> bool:
+    """Whether a coordinator keeps touched segments of an object it tracks
+    as it moves (`touches` with sx, sy; `moved_x`), as the thesis's does."""
+    return hasattr(c, "touches") and hasattr(c, "moved_x")
+
+
+END_FIELDS = ("estimate_iou", "recognised", "p")
+
+
+def end_fields(result: Any) -> dict[str, Any]:
+    """estimate_iou, recognised and p of a finished run that no Perceiver
+    watched (a sweep's runs, either engine): the decision's verdict with
+    recognise = true; else a posterior from the end state alone, the
+    touches and the cells the robots stand on at the end (the per-tick free
+    evidence of a watched run is not kept). {} for a behaviour that
+    perceives no object."""
+    c = result.coordinator
+    if not perceives(c) or not result.world.start_cells:
+        return {}
+    truth = set(result.world.start_cells)
+    if getattr(c, "decider", None) is not None:
+        est, name, p, _ = decision_verdict(c)
+        return {"estimate_iou": iou(est, truth), "recognised": name, "p": p}
+    w = result.world
+    ev = Evidence(result.scenario.worldSize)
+    for t in c.touches:
+        ev.touch(t.sx, t.sy)
+    if not ev.touched:
+        return {"estimate_iou": 0.0, "recognised": None, "p": 0.0}
+    mx = w.object_cells[0][0] - w.start_cells[0][0]
+    my = w.object_cells[0][1] - w.start_cells[0][1]
+    for x, y in zip(w.xs, w.ys):
+        ev.free(fx.patch(x) - mx, fx.patch(y) - my)
+    rec = recognise(ev, Library.of(result.scenario))
+    sure = rec.recognised(THRESHOLD)
+    return {"estimate_iou": iou(estimate(ev, rec), truth),
+            "recognised": rec.best if sure else None, "p": round(rec.p, 6)}
 
 
 def attach(engine: Any, **kw: Any) -> Perceiver | None:
@@ -181,7 +276,6 @@ def attach(engine: Any, **kw: Any) -> Perceiver | None:
     coordinator keeps touched segments (`touches`, each with sx, sy) of an
     object it tracks as it moves (`moved_x`), as the thesis's does; None
     otherwise (aggregate, whose stops are robots, not an object)."""
-    c = engine.coordinator
-    if not hasattr(c, "touches") or not hasattr(c, "moved_x"):
+    if not perceives(engine.coordinator):
         return None
     return Perceiver(engine, **kw)

@@ -64,13 +64,23 @@ class Frame:
     iou: float
     phase: str = ""            # the host's status() at this tick
     load: tuple | None = None  # the declared LOAD pair's values (spec.LOAD), weight units
+    estimate: tuple = ()       # the host's shape estimate, where the object is now
+    verdict: str = ""
 
 
-def _frame(s: Snapshot, engine: Any, load: tuple | None) -> Frame:
+def _frame(s: Snapshot, engine: Any, load: tuple | None, instruments: Any = ()) -> Frame:
+    from sim_backend import render as rd
     c = engine.coordinator
+    est, verdict = (), ""
+    view = rd.estimate_of(instruments)
+    if view is not None:
+        dx, dy = rd.displacement(s._world)
+        est = tuple((x + dx, y + dy) for x, y in view[0])
+        verdict = rd.verdict_text(view[1], view[2]) if view[0] else ""
     return Frame(s.tick, s.field(), s.obj(), s.touches, tuple(s.perceived), s.xs, s.ys,
                  dict(s.reporters), s.iou, c.status(),
-                 None if load is None else tuple(getattr(c, n) / 100 for n in load))
+                 None if load is None else tuple(getattr(c, n) / 100 for n in load),
+                 est, verdict)
 
 
 class Animation:
@@ -85,6 +95,7 @@ class Animation:
         self.fixed = every is not None
         self.every = every or 1
         self.engine = engine
+        self.instruments = getattr(engine, "instruments", ())
         self.frames = [self._frame(engine.snapshot())]
         self.last: Snapshot | None = None
         engine.observe(self.add)
@@ -105,14 +116,15 @@ class Animation:
             self.frames.append(self._frame(self.last))
 
     def _frame(self, s: Snapshot) -> Frame:
-        return _frame(s, self.engine, self.words.load)
+        return _frame(s, self.engine, self.words.load, self.instruments)
 
     def title(self, f: Frame) -> str:
         """A frame's title: its tick and the host's phase, then the declared
         load, the behaviour's reporters, the shape's score when the behaviour
         declares one (sim_backend/words.py)."""
         from sim_backend import words
-        return words.frame_title(self.words, f.tick, f.reporters, f.iou, f.phase, f.load)
+        title = words.frame_title(self.words, f.tick, f.reporters, f.iou, f.phase, f.load)
+        return f"{title}; estimate: {f.verdict}" if f.verdict else title
 
     def write(self, path: Path, progress: Callable[[int, int], None] | None = None) -> int:
         """Draw every kept frame and the last tick's to path; returns the
@@ -135,8 +147,11 @@ class Animation:
         start_x, start_y = self.trails.xs[0], self.trails.ys[0]
         ax.plot(start_x, start_y, "o", mfc="none", mec="gray", ms=3)
         path_line, = ax.plot([], [], "--", color="darkcyan", lw=2)
+        est = ax.scatter([], [], marker="s", s=22, color=rd.ESTIMATE_RGB, alpha=0.5,
+                         linewidths=0, zorder=2)
         seen = ax.scatter([], [], marker="s", s=22, facecolors="none", edgecolors="blue",
                           linewidths=1.0, zorder=2)
+        estimated = any(f.estimate for f in frames)
         dots = ax.scatter(start_x, start_y, s=18, edgecolors="black", linewidths=0.4, zorder=3)
         # sized for tight_layout by the first frame's words
         title = ax.set_title(self.title(frames[0]), fontsize=10)
@@ -153,6 +168,9 @@ class Animation:
         if shape:
             handles.append(Line2D([], [], marker="s", mfc="none", mec="blue", ls="",
                                   label="perceived shape"))
+        if estimated:
+            handles.append(Line2D([], [], marker="s", color=rd.ESTIMATE_RGB, alpha=0.5, ls="",
+                                  label="host's estimate"))
         if has_object:
             handles.append(Line2D([], [], ls="--", color="darkcyan", label="object's path"))
         # below the arena, not over it
@@ -183,6 +201,7 @@ class Animation:
                 path_line.set_data(centre[:, 0], centre[:, 1])
                 if shape:
                     seen.set_offsets(np.array(f.perceived, dtype=float).reshape(-1, 2))
+                est.set_offsets(np.array(f.estimate, dtype=float).reshape(-1, 2))
                 dots.set_offsets(np.column_stack([f.xs, f.ys]))
                 dots.set_facecolor([colours[s] for s in self.trails.states[f.tick]])
                 for t in labels:

@@ -91,6 +91,8 @@ def run(scenario: str | Path | Mapping[str, Any] = "default", seed: int = 0,
     check_seed(seed, "seed")
     sc = scenario_of(scenario, overrides)
     engine = Engine(sc, seed)
+    from perception.tracker import attach
+    attach(engine)          # the shape estimate and verdict, as `touchswarm run` has them
     trace = Trace(engine)
     result = engine.run()
     ticks = [dict(zip(trace.names, row)) for row in trace.rows]

@@ -16,6 +16,7 @@ from sim_backend.objects import Piece
 
 OBJECT_KEYS = ("name", "art", "cells", "shape", "at", "weight", "density", "target")
 OBSTACLE_KEYS = ("name", "art", "cells", "shape", "at")
+LIBRARY_KEYS = ("name", "art", "cells", "shape")
 OBJECT_ONLY = {"weight": 0.0, "density": None, "target": False}
 FLAT_OBJECT_KEYS = ("object", "objectX", "objectY", "objectWeight")
 WEIGHT = (0.01, 10000.0)
@@ -98,6 +99,7 @@ def _object(j: int, t: Any) -> Piece:
     t = _table(where, t, OBJECT_KEYS)
     cs = _cells(where, t)
     name = str(t.get("name", f"object{j}"))
+    _not_reserved(where, name)
     at = None if t.get("at") is None else _int_pair(f"{where}.at", t["at"])
     target = t.get("target", None)
     if target is not None and not isinstance(target, bool):
@@ -129,6 +131,26 @@ def _obstacle(j: int, t: Any) -> Piece:
     return Piece(str(t.get("name", f"obstacle{j}")), cs, _int_pair(f"{where}.at", t["at"]))
 
 
+def _not_reserved(where: str, name: str) -> None:
+    if name == objects.UNKNOWN:
+        raise ScenarioError(f"{where}.name: {name!r} is reserved (the recogniser's name for a "
+                            "shape it does not know); choose another")
+
+
+def _known(j: int, t: Any) -> Piece:
+    """A [[library]] table: a shape the host's recogniser knows by name
+    (perception/shapes.py), placed nowhere in the world."""
+    where = f"library[{j}]"
+    if isinstance(t, dict):     # a Piece's dict (Scenario.to_dict) carries unused fields
+        t = {k: v for k, v in t.items()
+             if not (k == "at" and v is None) and not (k in OBJECT_ONLY and v == OBJECT_ONLY[k])}
+    t = _table(where, t, LIBRARY_KEYS)
+    if "name" not in t or not isinstance(t["name"], str) or not t["name"]:
+        raise ScenarioError(f"{where}.name: required, the name the host reports the shape by")
+    _not_reserved(where, t["name"])
+    return Piece(t["name"], _cells(where, t))
+
+
 def _array(key: str, value: Any) -> list:
     if not isinstance(value, (list, tuple)):
         raise ScenarioError(f"{key}: expected an array of tables ([[{key}]]), got {value!r}")
@@ -155,6 +177,14 @@ def parse(raw: dict[str, Any], values: dict[str, Any]) -> dict[str, Any]:
         if not isinstance(f, bool):
             raise ScenarioError(f"wrap: expected true or false, got {f!r}")
         values["wrap"] = f
+    if "library" in raw:
+        known = tuple(_known(j, t) for j, t in enumerate(_array("library", raw.pop("library"))))
+        names = [p.name for p in known]
+        for j, n in enumerate(names):
+            if names.index(n) != j:
+                raise ScenarioError(f"library[{j}].name: {n!r} is taken by "
+                                    f"library[{names.index(n)}]")
+        values["library"] = known
     if "obstacles" in raw:
         values["obstacles"] = tuple(_obstacle(j, t) for j, t in
                                     enumerate(_array("obstacles", raw.pop("obstacles"))))

@@ -95,7 +95,7 @@ class RunResult:
         return perception.outline_cells(self.coordinator.segments_now())
 
     def shape_iou(self) -> float:
-        return shape_iou(self.coordinator, self.true_cells())
+        return shape_iou(self.coordinator, self.world)
 
     def converged_moves(self) -> float | None:
         """Convergence in robot moves: the FSM steps (each one move or touch,
@@ -155,8 +155,19 @@ class RunResult:
                                   for t in getattr(c, "touches", ())]}
                if self.scenario.breeds else {}),
             **self.truth_measures(),
-            **{k: v for inst in self.instruments for k, v in inst.summary().items()},
+            **self.perception(),
         }
+
+    def perception(self) -> dict:
+        """The watching measures' fields (a Perceiver's: the shape estimate
+        and the verdict); a run no Perceiver watched (a sweep's) still gets
+        estimate_iou, recognised and p, from its end state
+        (perception/tracker.py end_fields)."""
+        out = {k: v for inst in self.instruments for k, v in inst.summary().items()}
+        if "estimate_iou" not in out:
+            from perception.tracker import end_fields
+            out.update(end_fields(self))
+        return out
 
     def truth_measures(self) -> dict:
         """The coordinator's measures that need the truth it is not told (the

@@ -13,12 +13,17 @@ def power_held(coordinator: Any) -> float:
     return coordinator.power / 100
 
 
-def shape_iou(coordinator: Any, true_cells: list[tuple[int, int]],
-              perceived: set[tuple[int, int]] | None = None) -> float:
-    """IoU of the perceived outline (the touched segments where they are now;
-    pass it when already computed) with the object's true cells, rounded to 6
-    places as the summary has it."""
-    if perceived is None:
-        perceived = perception.outline_cells(coordinator.segments_now())
-    inter, union = perception.iou_counts(perceived, true_cells)
+def shape_iou(coordinator: Any, world: Any) -> float:
+    """IoU of the perceived outline (the touched segments' hull) with the
+    object's true cells, rounded to 6 places as the summary has it. Both are
+    taken in the object's own frame, where it stood at the start: the
+    segments where they are now shifted back by the host's idea of the
+    displacement (moved_x, moved_y), i.e. as the host stored them, the true cells as the world
+    placed them (world.start_cells). So the measure does not jump while the
+    object moves: the host learns the displacement a tick after the world
+    (issue 30: default seed 2 alternated 0.35 / 0.69 during the carry)."""
+    mx, my = getattr(coordinator, "moved_x", 0), getattr(coordinator, "moved_y", 0)
+    perceived = perception.outline_cells([(x - mx, y - my)
+                                          for x, y in coordinator.segments_now()])
+    inter, union = perception.iou_counts(perceived, world.start_cells)
     return round(inter / union, 6) if union else 0.0

@@ -51,6 +51,9 @@ def _square() -> list[tuple[int, int]]:
 
 # `object = "none"`: an arena with no object (a behaviour that carries nothing)
 NONE = "none"
+# the name the host's recogniser reports a shape by when it is none of the
+# shapes it knows (perception/recognise.py); no object or library shape may take it
+UNKNOWN = "unknown"
 
 SHAPES = {
     "bar": _bar,

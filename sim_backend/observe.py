@@ -100,7 +100,7 @@ def snapshot(engine: Any) -> Snapshot:
         touches=tuple((t.node, t.tick, t.rx, t.ry) for t in c.touches),
         holders=tuple(dict.fromkeys(t.node for t in c.touches)),
         power=power_held(c),
-        perceived=perceived, iou=shape_iou(c, cells, perceived), object_cells=cells,
+        perceived=perceived, iou=shape_iou(c, w), object_cells=cells,
         msgs_up=engine.msgs_up, msgs_down=engine.msgs_down, bad_frames=fresh,
         reporters=engine.behaviour.report(c),
         home=(w.sc.homeX, w.sc.homeY), _world=w)

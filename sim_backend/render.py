@@ -27,6 +27,7 @@ from sim_backend.world import BLUE, OBSTACLE, YELLOW  # noqa: E402
 
 FIELD_CMAP = "Reds"
 OBJECT_RGB = (1.0, 0.85, 0.0)
+ESTIMATE_RGB = (0.1, 0.6, 0.2)     # the host's shape estimate (perception)
 HELD_RGB = (0.1, 0.3, 0.9)
 OBSTACLE_RGB = (0.35, 0.35, 0.35)
 HOME_RADIUS = 2
@@ -179,22 +180,68 @@ def _measures_panel(ax: Any, result: RunResult, behaviour: Any, said: Any) -> No
                 va="center", wrap=True)
 
 
+def estimate_of(instruments: Any) -> tuple[set, str | None, float] | None:
+    """The host's shape estimate from a watching measure that has one (a
+    perception Perceiver: estimate_cells(), its summary's verdict), in the
+    object's own frame; None when nothing watched the run."""
+    for inst in instruments or ():
+        view = getattr(inst, "estimate_view", None)
+        if view is not None:
+            return view()
+    return None
+
+
+def displacement(world: Any) -> tuple[int, int]:
+    """How far the carried object has moved from where it stood at the start."""
+    if not world.start_cells:
+        return 0, 0
+    return (world.object_cells[0][0] - world.start_cells[0][0],
+            world.object_cells[0][1] - world.start_cells[0][1])
+
+
+def draw_estimate(ax: Any, cells: set, shift: tuple[int, int] = (0, 0)) -> Any:
+    """The estimate as filled green cells (hatched, so the truth shows through)."""
+    patch = None
+    for (x, y) in cells:
+        patch = ax.add_patch(plt.Rectangle((x + shift[0] - .5, y + shift[1] - .5), 1, 1,
+                                           color=ESTIMATE_RGB, alpha=.45, hatch="//", lw=0))
+    return patch
+
+
+def verdict_text(recognised: str | None, p: float) -> str:
+    return f"{recognised}, p {p:.2f}" if recognised else f"undecided, p {p:.2f}"
+
+
 def _shape_panel(ax2: Any, result: RunResult, label: str) -> None:
-    """The perceived shape (touched cells) against the true one."""
-    truth = set(result.true_cells())
-    seen = result.perceived_cells()
-    pts = truth | seen
+    """The perceived shape (the touched cells' hull) and the host's estimate
+    (filled cells, with its verdict) against the true one, all in the
+    object's own frame (where it stood at the start), as the measures are."""
+    from firmware_logic import perception
+    truth = set(result.world.start_cells)
+    c = result.coordinator
+    mx, my = getattr(c, "moved_x", 0), getattr(c, "moved_y", 0)
+    segs = [(x - mx, y - my) for x, y in c.segments_now()]
+    seen = perception.outline_cells(segs)
+    est = estimate_of(result.instruments)
+    pts = truth | seen | (est[0] if est else set())
     for (x, y) in truth:
         ax2.add_patch(plt.Rectangle((x - .5, y - .5), 1, 1, color=OBJECT_RGB, alpha=.6))
+    if est:
+        draw_estimate(ax2, est[0])
     for (x, y) in seen:
         ax2.add_patch(plt.Rectangle((x - .5, y - .5), 1, 1, fill=False, ec="blue", lw=2))
-    for i, (sx, sy) in enumerate(result.coordinator.segments_now(), 1):
-        ax2.plot(sx, sy, "x", color="navy")   # where the touched cells are now
+    for i, (sx, sy) in enumerate(segs, 1):
+        ax2.plot(sx, sy, "x", color="navy")
         ax2.annotate(str(i), (sx, sy), xytext=(3, 3), textcoords="offset points", fontsize=8)
     ax2.set_xlim(min(p[0] for p in pts) - 1.5, max(p[0] for p in pts) + 1.5)
     ax2.set_ylim(min(p[1] for p in pts) - 1.5, max(p[1] for p in pts) + 1.5)
     ax2.set_aspect("equal")
-    ax2.set_xlabel("x (patches)")
+    ax2.set_xlabel("x (patches, the object's frame at the start)")
     ax2.set_ylabel("y (patches)")
-    ax2.set_title(f"perceived (blue outline, x = touched, numbered in order) vs true "
-                  f"(yellow): {label} {result.shape_iou():.2f}", fontsize=9)
+    title = (f"hull (blue outline, x = touched, numbered in order) vs true "
+             f"(yellow): {label} {result.shape_iou():.2f}")
+    if est:
+        inter, union = perception.iou_counts(est[0], truth)
+        title += (f"\nestimate (green, hatched): IoU {inter / union if union else 0:.2f}, "
+                  f"{verdict_text(est[1], est[2])}")
+    ax2.set_title(title, fontsize=9)

@@ -93,6 +93,9 @@ class Scenario:
     # objects empty: the flat object/objectX/objectY/objectWeight keys
     objects: tuple = ()          # objects.Piece, the target among them
     obstacles: tuple = ()        # objects.Piece
+    # [[library]]: shapes the host's recogniser knows by name beside the
+    # built-ins (objects.Piece: name and cells; perception/shapes.py)
+    library: tuple = ()
     field: str = "static"        # beacons stay where lit (thesis), or move with holders
     # robots in the carried object's way step aside (NetLogo's turtles
     # overlap, so nothing stopped the thesis's object), or block it ("block")

@@ -44,11 +44,12 @@ SOA_COLD_COMPILE = "1.5-3.5 min"
 REFERENCE_CHUNK = 4
 # what a sweep's on_event(kind, text) hears about a background compile
 EVENTS = ("compiling", "compiled", "failed", "left")
-# every behaviour's columns (the world's and the host contract's); then each
-# behaviour's own declared measures (columns())
-MEASURES = ["ticks", "n_touches", "delivered", "touches"]
+# every behaviour's columns (the world's, the host contract's and the host
+# perception's estimate, empty for a behaviour that perceives no object);
+# then each behaviour's own declared measures (columns())
+MEASURES = ["ticks", "n_touches", "delivered", "touches", "estimate_iou", "recognised", "p"]
 # the drawn pieces (tables, not values) go in one text column, `pieces`
-PIECE_KEYS = ("objects", "obstacles")
+PIECE_KEYS = ("objects", "obstacles", "library")
 # [[breeds]] tables go in one text column too, `breeds`; the world's keys,
 # then each behaviour's own parameters (columns())
 SCENARIO_KEYS = [k for k in Scenario.__dataclass_fields__
@@ -743,6 +744,10 @@ def make_row(pt: Point, sc: Scenario, seed: int, s: dict, until: str,
     row["delivered"] = s["delivered"]
     # the holders' rounded positions (the host contract; the thesis's shape.txt)
     row["touches"] = _cells(s["touches"])
+    # the host's shape estimate and verdict (perception/tracker.py end_fields;
+    # empty for a behaviour that perceives no object)
+    for name in ("estimate_iou", "recognised", "p"):
+        row[name] = s.get(name)
     # the measures the behaviour declares (spec.MEASURES), and only those:
     # a dispersion sweep has no power or shape_iou column
     from firmware_logic import registry

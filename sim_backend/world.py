@@ -72,6 +72,9 @@ class World:
         else:                            # object = "none": an empty arena
             self.obj_x = self.obj_y = 0
             self.object_cells = []
+        # where the carried object stood at the start: its own frame, the one
+        # the host stores touches in (measures.shape_iou, perception)
+        self.start_cells = list(self.object_cells)
         # the other objects (decoys) and the obstacles never move
         self.decoy_cells = [c for p in pieces[1:] for c in p.placed(*p.at)]
         self.obstacle_cells = [c for p in sc.obstacles for c in p.placed(*p.at)]

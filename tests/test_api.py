@@ -11,6 +11,7 @@ import pytest
 
 import touchswarm
 from bridge.cli import main
+from perception.tracker import attach
 from sim_backend import sweep as sw
 from sim_backend.engine import Engine
 from sim_backend.errors import ScenarioError
@@ -22,8 +23,13 @@ DOC = Path(__file__).resolve().parent.parent / "docs" / "python-api.md"
 def test_run_gives_the_engines_summary_ticks_and_world():
     r = touchswarm.run("ant", seed=5, fieldDefiance=3)
     sc = load("ant").replace(fieldDefiance=3)
-    ref = Engine(sc, 5).run()
+    e = Engine(sc, 5)
+    attach(e)                      # `touchswarm run` watches with a Perceiver too
+    ref = e.run()
     assert r.summary == ref.summary()
+    # the shape estimate and the verdict, as summary.json has them (issue 30)
+    for k in ("estimate_iou", "recognised", "p"):
+        assert k in r.summary and r.ticks.iloc[-1][k] in (r.summary[k], r.summary[k] or "")
     assert r.scenario == sc and r.seed == 5
     assert list(r.ticks["tick"]) == list(range(1, ref.ticks + 1))
     last = r.ticks.iloc[-1]

@@ -23,7 +23,7 @@ DOCS = Path(__file__).resolve().parents[1] / "docs" / "outputs.md"
 THESIS_COLUMNS = ["tick", "n_search", "n_field", "n_grasp", "n_hold", "n_carry", "n_halt",
                   "power", "shape_iou", "touches", "msgs_up", "msgs_down", "bad_frames",
                   "holders", "home_d2",
-                  "estimate_iou", "recognised_p"]   # `touchswarm run` adds perception's
+                  "estimate_iou", "recognised", "p"]   # `touchswarm run` adds perception's
 
 
 def run_cli(*argv: str) -> tuple[int, str, str]:

@@ -115,7 +115,7 @@ def test_world_png_of_the_thesis_has_its_perceived_vs_true_panel():
     from sim_backend.render import figure
     result = Engine(scenario.load("default").replace(maxTicks=300), 1).run()
     text = figure_texts(figure(result))
-    assert "perceived (blue outline" in text and "shape IoU" in text
+    assert "hull (blue outline" in text and "shape IoU" in text
 
 
 def test_the_gif_titles_are_the_tick_and_the_reporters(tmp_path):

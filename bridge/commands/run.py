@@ -296,10 +296,11 @@ def _perception_lines(s: dict) -> list[str]:
     """The new estimate and recognition (perception), when measured."""
     if "estimate_iou" not in s:
         return []
+    by = " (the decision's verdict)" if s.get("verdict_by") == "decision" else ""
     if s["recognised"] is None:
-        rec = f"no shape above p {s['recognition_threshold']:g} (best p {s['recognised_p']:.3f})"
+        rec = f"no shape above p {s['recognition_threshold']:g} (best p {s['p']:.3f}){by}"
     else:
-        rec = f"{s['recognised']} p {s['recognised_p']:.3f}, from tick {s['recognised_tick']}"
+        rec = f"{s['recognised']} p {s['p']:.3f}, from tick {s['recognised_tick']}{by}"
     return [f"  estimate IoU     {s['estimate_iou']:.3f} ({s['estimate_kind']}; hull minus "
             f"free {s['hull_free_iou']:.3f})",
             f"  recognised       {rec}"]

@@ -52,6 +52,7 @@ class Recognising:
         self.confidence = 1000     # permille
         self.decider = None        # the host's callable(cells, free) -> permille
         self.target_tick = -1      # first tick a cluster passed as the target
+        self.target_cells = []     # that cluster's evidence cells then
         self.target_p = -1         # its confidence then, permille
         self.releases = 0          # RELEASE commands (live and replayed)
         self.refused = {}          # world cell of a released touch -> 1
@@ -150,6 +151,9 @@ class Recognising:
         if self.target_tick < 0:
             self.target_tick = tick
             self.target_p = best_p
+            # the evidence the verdict was given on: the host's perception
+            # reports this verdict as the run's (perception/tracker.py)
+            self.target_cells = self._evidence(best)
         power = 0
         for t in best:
             power += t.power

@@ -1,0 +1,64 @@
+"""The host's shape estimate drawn where the run is shown (issue 30 §3):
+world.png's shape panel and the animation draw the estimate (filled green
+cells) beside the hull and the truth, with its verdict. Small runs in the
+reference engine."""
+
+from __future__ import annotations
+
+import numpy as np
+from PIL import Image
+
+from perception.tracker import attach
+from sim_backend import animate, observe, render, scenario
+from sim_backend.engine import Engine
+
+SC = scenario.load("default").replace(maxTicks=90)
+
+
+def _run(watch: bool, anim: bool = False):
+    e = Engine(SC, 2)
+    p = attach(e) if watch else None
+    trails = observe.Trails(e)
+    a = animate.Animation(e, trails, every=45) if anim else None
+    r = e.run()
+    return e, p, trails, a, r
+
+
+def test_world_png_draws_the_estimate_beside_hull_and_truth(tmp_path):
+    _, p, trails, _, r = _run(True)
+    est, name, prob = p.estimate_view()
+    assert est and name == "bar"
+    fig = render.figure(r, trails)
+    panel = fig.axes[1]                          # the shape panel (then the colour bar)
+    green = [q for q in panel.patches
+             if tuple(np.round(q.get_facecolor()[:3], 3)) == render.ESTIMATE_RGB]
+    assert len(green) == len(est)
+    corners = {(round(q.get_x() + .5), round(q.get_y() + .5)) for q in green}
+    assert corners == est
+    assert "estimate (green" in panel.get_title() and "bar, p 1.00" in panel.get_title()
+    out = render.render(r, tmp_path / "world.png", trails)
+    assert Image.open(out).size[0] > 0
+    # a run nothing watched has no estimate to draw, and the panel says nothing of one
+    _, _, trails2, _, r2 = _run(False)
+    assert "estimate" not in render.figure(r2, trails2).axes[1].get_title()
+
+
+def test_the_animation_draws_the_estimate_where_the_object_is(tmp_path):
+    e, p, _, anim, _ = _run(True, anim=True)
+    last = anim.frames[-1]
+    est, name, prob = p.estimate_view()
+    dx, dy = render.displacement(e.world)
+    assert set(last.estimate) == {(x + dx, y + dy) for x, y in est}
+    assert last.verdict == f"{name}, p {prob:.2f}"
+    assert "estimate: bar" in anim.title(last)
+    assert anim.frames[0].estimate == ()          # before the first touch
+    gif = tmp_path / "run.gif"
+    anim.write(gif)
+    _, _, _, plain, _ = _run(False, anim=True)
+    gif2 = tmp_path / "plain.gif"
+    plain.write(gif2)
+    with Image.open(gif) as a, Image.open(gif2) as b:
+        a.seek(a.n_frames - 1)
+        b.seek(b.n_frames - 1)
+        diff = np.asarray(a.convert("RGB"), dtype=int) - np.asarray(b.convert("RGB"), dtype=int)
+    assert np.abs(diff).sum() > 0                # the estimate is in the picture
