@@ -467,6 +467,11 @@ def executor_from_spec(spec: str | None):
         return None, (lambda: None)
     if spec.startswith("dask://") or spec.startswith("tcp://"):
         address, host, port = _dask_address(spec)
+        try:
+            from distributed import Client
+        except ImportError:
+            raise ValueError(f"executor {spec}: needs dask.distributed, which is not "
+                             "installed; pip install 'touchswarm[dask]'") from None
         # dask's own connect retries for 30 s and then raises from deep inside;
         # a plain TCP connect tells a wrong address at once
         try:
@@ -476,7 +481,6 @@ def executor_from_spec(spec: str | None):
             raise ValueError(f"executor {spec}: no dask scheduler reachable at {host}:{port} "
                              f"({err.strerror or err}); start one with `dask scheduler` or "
                              "use --executor processes") from None
-        from distributed import Client
         try:
             client = Client(address, timeout=CONNECT_TIMEOUT_S)
         except (OSError, TimeoutError) as err:
