@@ -329,6 +329,24 @@ class _Engines:
             self.poll("the next sweep starts in it")
 
 
+# runs per chunk when the caller gives none: at most this many, and as many
+# chunks as the executor has workers (CHUNKS_PER_WORKER each), so that both
+# cores of a 2-core machine help from ~20 runs up (a warm soa engine builds
+# in milliseconds: bench/engine_build.py, docs/performance.md)
+MAX_CHUNK = 256
+CHUNKS_PER_WORKER = 2
+
+
+def chunk_runs(runs: int, executor: Executor | None = None) -> int:
+    """The runs per chunk of a sweep of `runs` runs on `executor` (None:
+    this process, one chunk of up to MAX_CHUNK)."""
+    workers = 1 if executor is None else (getattr(executor, "_max_workers", None)
+                                          or os.cpu_count() or 1)
+    if workers == 1:
+        return max(1, min(MAX_CHUNK, runs))
+    return max(1, min(MAX_CHUNK, -(-runs // (workers * CHUNKS_PER_WORKER))))
+
+
 def run_chunk(jobs: Sequence[tuple[dict, dict, int]], engine: str = "auto",
               until: str = "delivered", progress_queue: Any = None, chunk_id: int = 0,
               report: Callable[[int], None] | None = None) -> list[dict]:
@@ -418,6 +436,11 @@ def executor_from_spec(spec: str | None):
         return None, (lambda: None)
     if spec.startswith("dask://") or spec.startswith("tcp://"):
         address, host, port = _dask_address(spec)
+        try:
+            from distributed import Client
+        except ImportError:
+            raise ValueError(f"executor {spec}: needs dask.distributed, which is not "
+                             "installed; pip install 'touchswarm[dask]'") from None
         # dask's own connect retries for 30 s and then raises from deep inside;
         # a plain TCP connect tells a wrong address at once
         try:
@@ -427,7 +450,6 @@ def executor_from_spec(spec: str | None):
             raise ValueError(f"executor {spec}: no dask scheduler reachable at {host}:{port} "
                              f"({err.strerror or err}); start one with `dask scheduler` or "
                              "use --executor processes") from None
-        from distributed import Client
         try:
             client = Client(address, timeout=CONNECT_TIMEOUT_S)
         except (OSError, TimeoutError) as err:
@@ -468,7 +490,7 @@ def _cell(v: Any) -> str:
 
 def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None = None,
           engine: str = "auto", executor: Executor | None = None, until: str = "delivered",
-          chunk_size: int = 256, overrides: dict[str, Any] | None = None,
+          chunk_size: int | None = None, overrides: dict[str, Any] | None = None,
           progress: Callable[[int], None] | None = None,
           on_rows: Callable[[list[dict]], None] | None = None,
           done: Sequence[dict] = (),
@@ -488,6 +510,7 @@ def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None =
       engine. A dask executor's workers do not share this machine's cache:
       auto compiles first there, as soa does.
     executor: any concurrent.futures.Executor (None: run in this process).
+    chunk_size: runs per chunk (one call of run_chunk); None: chunk_runs().
     overrides: scenario keys applied to every point (e.g. maxTicks).
     progress: called with the number of runs just finished, as each run
       finishes (from process and thread pools too; other executors, e.g.
@@ -509,7 +532,8 @@ def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None =
     """
     if engine not in ENGINES:
         raise ValueError(f"engine: expected one of {ENGINES}, got {engine!r}")
-    if isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or chunk_size < 1:
+    if chunk_size is not None and (isinstance(chunk_size, bool)
+                                   or not isinstance(chunk_size, int) or chunk_size < 1):
         raise ValueError(f"chunk_size: expected at least 1 run per chunk, got {chunk_size!r}")
     seeds = list(seeds)
     check_seeds(seeds)
@@ -553,6 +577,8 @@ def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None =
         plan = _Engines(engine)
         if jobs and compile_first:
             warm(scenarios, engine, on_compile)
+    if chunk_size is None:
+        chunk_size = chunk_runs(len(jobs), executor)
     rows: list[dict | None] = [None] * len(jobs)
     todo = list(range(len(jobs)))          # job indices not yet given to a chunk
 

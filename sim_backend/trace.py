@@ -37,7 +37,7 @@ def trace_format(path: Path) -> str:
             import pyarrow  # noqa: F401
         except ImportError:
             raise OutputFormatError(f"{path}: .parquet needs pyarrow, which is not installed; "
-                                    "use .csv or pip install pyarrow") from None
+                                    "use .csv or pip install 'touchswarm[parquet]'") from None
     return fmt
 
 

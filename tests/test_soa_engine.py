@@ -89,6 +89,35 @@ def test_a_construct_outside_the_transform_is_named_with_its_line(tmp_path, cons
         SoaEngine([(sc, 1)])
 
 
+def test_a_warm_build_reads_the_kept_text_and_an_edit_transforms_again(tmp_path, monkeypatch):
+    """The generated text is kept (in this process and in the cache folder)
+    with the files and names it was read from: a second build skips the
+    transform, an edit of the behaviour's source or a patched function it
+    calls does not (nothing here compiles: the engines are only built)."""
+    from sim_backend import kernel
+    from sim_backend.batch import soa
+    monkeypatch.setenv("TOUCHSWARM_CACHE", str(tmp_path / "cache"))
+    anchor = "    def step(self, hal):\n"
+    sc, robot = _mutated_aggregate(tmp_path, "aggregate_kept", anchor, "")
+    n = soa.transforms
+    first = SoaEngine([(sc, 1)])
+    assert soa.transforms == n + 1
+    assert list((tmp_path / "cache" / "soa" / "generated").glob("*.json"))
+    monkeypatch.setattr(soa, "_GENERATED", {})     # as a new process: from the folder
+    again = SoaEngine([(sc, 2)])
+    assert soa.transforms == n + 1 and again.compiled.digest == first.compiled.digest
+    robot.write_text(robot.read_text().replace(anchor, anchor + "        self.ticks += 0\n"))
+    edited = SoaEngine([(sc, 1)])
+    assert soa.transforms == n + 2 and edited.compiled.digest != first.compiled.digest
+    assert "+= 0" in edited.compiled.path.read_text()
+
+    def counted(*a):                       # a patched kernel rule is read again, not kept
+        return 0
+    monkeypatch.setattr(kernel, "_chain", counted)
+    with pytest.raises(CompileError, match=r"\.counted"):
+        SoaEngine([(sc, 1)])
+
+
 WARM = """
 import json, sys
 from sim_backend import sweep
@@ -100,7 +129,8 @@ cold = sweep.warm([sc, sc], "auto", lambda b, d: told.append([b, str(d)]))
 e = SoaEngine([(sc, 1)])
 e.step()
 s = e._tick_fn.stats
-print(json.dumps({"hits": sum(s.cache_hits.values()), "misses": sum(s.cache_misses.values()),
+from sim_backend.batch import soa
+print(json.dumps({"transforms": soa.transforms, "hits": sum(s.cache_hits.values()), "misses": sum(s.cache_misses.values()),
                   "xs": e.rb[0].tolist(), "dir": str(e.compiled.path.parent),
                   "cold": cold, "told": told}))
 """
@@ -119,6 +149,7 @@ def test_a_second_process_loads_the_compiled_step_from_the_disk_cache():
         runs.append(json.loads(out.stdout.strip().splitlines()[-1]))
     first, warm = runs
     assert warm["hits"] >= 1 and warm["misses"] == 0
+    assert warm["transforms"] == 0          # the generated text is kept too
     assert warm["xs"] == first["xs"]
     # sweep.warm compiles before the runs, and says so only when the cache lacks the step
     if first["misses"]:

@@ -1,5 +1,5 @@
 """`touchswarm view`: the JSON and control endpoints, the page in headless
-chromium (Debian's, through selenium; `make venv` installs it), the host
+chromium (Debian's, through selenium; `make chromium` installs it), the host
 journal as a source, and the command's one-line errors.
 
 Nothing here waits on time: the simulated run is stepped through the control
@@ -173,7 +173,7 @@ def test_host_journals_poses_and_bad_frames(tmp_path):
 @pytest.fixture(scope="module")
 def browser():
     from bridge.view.browser import headless
-    # no skip: a missing chromium fails here, saying `make venv` installs it.
+    # no skip: a missing chromium fails here, saying `make chromium` installs it.
     # One chromium for the whole file: each test loads its own page.
     driver = headless(1500, 1300)
     yield driver
@@ -294,7 +294,7 @@ def test_bad_options(capsys, argv, words):
 def test_a_missing_browser_fails_saying_how_to_install_it(monkeypatch, tmp_path):
     from bridge.view import browser
     monkeypatch.setattr(browser, "CHROMIUM", tmp_path / "chromium")
-    with pytest.raises(browser.BrowserMissing, match="`make venv` installs Debian's chromium"):
+    with pytest.raises(browser.BrowserMissing, match="`make chromium` installs Debian's chromium"):
         browser.headless()
 
 

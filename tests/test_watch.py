@@ -160,6 +160,7 @@ def test_parquet_without_pyarrow_is_refused_before_the_run(tmp_path, monkeypatch
     rc, out, err = run_cli("run", "--trace", str(tmp_path / "t.parquet"))
     assert rc == 2 and out == ""
     assert ".parquet needs pyarrow" in err and len(err.strip().splitlines()) == 1
+    assert "touchswarm[parquet]" in err
     assert list(tmp_path.iterdir()) == []
 
 

@@ -89,7 +89,7 @@ def register(sub) -> None:
                    help="processes[:N] (default: one per core), inline, or dask://HOST:PORT "
                         "(a dask.distributed scheduler)")
     p.add_argument("--chunk", type=int, default=None, metavar="RUNS",
-                   help="runs per task, at least 1 (default: spread evenly, at most 512)")
+                   help="runs per task, at least 1 (default: two tasks per worker, at most 256 runs)")
     p.add_argument("--out", type=path_arg, default=None, metavar="DIR",
                    help="directory (created if missing) for sweep.csv and the PNGs "
                         "(default: sweep-out)")
@@ -314,8 +314,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         raise UsageError(str(err)) from None
     total = len(points) * len(seeds)
     todo = total - len(done)
-    workers = getattr(executor, "_max_workers", 2) or 2
-    chunk = chunk_arg or max(16, min(512, -(-todo // (workers * 6))))
+    chunk = chunk_arg          # None: the sweep sizes them (sweep.chunk_runs)
     appender = sweep.CsvAppender(csv_path, names, resume=args.resume)
     if done:
         print(f"resuming: {len(done)} of {total} runs already in {csv_path}", file=sys.stderr)

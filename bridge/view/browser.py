@@ -1,6 +1,7 @@
 """Headless chromium through selenium, from Debian's packages only.
 
-`make venv` installs chromium and chromium-driver with apt-get; selenium is
+`make chromium` (and so `make test`) installs chromium and chromium-driver with
+apt-get; selenium is
 pointed at both explicitly, and SE_OFFLINE keeps Selenium Manager from ever
 downloading a browser or a driver.
 """
@@ -25,8 +26,9 @@ def headless(width: int = 1200, height: int = 900) -> Any:
     """A headless chromium WebDriver; the caller quits it."""
     missing = [str(p) for p in (CHROMIUM, CHROMEDRIVER) if not p.exists()]
     if missing:
-        raise BrowserMissing(f"{' and '.join(missing)} missing: `make venv` installs Debian's "
-                             "chromium and chromium-driver")
+        raise BrowserMissing(f"{' and '.join(missing)} missing: `make chromium` installs Debian's "
+                             "chromium and chromium-driver (as root; else sudo apt-get "
+                             "install chromium chromium-driver)")
     os.environ["SE_OFFLINE"] = "true"
     try:
         from selenium import webdriver

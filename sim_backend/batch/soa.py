@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import hashlib
 import importlib.util
+import json
 import logging
 import os
 import shutil
@@ -204,12 +205,50 @@ def _compile_batch(robots: list[Any], body: Any) -> tuple[T.Layout, Compiled, di
     body_cls = type(body)
     entries = {"tick_all": (B.tick_all, (T.ListOf(rcls), T.Inst(body_cls), T.SCALAR)),
                "states_of": (B.states_of, (T.ListOf(rcls), T.SCALAR))}
-    source, names = T.generate(layout, entries)
+    source, names = generated(layout, entries)
     key = hashlib.sha256(source.encode()).hexdigest()
     comp = _LOADED.get(key)
     if comp is None:
         comp = _LOADED[key] = Compiled(source, names)
     return layout, comp, T.state_arrays(layout)
+
+
+# generated texts by `T.shape`, with the inputs they were read from
+_GENERATED: dict[str, tuple[str, dict[str, str], T.Inputs]] = {}
+transforms = 0                   # how many times this process ran the transform
+
+
+def generated(layout: T.Layout, entries: dict[str, tuple[Any, tuple]]
+              ) -> tuple[str, dict[str, str]]:
+    """T.generate(layout, entries), or the same text kept from an earlier
+    build (this process's, or any process's in the cache folder's
+    `generated/`) while every file and name it was read from is unchanged
+    (T.Inputs): a warm engine skips the transform."""
+    global transforms
+    key = T.shape(layout, entries)
+    kept = _GENERATED.get(key)
+    index = cache_root() / "generated" / f"{key}.json"
+    if kept is None:
+        try:
+            d = json.loads(index.read_text())
+            kept = d["source"], d["names"], T.Inputs.from_json(d)
+        except (OSError, ValueError, KeyError, TypeError, IndexError):
+            kept = None
+    if kept is not None and kept[2].hold():
+        _GENERATED[key] = kept
+        return kept[0], dict(kept[1])
+    transforms += 1
+    source, names, inputs = T.generate_with_inputs(layout, entries)
+    if inputs is not None:
+        _GENERATED[key] = (source, names, inputs)
+        try:
+            index.parent.mkdir(parents=True, exist_ok=True)
+            tmp = index.with_suffix(f".{os.getpid()}.tmp")
+            tmp.write_text(json.dumps({"source": source, "names": names, **inputs.to_json()}))
+            os.replace(tmp, index)            # atomic: another process may read it
+        except OSError as err:                # a read-only cache still runs
+            log.debug("soa: could not keep the generated text at %s (%s)", index, err)
+    return source, names
 
 
 def _nfields() -> list[int]:

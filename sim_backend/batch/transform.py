@@ -33,8 +33,10 @@ from __future__ import annotations
 
 import ast
 import builtins
+import hashlib
 import inspect
 import os
+import sys
 import textwrap
 from dataclasses import dataclass, field
 from types import FunctionType, ModuleType
@@ -220,6 +222,9 @@ class Program:
         self.globals: dict[str, str] = {}        # generated global name -> literal source
         self.queue: list[Spec] = []
         self.names_used: set[str] = set()
+        # what the generated text was read from (the cache's check, `Inputs`)
+        self.files: set[str] = set()
+        self.lookups: dict[tuple[str, ...], str] = {}
 
     def entry(self, fn: FunctionType, kinds: tuple) -> str:
         name = self.spec(fn, None, kinds)
@@ -344,6 +349,7 @@ class FunctionTransform:
         self.fn = spec.fn
         self.glob = spec.fn.__globals__
         src = textwrap.dedent(inspect.getsource(spec.fn))
+        program.files.add(spec.fn.__code__.co_filename)
         tree = ast.parse(src)
         node = tree.body[0]
         if not isinstance(node, ast.FunctionDef):
@@ -560,7 +566,9 @@ class FunctionTransform:
                 kind = SCALAR
             return ast.Name(e.id, ast.Load()), kind
         if e.id in self.glob:
-            return self.resolved(self.glob[e.id], self.fn.__module__, e.id, e)
+            value = self.glob[e.id]
+            self.p.lookups[("g", self.glob.get("__name__", ""), e.id)] = describe(value)
+            return self.resolved(value, self.fn.__module__, e.id, e)
         if e.id in BUILTINS:
             return ast.Name(e.id, ast.Load()), SCALAR
         raise _err(self.fn, e, f"the name {e.id!r}")
@@ -584,7 +592,9 @@ class FunctionTransform:
             mod = kind[1]
             if not hasattr(mod, e.attr):
                 raise _err(self.fn, e, f"{mod.__name__}.{e.attr} (no such name)")
-            return self.resolved(getattr(mod, e.attr), mod.__name__, e.attr, e)
+            value = getattr(mod, e.attr)
+            self.p.lookups[("g", mod.__name__, e.attr)] = describe(value)
+            return self.resolved(value, mod.__name__, e.attr, e)
         if isinstance(kind, Inst):
             cl = self.p.layout.classes.get(kind.cls)
             f = cl.fields.get(e.attr) if cl is not None else None
@@ -617,6 +627,8 @@ class FunctionTransform:
             base, kind = self.expr(f.value)
             if isinstance(kind, Inst):
                 meth = inspect.getattr_static(kind.cls, f.attr, None)
+                self.p.lookups[("m", kind.cls.__module__, kind.cls.__qualname__, f.attr)] = \
+                    describe(meth)
                 if not isinstance(meth, FunctionType):
                     raise _err(self.fn, e, f"{kind.cls.__name__}.{f.attr} (not a plain method)")
                 return self.invoke(meth, kind.cls, [(base, kind)], e), SCALAR
@@ -694,8 +706,17 @@ class FunctionTransform:
         return ast.Call(ast.Name(target, ast.Load()), args, [])
 
 
-def generate(layout: Layout, entries: dict[str, tuple[FunctionType, tuple]]) -> tuple[str, dict]:
+def generate(layout: Layout, entries: dict[str, tuple[FunctionType, tuple]]
+             ) -> tuple[str, dict]:
     """The generated module's source and, per entry name, its function's name."""
+    source, names, _ = generate_with_inputs(layout, entries)
+    return source, names
+
+
+def generate_with_inputs(layout: Layout, entries: dict[str, tuple[FunctionType, tuple]]
+                         ) -> tuple[str, dict, "Inputs | None"]:
+    """generate(), and the inputs the text was made from (None when one of
+    them cannot be checked again in another process: then it is not cached)."""
     for cl in layout.classes.values():
         cl.finish()
     p = Program(layout)
@@ -732,7 +753,135 @@ def generate(layout: Layout, entries: dict[str, tuple[FunctionType, tuple]]) -> 
                                f"    return {name}({', '.join(f'borrow({a})' for a in args)})",
                                ""]
     lines += entries_called
-    return "\n".join(lines) + "\n", {k: "E_" + v for k, v in names.items()}
+    return ("\n".join(lines) + "\n", {k: "E_" + v for k, v in names.items()},
+            Inputs.of(p))
+
+
+# -- what a generated text was made from: the key and check of its cache -------------------
+#
+# sim_backend/batch/soa.py keeps each generated text with the inputs it was
+# read from, so a warm engine skips the transform (about 0.2 s of CPU, most of
+# an engine's build). Its key is `shape(layout, entries)`: this file's own
+# text, the Python version, the inlining switch, and the classes, fields and
+# entry points (what the live instances say). Under one key, a text is used
+# again only while `Inputs.hold()`: every source file a transformed function
+# was read from (and every file defining a class of the layout) has the same
+# content, and every global name and method the transform resolved still
+# resolves to the same thing (a module constant, a function, a class). An
+# edit anywhere the transform read is a new text.
+
+_MISSING = object()
+
+
+def describe(value: Any) -> str:
+    """What a resolved name holds, as the cache compares it across processes."""
+    if value is _MISSING:
+        return "missing"
+    if isinstance(value, ModuleType):
+        return f"module {value.__name__}"
+    if isinstance(value, FunctionType):
+        c = value.__code__
+        return f"function {value.__module__}.{value.__qualname__} {c.co_filename}:" \
+               f"{c.co_firstlineno}"
+    if isinstance(value, type):
+        return f"class {value.__module__}.{value.__qualname__}"
+    if isinstance(value, CONSTANT_TYPES) or (isinstance(value, tuple) and all(
+            isinstance(v, CONSTANT_TYPES) for v in value)):
+        return f"{type(value).__name__} {value!r}"
+    return f"object {type(value).__qualname__} {id(value)}"     # never equal in another process
+
+
+def _file_hash(path: str) -> str | None:
+    try:
+        with open(path, "rb") as f:
+            return hashlib.sha256(f.read()).hexdigest()
+    except OSError:
+        return None
+
+
+_SELF: list[str] = []
+
+
+def _kind_key(kind: Any) -> str:
+    if isinstance(kind, tuple) and kind[:1] == ("row",):
+        return "row"                 # a list's length is the arrays', not the text's
+    if isinstance(kind, (ListOf, Inst)):
+        return f"{type(kind).__name__} {kind.cls.__module__}.{kind.cls.__qualname__}"
+    if isinstance(kind, tuple):
+        return repr(tuple(f"{k.__module__}.{k.__qualname__}" if isinstance(k, type) else k
+                          for k in kind))
+    return repr(kind)
+
+
+def shape(layout: Layout, entries: dict[str, tuple[FunctionType, tuple]]) -> str:
+    """The cache key of the text `generate(layout, entries)` makes, given that
+    its `Inputs` hold: everything it depends on that is not a source file."""
+    if not _SELF:
+        _SELF.append(_file_hash(__file__) or "")
+    parts = [_SELF[0], CODEGEN, repr(sys.version_info[:2]),
+             os.environ.get("TOUCHSWARM_SOA_INLINE", "1")]
+    for cl in layout.classes.values():
+        cl.finish()
+        parts.append(f"{cl.cls.__module__}.{cl.cls.__qualname__} as {cl.name}: " + ", ".join(
+            f"{a}={_kind_key(k)}" for a, k in cl.fields.items()) + f" views {cl.views}")
+    for key, (fn, kinds) in entries.items():
+        parts.append(f"{key}: {fn.__module__}.{fn.__qualname__}"
+                     f"({', '.join(_kind_key(k) for k in kinds)})")
+    return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:24]
+
+
+@dataclass
+class Inputs:
+    """The files (path -> sha256 of its content) and resolved names (key ->
+    `describe` of its value) a generated text was read from."""
+    files: dict[str, str]
+    lookups: dict[tuple[str, ...], str]
+
+    @classmethod
+    def of(cls, p: Program) -> "Inputs | None":
+        files = set(p.files)
+        for cl in p.layout.classes.values():
+            for c in cl.cls.__mro__:
+                if c.__module__ != "builtins":
+                    try:
+                        files.add(inspect.getfile(c))
+                    except (TypeError, OSError):
+                        return None
+        hashes = {}
+        for f in sorted(files):
+            h = _file_hash(f)
+            if h is None:
+                return None                      # not a file (exec'd, zipped): not cached
+            hashes[f] = h
+        if any("<locals>" in k[2] for k in p.lookups if k[0] == "m"):
+            return None
+        return cls(hashes, dict(p.lookups))
+
+    def hold(self) -> bool:
+        """Whether every input is still what the text was made from."""
+        for key, was in self.lookups.items():
+            mod = sys.modules.get(key[1])
+            if mod is None:
+                return False
+            if key[0] == "g":
+                now = describe(getattr(mod, key[2], _MISSING))
+            else:
+                owner: Any = mod
+                for part in key[2].split("."):
+                    owner = getattr(owner, part, _MISSING)
+                if not isinstance(owner, type):
+                    return False
+                now = describe(inspect.getattr_static(owner, key[3], None))
+            if now != was:
+                return False
+        return all(_file_hash(f) == h for f, h in self.files.items())
+
+    def to_json(self) -> dict:
+        return {"files": self.files, "lookups": [list(k) + [v] for k, v in self.lookups.items()]}
+
+    @classmethod
+    def from_json(cls, d: dict) -> "Inputs":
+        return cls(dict(d["files"]), {tuple(x[:-1]): x[-1] for x in d["lookups"]})
 
 
 def state_arrays(layout: Layout) -> dict[str, Any]:
