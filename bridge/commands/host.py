@@ -29,8 +29,10 @@ def register(sub) -> None:
                                    "before acknowledging it, and command the transport home. "
                                    "Runs until the object is home, it is stopped, or the "
                                    "robots fall silent (--node-timeout, --bus-timeout). Exit "
-                                   "status: 0 delivered, 1 not delivered or a link or journal "
-                                   "failure, 2 a usage error, 3 gave up on silent robots.")
+                                   "status: 0 delivered (the host's own model has the object home), "
+                                   "1 any other outcome (halted, stalled, stopped: the summary's "
+                                   "outcome and reason) or a link or journal failure, 2 a usage "
+                                   "error, 3 gave up on silent robots (outcome stalled).")
     p.add_argument("--bus", metavar="URL",
                    help="socketcan://can0, slcan:///dev/ttyACM0?bitrate=500000 (or the "
                         "robots' slcan-pty face: slcan:///tmp/adapter?settle_ms=0) or "
@@ -157,8 +159,8 @@ def cmd_host(args: argparse.Namespace) -> int:
             except LinkError as err:
                 if not host.coord.done():
                     raise
-                event(f"bus closed after delivery ({err})")
-                summary = host.summary()
+                event(f"bus closed after the mission ended ({err})")
+                summary = host.finish()
         finally:
             if journal is not None:
                 journal.close()
@@ -171,7 +173,7 @@ def cmd_host(args: argparse.Namespace) -> int:
         print(f"touchswarm: host gave up at tick {summary['ticks']}: {summary['gave_up']} "
               f"({limit})", file=sys.stderr, flush=True)
         return EXIT_SILENT
-    return 0 if summary["delivered"] else 1
+    return 0 if summary["outcome"] == "delivered" else 1
 
 
 def host_line(behaviour, summary: dict) -> str:
@@ -182,6 +184,8 @@ def host_line(behaviour, summary: dict) -> str:
     w = words.of(behaviour)
     key, yes, no = w.result
     load = f", {w.load[0]} {summary[w.load[0]]:g}" if w.load and w.load[0] in summary else ""
-    return (f"{yes if summary[key] else no}: {len(summary['touches'])} touches{load}, "
+    done = summary[key] and summary["outcome"] == "delivered"
+    why = "" if done else f" ({summary['outcome']}: {summary['reason']})"
+    return (f"{yes if done else no}{why}: {len(summary['touches'])} touches{load}, "
             f"leader {summary['leader']}, ended at tick {summary['home_tick']}, "
             f"{summary['duplicates']} duplicates ignored, bad frames {summary['bad_frames']}")

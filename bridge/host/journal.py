@@ -226,6 +226,26 @@ class Journal:
                       "UNION ALL SELECT MAX(tick) FROM decisions)")[0][0]
         return int(v) if v is not None else 0
 
+    def set_outcome(self, outcome: str, reason: str, tick: int) -> None:
+        """How the host's run ended (HostProcess.outcome), durable like a
+        decision: the meta key `outcome`, {"outcome", "reason", "tick"}."""
+        self._sql("INSERT OR REPLACE INTO meta VALUES ('outcome', ?)",
+                  (json.dumps({"outcome": outcome, "reason": reason, "tick": tick},
+                              sort_keys=True),))
+
+    def outcome(self) -> dict[str, Any] | None:
+        """The last run's outcome (set_outcome); None when no run ended."""
+        rows = self._sql("SELECT value FROM meta WHERE key = 'outcome'")
+        if not rows:
+            return None
+        try:
+            v = json.loads(rows[0][0])
+        except ValueError:
+            v = None
+        if not isinstance(v, dict) or not isinstance(v.get("outcome"), str):
+            raise JournalError(f"journal {self.path}: unreadable outcome {rows[0][0][:60]!r}")
+        return v
+
     def set_live(self, view: dict[str, Any]) -> None:
         """Overwrite the live view (what `touchswarm view` shows besides the
         reports). Not durable, unlike everything else here: its own connection

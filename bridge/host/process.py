@@ -36,7 +36,7 @@ from bridge.links.codec import UNANNOUNCED, BadFrames, Message
 from bridge.host.journal import Journal, Report
 from bridge.transport import RobotTransport
 from firmware_logic import messages as msg
-from firmware_logic import registry
+from firmware_logic import registry, roster
 from sim_backend.scenario import CHOICES
 
 # A coordinator is any behaviour's that meets the host contract
@@ -123,6 +123,7 @@ class HostProcess:
         self.messages = 0
         self.gave_up: str | None = None       # why run() stopped waiting for the robots
         self.gave_up_on: str | None = None    # which limit: "bus" or "node"
+        self.stopped: str | None = None       # why run() was stopped from outside
         self.poses: dict[int, list[int]] = {}     # node -> [tick, *its last HEARTBEAT fields]
         self.live_written: dict[str, Any] | None = None
 
@@ -255,10 +256,12 @@ class HostProcess:
         heard: dict[int, float] = {}      # node -> when last heard (this run)
         while not self.done():
             if stop is not None and stop():
+                self.stopped = "stopped by a signal"
                 self._event(f"tick {self.tick}: stopped")
                 break
             if max_ticks is not None and self.tick - start_tick >= max_ticks:
-                self._event(f"tick {self.tick}: gave up after {max_ticks} ticks")
+                self.stopped = f"gave up after {max_ticks} ticks"
+                self._event(f"tick {self.tick}: {self.stopped}")
                 break
             now = clock()
             while now < next_tick:
@@ -278,9 +281,15 @@ class HostProcess:
             next_tick += self.tick_seconds
             if next_tick < now:
                 next_tick = now + self.tick_seconds
+        return self.finish()
+
+    def finish(self) -> dict[str, Any]:
+        """The summary, its outcome journalled (with the last live view)."""
+        summary = self.summary()
         if self.journal is not None:
             self._journal_live()         # the last poses, between two LIVE_EVERY ticks
-        return self.summary()
+            self.journal.set_outcome(summary["outcome"], summary["reason"], self.tick)
+        return summary
 
     def _silence(self, now: float, started: float, heard: dict[int, float],
                  heard_bus: float, node_timeout: float | None,
@@ -306,8 +315,22 @@ class HostProcess:
             out[k] = out.get(k, 0) + v
         return out
 
+    def outcome(self) -> tuple[str, str]:
+        """(outcome, reason): how the mission ended by the host's own model
+        (firmware_logic/roster.py OUTCOMES): delivered only with a delivered
+        tick; else halted / stalled by the coordinator, stalled when the
+        robots fell silent, stopped when run() was stopped or ran out of ticks."""
+        c = self.coord
+        ended = c.ended()
+        if ended:
+            return ended, c.status()
+        if self.gave_up is not None:
+            return roster.STALLED, self.gave_up
+        return roster.STOPPED, (self.stopped or "not ended") + "; " + c.status()
+
     def summary(self) -> dict[str, Any]:
         c = self.coord
+        outcome, reason = self.outcome()
         return {
             "ticks": self.tick,
             "nodes": sorted(c.nodes),
@@ -319,7 +342,11 @@ class HostProcess:
             "rejected": dict(c.rejected),
             "converged_tick": c.converged_tick if c.converged_tick >= 0 else None,
             "home_tick": c.delivered_tick if c.delivered_tick >= 0 else None,
-            "delivered": c.done(),
+            # true only for a delivered tick of the host's own model; a mission
+            # the coordinator stopped (stalled, no path home) is not delivered
+            "delivered": outcome == roster.DELIVERED,
+            "outcome": outcome,
+            "reason": reason,
             "transport_step": getattr(c, "step", 0),
             "gave_up": self.gave_up,
             "gave_up_on": self.gave_up_on,
