@@ -33,7 +33,7 @@ from typing import Any, Callable
 
 from bridge.errors import UsageError
 from bridge.links.codec import UNANNOUNCED, BadFrames, Message
-from bridge.host.journal import Journal, Report
+from bridge.host.journal import Journal, JournalError, Report
 from bridge.transport import RobotTransport
 from firmware_logic import messages as msg
 from firmware_logic import registry, roster
@@ -146,7 +146,15 @@ class HostProcess:
                 c.replay(e.node, e.kind, e.fields, e.tick)
                 replayed += 1
             else:
-                unknown = c.adopt(e.state.get("coordinator", {}))
+                state = e.state.get("coordinator", {})
+                for k, v in state.items():
+                    have = getattr(c, k, None)
+                    if have is not None and isinstance(have, tuple) != isinstance(v, list):
+                        raise JournalError(
+                            f"journal {journal.path}: the snapshot at tick {e.tick} sets "
+                            f"{k} to {v!r}, not {'a list' if isinstance(have, tuple) else 'an integer'}"
+                            f"; not a journal this host can resume")
+                unknown = c.adopt(state)
                 if unknown:
                     log.warning("journal snapshot: ignoring unknown coordinator "
                                 "attributes %s", ", ".join(sorted(unknown)))
