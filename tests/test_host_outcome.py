@@ -21,11 +21,12 @@ from tests.test_journal import FakeTransport
 class Ticks:
     """A clock that moves one host tick per read (no wall time)."""
 
-    def __init__(self) -> None:
+    def __init__(self, step: float = 0.01) -> None:
         self.t = 0.0
+        self.step = step
 
     def __call__(self) -> float:
-        self.t += 0.01
+        self.t += self.step
         return self.t
 
 

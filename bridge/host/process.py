@@ -17,10 +17,13 @@ snapshot at its place, so a host killed at any moment goes on where it
 stopped: it never makes a decision twice (a transport step, the start of the
 transport after delivery).
 
-Liveness: `run` gives up when no robot has been heard for `bus_timeout`
-seconds, or one of the coordinator's `carriers()` (the thesis: a robot whose
+Liveness: `run` gives up when no known robot (one that said HELLO) has been
+heard for `bus_timeout` seconds, or one of the coordinator's `carriers()` (the thesis: a robot whose
 touch was accepted, the object cannot move without it) for `node_timeout`
-seconds; the summary then says why.
+seconds; the summary then says why. A command the link does not take within
+its write timeout (LinkTimeoutError: an adapter that stopped reading) is
+counted (`write_timeouts`) and the run goes on, so these limits and a signal
+still end it.
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ from typing import Any, Callable
 
 from bridge.errors import UsageError
 from bridge.links.codec import UNANNOUNCED, BadFrames, Message
+from bridge.links.errors import LinkTimeoutError
 from bridge.host.journal import Journal, JournalError, Report
 from bridge.transport import RobotTransport
 from firmware_logic import messages as msg
@@ -124,6 +128,7 @@ class HostProcess:
         self.gave_up: str | None = None       # why run() stopped waiting for the robots
         self.gave_up_on: str | None = None    # which limit: "bus" or "node"
         self.stopped: str | None = None       # why run() was stopped from outside
+        self.write_timeouts = 0               # ticks whose commands the link did not take
         self.poses: dict[int, list[int]] = {}     # node -> [tick, *its last HEARTBEAT fields]
         self.live_written: dict[str, Any] | None = None
 
@@ -231,8 +236,20 @@ class HostProcess:
         if decided is not None and self.journal is not None:
             # before anything is sent: a command on the bus is always journalled
             self.journal.add_decision(self.tick, decided[0], self.snapshot())
-        for node, kind, fields in out:
-            self.transport.send(node, kind, fields)
+        try:
+            for node, kind, fields in out:
+                self.transport.send(node, kind, fields)
+        except LinkTimeoutError as err:
+            # the link took no frame within its write timeout (an adapter
+            # that stopped reading): this tick's other commands are dropped
+            # too (a robot retransmits for its ACK, the coordinator resends a
+            # step, HALT repeats); the liveness limits and a signal still end
+            # the run
+            self.write_timeouts += 1
+            if self.write_timeouts == 1:
+                log.warning("tick %d: %s; the tick's commands are dropped, further "
+                            "write timeouts are only counted", self.tick, err)
+                self._event(f"tick {self.tick}: write timed out ({err})")
         if decided is not None and decided[1]:
             self._event(f"tick {self.tick}: {decided[1]}")
         if self.journal is not None and self.tick % LIVE_EVERY == 0:
@@ -276,10 +293,14 @@ class HostProcess:
                 got = self.transport.poll(next_tick - now)
                 now = clock()
                 if got:
-                    heard_bus = now
-                    for m in got:
-                        heard[m[0]] = now
                     self.handle(got)
+                    # liveness: only frames from known nodes (announced with
+                    # HELLO); noise or a forger's unknown ids keep nothing alive
+                    known = self.coord.nodes
+                    for m in got:
+                        if m[0] in known:
+                            heard_bus = now
+                            heard[m[0]] = now
             self.step()
             why = self._silence(now, started, heard, heard_bus, node_timeout, bus_timeout)
             if why is not None:
@@ -360,4 +381,5 @@ class HostProcess:
             "gave_up_on": self.gave_up_on,
             "messages": self.messages,
             "bad_frames": self.bad_frames(),
+            "write_timeouts": self.write_timeouts,
         }
