@@ -449,13 +449,12 @@ def load(spec: str | Path | None = None) -> Scenario:
         text = (resources.files("sim_backend") / "scenarios" / f"{spec}.toml").read_text()
         source = f"scenario {spec!r}"
     elif path.suffix == ".toml" or path.exists():
+        from sim_backend.textfile import TextFileError, read_small_text
         try:
-            text = path.read_text()
-        except OSError as err:
-            raise ScenarioError(f"scenario file {str(path)!r}: {err.strerror}") from err
-        except UnicodeDecodeError as err:
-            raise ScenarioError(f"scenario file {str(path)!r}: not UTF-8 text (byte "
-                                f"{err.start}); expected a TOML file") from err
+            text = read_small_text(path)
+        except TextFileError as err:
+            raise ScenarioError(f"scenario file {str(path)!r}: {err}; expected a TOML "
+                                f"file") from None
         source = str(path)
     else:
         raise ScenarioError(f"scenario: {str(spec)!r} is neither a built-in "

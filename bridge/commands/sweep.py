@@ -119,6 +119,12 @@ def _seeds(text: str) -> list[int]:
             if a > b:
                 raise UsageError(f"--seeds {text}: the range is empty (A > B); "
                                  f"expected A-B with A <= B, e.g. {b}-{a}")
+            if a < SEED_MIN or b > SEED_MAX:
+                # before the list is built: 1-99999999999999 must not exhaust memory
+                bad = a if a < SEED_MIN else SEED_MAX + 1
+                raise UsageError(f"--seeds {text}: seed {bad} is outside {SEED_MIN}..{SEED_MAX} "
+                                 f"(the firmware RNG takes seeds modulo 1000003; at most "
+                                 f"{SEED_MAX - SEED_MIN + 1:,} seeds)")
             seeds = list(range(a, b + 1))
         else:
             n = int(text)

@@ -65,9 +65,10 @@ def _sidecar(path: Path) -> dict:
     if not mp.is_file():
         raise UsageError(f"replay: {path} has no sidecar {mp.name} (scenario and seed); "
                          f"{redo}")
+    from sim_backend.textfile import TextFileError, read_small_text
     try:
-        meta = json.loads(mp.read_text())
-    except (OSError, UnicodeDecodeError) as err:
+        meta = json.loads(read_small_text(mp))
+    except TextFileError as err:
         raise UsageError(f"replay: sidecar {mp} cannot be read ({err}); {redo}") from None
     except json.JSONDecodeError as err:
         raise UsageError(f"replay: sidecar {mp} is not valid JSON ({err}); {redo}") from None
