@@ -463,4 +463,11 @@ def load(spec: str | Path | None = None) -> Scenario:
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
         raise ScenarioError(f"{source}: not valid TOML: {err}") from err
+    if "behaviour" in raw:
+        # a file names, never imports: a folder only when the user trusted it
+        from firmware_logic import registry
+        try:
+            registry.named_by_data(raw["behaviour"], f"scenario file {source!r}")
+        except registry.BehaviourError as err:
+            raise ScenarioError(str(err)) from None
     return validate(raw, source)

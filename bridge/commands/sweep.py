@@ -103,6 +103,8 @@ def register(sub) -> None:
                         "seconds (and every 5%% of the runs) (default: %(default)s)")
     p.add_argument("--no-plots", action="store_true", help="write the CSV only")
     p.add_argument("--json", action="store_true", help="print a JSON summary line")
+    from bridge.commands.run import add_trust_arg
+    add_trust_arg(p)
     p.set_defaults(func=cmd_sweep)
 
 
@@ -213,6 +215,8 @@ def _compiling(behaviour: str, folder: Path) -> None:
 def cmd_sweep(args: argparse.Namespace) -> int:
     from sim_backend import scenario, sweep
 
+    from bridge.commands.run import trust_from_args
+    trust_from_args(args)
     cfg = _settings(args)
     base = scenario.load(cfg["scenario"])
     overrides = dict(cfg["set"])

@@ -136,6 +136,12 @@ def behaviour(meta: dict, path: Path, folder: Path | None = None) -> registry.Be
                              f"{' (' + repr(name) + ')' if name else ''} is not a folder "
                              f"relative to {Path(path).parent or '.'} nor installed; point at its "
                              f"folder with `touchswarm replay --behaviour DIR {path}`")
+        # the sidecar names, never imports: a folder only when the user
+        # trusted it (--trust-behaviour DIR), or --behaviour DIR above
+        try:
+            registry.named_by_data(ref, where)
+        except registry.BehaviourError as err:
+            raise UsageError(str(err)) from None
     try:
         return registry.load(ref).activate()
     except registry.BehaviourError as err:
