@@ -75,3 +75,25 @@ def test_a_journal_naming_a_folder_runs_no_code_in_view(tmp_path, capsys) -> Non
     assert main(["view", "--journal", str(jp), "--screenshot", str(tmp_path / "v.png")]) == 2
     one_line(capsys, "its meta names the behaviour folder")
     assert not mark.exists()
+
+
+def test_the_commands_in_docs_security_run_as_written(tmp_path, capsys, monkeypatch) -> None:
+    """docs/security.md's examples, with its placeholders made real."""
+    import re
+    import shlex
+    from pathlib import Path
+    folder, mark = evil(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    Path("s.toml").write_text(f'behaviour = "{folder}"\n')
+    assert main(["run", *RUN, "--behaviour", str(folder), "--link", "can", "--record",
+                 "r.blf", "--json"]) in (0, 1)
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "security.md").read_text()
+    block = re.search(r"```sh\n(.*?)```", doc, re.S).group(1)
+    lines = [ln.split("#")[0].strip() for ln in block.splitlines() if ln.strip()]
+    assert len(lines) == 4
+    for line in lines:
+        argv = shlex.split(line.replace("/path/evil", str(folder)))[1:]
+        trusted = "--trust-behaviour" in argv
+        rc = main(argv)
+        assert rc in ((0, 1) if trusted else (2,)), (line, capsys.readouterr().err)
+    capsys.readouterr()
