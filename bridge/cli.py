@@ -177,6 +177,8 @@ def _main(argv: list[str]) -> int:
         return EXIT_USAGE
     from firmware_logic.registry import BehaviourError
     from sim_backend.errors import SimError
+    from firmware_logic import registry
+    registry.untrust_all()     # only this command line's folders are trusted
     try:
         return args.func(args)
     except (UsageError, SimError, BehaviourError) as err:

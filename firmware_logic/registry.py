@@ -247,6 +247,40 @@ def _import_folder(path: Path) -> ModuleType:
     return mod
 
 
+# behaviour folders the user vouched for on the command line (`--behaviour
+# DIR`, `--trust-behaviour DIR`): the only folders a data file may name
+_TRUSTED: set[Path] = set()
+
+
+def trust(ref: str | Path | None) -> None:
+    """The user named `ref` on the command line: a folder it names may be
+    named by data files too (named_by_data)."""
+    if ref is not None and str(ref) not in names():
+        _TRUSTED.add(Path(ref).resolve())
+
+
+def untrust_all() -> None:
+    """Forget every trusted folder (a new command in the same process)."""
+    _TRUSTED.clear()
+
+
+def named_by_data(ref: Any, source: str) -> None:
+    """A data file (a scenario TOML, a recording's sidecar, a journal's
+    meta) names behaviour `ref`: fine for an installed behaviour; a folder is
+    code that would run on import, so only one the user trusted on the
+    command line (`trust`). BehaviourError (one line) otherwise, before any
+    import."""
+    if ref is None or str(ref) in names():
+        return
+    if Path(str(ref)).resolve() in _TRUSTED:
+        return
+    raise BehaviourError(
+        f"{source} names the behaviour folder {str(ref)!r}; a data file may name only an "
+        f"installed behaviour ({', '.join(sorted(names()))}), since a folder's code runs "
+        f"when it is loaded (docs/security.md, \"Trusted input\"); if you trust it, pass "
+        f"--behaviour {ref} or --trust-behaviour {ref}")
+
+
 def load(ref: str | Path | None = None) -> Behaviour:
     """A behaviour by registered name (default "thesis") or folder path."""
     ref = "thesis" if ref is None else ref

@@ -33,6 +33,14 @@ from firmware_logic import messages as msg
 
 SUBSET_SETUP = ("Roster",)    # host side: may allocate
 
+# How a mission ended (the host's summary `outcome`, docs/outputs.md "Host
+# outcomes"); only DELIVERED is a success (exit status 0).
+DELIVERED = "delivered"  # the coordinator's own model has the object home: a delivered tick
+HALTED = "halted"        # the coordinator ended it without delivering and halted the swarm
+STALLED = "stalled"      # no progress: the object stuck (the thesis's stall) or the robots silent
+STOPPED = "stopped"      # stopped from outside before it ended: a signal, a tick limit
+OUTCOMES = (DELIVERED, HALTED, STALLED, STOPPED)
+
 BAD_HELLO = "hello out of range"
 CHANGED_HELLO = "hello changes model or power"
 
@@ -166,6 +174,14 @@ class Roster:
 
     def done(self):
         return self.delivered_tick >= 0
+
+    def ended(self):
+        """How the coordinator ended the mission: DELIVERED (a delivered
+        tick), HALTED (done without one; a behaviour may say STALLED), or ""
+        while it goes on."""
+        if self.delivered_tick >= 0:
+            return DELIVERED
+        return HALTED if self.done() else ""
 
     def carriers(self):
         return []

@@ -149,6 +149,10 @@ class RunResult:
             "delivered": self.delivered,
             "activation": self.scenario.activation,
             **{k: f() for k, f in self.offered().items() if k in declared},
+            # how it ended (firmware_logic/roster.py OUTCOMES): a behaviour's
+            # measures may say it in its own words (the thesis: no path home,
+            # transporting, ...); `delivered` is true only with a delivered tick
+            "outcome": run_outcome(c),
             **(c.measures() if hasattr(c, "measures") else {}),
             # [[breeds]] (issue 12 §3): each touch's breed, in touch order
             **({"touch_breeds": [self.scenario.breed_name(t.node)
@@ -176,6 +180,14 @@ class RunResult:
         if hook is None or not self.scenario.pieces():
             return {}
         return hook(set(self.scenario.pieces()[0].placed(self.world.obj_x, self.world.obj_y)))
+
+
+def run_outcome(c: Any) -> str:
+    """The roster's outcome of an in-process run's coordinator: delivered,
+    halted or stalled when it ended the mission, else stopped (maxTicks)."""
+    from firmware_logic.roster import STOPPED
+    ended = getattr(c, "ended", None)
+    return (ended() if ended is not None else "") or STOPPED
 
 
 class Engine:

@@ -464,13 +464,12 @@ def load(spec: str | Path | None = None) -> Scenario:
         text = (resources.files("sim_backend") / "scenarios" / f"{spec}.toml").read_text()
         source = f"scenario {spec!r}"
     elif path.suffix == ".toml" or path.exists():
+        from sim_backend.textfile import TextFileError, read_small_text
         try:
-            text = path.read_text()
-        except OSError as err:
-            raise ScenarioError(f"scenario file {str(path)!r}: {err.strerror}") from err
-        except UnicodeDecodeError as err:
-            raise ScenarioError(f"scenario file {str(path)!r}: not UTF-8 text (byte "
-                                f"{err.start}); expected a TOML file") from err
+            text = read_small_text(path)
+        except TextFileError as err:
+            raise ScenarioError(f"scenario file {str(path)!r}: {err}; expected a TOML "
+                                f"file") from None
         source = str(path)
     else:
         raise ScenarioError(f"scenario: {str(spec)!r} is neither a built-in "
@@ -479,4 +478,11 @@ def load(spec: str | Path | None = None) -> Scenario:
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
         raise ScenarioError(f"{source}: not valid TOML: {err}") from err
+    if "behaviour" in raw:
+        # a file names, never imports: a folder only when the user trusted it
+        from firmware_logic import registry
+        try:
+            registry.named_by_data(raw["behaviour"], f"scenario file {source!r}")
+        except registry.BehaviourError as err:
+            raise ScenarioError(str(err)) from None
     return validate(raw, source)

@@ -67,7 +67,7 @@ ROWS = [
     (["run", "--scenario", "{T}/badtype.toml"], "agents: expected int"),
     (["run", "--scenario", "{T}/bin.toml"], "bin.toml': not UTF-8 text"),
     (["run", "--scenario", "{T}/missing.toml"], "missing.toml': No such file"),
-    (["run", "--scenario", "{T}"], "Is a directory"),
+    (["run", "--scenario", "{T}"], "a directory, not a regular file"),
     (["run", "--scenario", ""], "scenario: an empty name"),
     (["run", "--behaviour", "nope"], "behaviour 'nope': not an installed behaviour"),
     (["run", "--behaviour", "{T}"], "has no __init__.py"),

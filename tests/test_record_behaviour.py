@@ -37,11 +37,16 @@ def test_a_folder_is_recorded_relative_and_replays_after_a_move(tmp_path, capsys
     assert str(tmp_path) not in f.with_name("r.blf.json").read_text()
     capsys.readouterr()
 
-    # the project moved as a whole (recording and behaviour together): replays
+    # the project moved as a whole (recording and behaviour together): replays,
+    # once the user trusts the folder the sidecar names (a data file names,
+    # never imports: docs/security.md)
     moved = tmp_path / "elsewhere"
     shutil.move(str(work), str(moved))
     monkeypatch.chdir(tmp_path)
-    assert main(["replay", str(moved / "runs" / "r.blf"), "--json"]) == 0
+    assert main(["replay", str(moved / "runs" / "r.blf")]) == 2
+    assert "names the behaviour folder" in capsys.readouterr().err
+    assert main(["replay", str(moved / "runs" / "r.blf"), "--trust-behaviour",
+                 str(moved / "mine"), "--json"]) == 0
     assert json.loads(capsys.readouterr().out.strip().splitlines()[-1])["divergences"] == 0
 
     # only the recording moved: named in one line, then found with --behaviour

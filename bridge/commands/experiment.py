@@ -46,13 +46,11 @@ KEYS: dict[str, tuple[tuple[type, ...], str]] = {
 
 def load(path: Path) -> dict[str, Any]:
     """The settings of an experiment file, checked and with paths resolved."""
+    from sim_backend.textfile import TextFileError, read_small_text
     try:
-        raw = tomllib.loads(path.read_text())
-    except OSError as err:
-        raise UsageError(f"experiment {path}: {err.strerror or err}") from None
-    except UnicodeDecodeError as err:
-        raise UsageError(f"experiment {path}: not UTF-8 text (byte {err.start}); "
-                         "expected a TOML file") from None
+        raw = tomllib.loads(read_small_text(path))
+    except TextFileError as err:
+        raise UsageError(f"experiment {path}: {err}; expected a TOML file") from None
     except tomllib.TOMLDecodeError as err:
         raise UsageError(f"experiment {path}: not valid TOML: {err}") from None
     for key, value in raw.items():

@@ -29,8 +29,10 @@ def register(sub) -> None:
                                    "before acknowledging it, and command the transport home. "
                                    "Runs until the object is home, it is stopped, or the "
                                    "robots fall silent (--node-timeout, --bus-timeout). Exit "
-                                   "status: 0 delivered, 1 not delivered or a link or journal "
-                                   "failure, 2 a usage error, 3 gave up on silent robots.")
+                                   "status: 0 delivered (the host's own model has the object home), "
+                                   "1 any other outcome (halted, stalled, stopped: the summary's "
+                                   "outcome and reason) or a link or journal failure, 2 a usage "
+                                   "error, 3 gave up on silent robots (outcome stalled).")
     p.add_argument("--bus", metavar="URL",
                    help="socketcan://can0, slcan:///dev/ttyACM0?bitrate=500000 (or the "
                         "robots' slcan-pty face: slcan:///tmp/adapter?settle_ms=0) or "
@@ -97,8 +99,8 @@ def cmd_host(args: argparse.Namespace) -> int:
             sealer = Sealer(keys, FreshnessStore(fv_path))
         except SecocError as err:
             raise UsageError(f"--keys: {err}") from None
-    if args.resume is not None and not args.resume.exists():
-        raise UsageError(f"--resume {args.resume}: no such journal")
+    if args.resume is not None:
+        check_resumable(args.resume)
     out = sys.stderr if args.json else sys.stdout
 
     def event(text: str) -> None:
@@ -113,6 +115,8 @@ def cmd_host(args: argparse.Namespace) -> int:
     try:
         if journal_path:
             journal = Journal(journal_path)
+            if args.resume is None:
+                refuse_appending(journal)
             if args.resume is not None and args.resume.resolve() != Path(journal_path).resolve():
                 with Journal(args.resume) as old:     # carry it over, then go on there
                     journal.copy_from(old)
@@ -121,6 +125,25 @@ def cmd_host(args: argparse.Namespace) -> int:
         if journal is not None:
             journal.close()
         raise UsageError(str(err)) from err
+    # the host and its resumed state before any port opens: a journal it
+    # cannot resume is one line, and no robot has been told anything
+    try:
+        # the host knows the arena, not the object: the robots may be real
+        host = HostProcess(None, sc.weight_centi, sc.homeX, sc.homeY, journal=journal,
+                           tick_seconds=args.tick_ms / 1000.0, on_event=event,
+                           world_size=sc.worldSize, behaviour=sc.behaviour,
+                           scenario=sc)
+        if args.resume is not None:
+            assert journal is not None      # journal_path defaults to the resumed one
+            host.resume(journal)
+    except JournalError as err:
+        if journal is not None:
+            journal.close()
+        raise UsageError(f"--resume {args.resume}: {err}") from None
+    except BaseException:
+        if journal is not None:
+            journal.close()
+        raise
     parts: list = []
     try:
         if args.bus:
@@ -137,17 +160,7 @@ def cmd_host(args: argparse.Namespace) -> int:
     where = " + ".join(([args.bus] if args.bus else []) + args.serial)
     with (parts[0] if len(parts) == 1 else FanIn(parts)) as transport:
         try:
-            # the host knows the arena, not the object: the robots may be real
-            host = HostProcess(transport, sc.weight_centi, sc.homeX, sc.homeY, journal=journal,
-                               tick_seconds=args.tick_ms / 1000.0, on_event=event,
-                               world_size=sc.worldSize, behaviour=sc.behaviour,
-                               scenario=sc)
-            if args.resume is not None:
-                assert journal is not None      # journal_path defaults to the resumed one
-                try:
-                    host.resume(journal)
-                except JournalError as err:
-                    raise UsageError(f"--resume {args.resume}: {err}") from err
+            host.transport = transport
             event(f"host on {where}: object weight {sc.weight_centi}, home "
                   f"({sc.homeX},{sc.homeY}), journal {journal_path or 'none'}")
             try:
@@ -157,8 +170,8 @@ def cmd_host(args: argparse.Namespace) -> int:
             except LinkError as err:
                 if not host.coord.done():
                     raise
-                event(f"bus closed after delivery ({err})")
-                summary = host.summary()
+                event(f"bus closed after the mission ended ({err})")
+                summary = host.finish()
         finally:
             if journal is not None:
                 journal.close()
@@ -171,7 +184,39 @@ def cmd_host(args: argparse.Namespace) -> int:
         print(f"touchswarm: host gave up at tick {summary['ticks']}: {summary['gave_up']} "
               f"({limit})", file=sys.stderr, flush=True)
         return EXIT_SILENT
-    return 0 if summary["delivered"] else 1
+    return 0 if summary["outcome"] == "delivered" else 1
+
+
+def check_resumable(path: Path) -> None:
+    """--resume names a journal: not missing, not empty, a host journal of
+    this layout (one line each, before any port opens)."""
+    from bridge.errors import UsageError
+    from bridge.host.journal import Journal, JournalError
+    if not path.exists():
+        raise UsageError(f"--resume {path}: no such journal")
+    if not path.is_file():
+        raise UsageError(f"--resume {path}: not a regular file")
+    if path.stat().st_size == 0:
+        raise UsageError(f"--resume {path}: an empty file (0 bytes), not a journal; start a "
+                         f"new mission with --journal {path} instead")
+    try:
+        Journal(path, readonly=True).close()
+    except JournalError as err:
+        raise UsageError(f"--resume {path}: {err}") from None
+
+
+def refuse_appending(journal) -> None:
+    """A journal that holds a mission is only ever resumed: a second mission
+    appended to it would be mixed with the first on a later resume."""
+    from bridge.host.journal import JournalError
+    held = journal.held()
+    if not held:
+        return
+    end = journal.outcome()
+    state = (f"its mission ended {end['outcome']} at tick {end['tick']}" if end
+             else "a mission in progress")
+    raise JournalError(f"--journal {journal.path} already holds {held} entries ({state}); "
+                       f"go on with it with --resume {journal.path}, or give a new --journal")
 
 
 def host_line(behaviour, summary: dict) -> str:
@@ -182,6 +227,8 @@ def host_line(behaviour, summary: dict) -> str:
     w = words.of(behaviour)
     key, yes, no = w.result
     load = f", {w.load[0]} {summary[w.load[0]]:g}" if w.load and w.load[0] in summary else ""
-    return (f"{yes if summary[key] else no}: {len(summary['touches'])} touches{load}, "
+    done = summary[key] and summary["outcome"] == "delivered"
+    why = "" if done else f" ({summary['outcome']}: {summary['reason']})"
+    return (f"{yes if done else no}{why}: {len(summary['touches'])} touches{load}, "
             f"leader {summary['leader']}, ended at tick {summary['home_tick']}, "
             f"{summary['duplicates']} duplicates ignored, bad frames {summary['bad_frames']}")

@@ -76,6 +76,11 @@ def check_out_file(path: Path, option: str, example: str) -> None:
         raise UsageError(f"{option} {path}: {parent} is a file, not a directory; expected "
                          "a file path in an existing directory")
     _probe_dir(parent, option)
+    if path.exists() and not path.is_file():
+        # /dev/full takes an open and fails every write, a FIFO blocks: only
+        # after the work would the write fail
+        raise UsageError(f"{option} {path}: not a regular file (a device, FIFO or "
+                         f"socket); expected a file path such as {parent / example}")
     if path.exists() and not os.access(path, os.W_OK):
         raise UsageError(f"{option} {path}: the existing file is read-only; expected a "
                          "writable file")

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+
+from bridge.commands.run import add_trust_arg
 import json
 import sys
 from pathlib import Path
@@ -35,12 +37,15 @@ def register(sub) -> None:
     p.add_argument("--behaviour", type=path_arg, default=None, metavar="DIR",
                    help="the folder of the behaviour the recording ran, when it is not "
                         "where the sidecar says (a path relative to the recording's folder)")
+    add_trust_arg(p)
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     p.set_defaults(func=cmd_replay)
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
+    from bridge.commands.run import trust_from_args
     from bridge.record.replay import replay
+    trust_from_args(args)
     s = replay(args.file, realtime=args.realtime, folder=args.behaviour)
     for w in s["warnings"]:
         print(f"touchswarm: warning: {w}", file=sys.stderr)

@@ -28,6 +28,25 @@ def add_scenario_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--behaviour", metavar="NAME|FOLDER",
                    help="the behaviour to run, by name (`touchswarm behaviours`) or folder; "
                         "the same as --set behaviour=NAME (default: the scenario's, thesis)")
+    add_trust_arg(p)
+
+
+def add_trust_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--trust-behaviour", action="append", default=[], metavar="DIR",
+                   help="a behaviour folder a data file (scenario TOML, recording sidecar, "
+                        "journal) may name; its code runs (repeatable; docs/security.md)")
+
+
+def trust_from_args(args: argparse.Namespace) -> None:
+    """The folders the command line names are trusted; a data file may name
+    no other (firmware_logic/registry.py named_by_data)."""
+    from firmware_logic import registry
+    for ref in getattr(args, "trust_behaviour", None) or ():
+        if not Path(ref).is_dir():
+            raise UsageError(f"--trust-behaviour {ref}: not a folder")
+        registry.trust(ref)
+    if getattr(args, "behaviour", None) is not None:
+        registry.trust(args.behaviour)
 
 
 def parse_value(text: str):
@@ -70,8 +89,12 @@ def scenario_from_args(args: argparse.Namespace):
     """The scenario and seed the command line asks for, both validated."""
     from sim_backend import scenario
     scenario.check_seed(args.seed, "--seed")
-    sc = scenario.load(args.scenario)
     changes = parse_overrides(args.set)
+    trust_from_args(args)
+    if "behaviour" in changes:
+        from firmware_logic import registry
+        registry.trust(str(changes["behaviour"]))
+    sc = scenario.load(args.scenario)
     if args.robots is not None:
         if "agents" in changes and changes["agents"] != args.robots:
             raise UsageError(f"--robots {args.robots} and --set agents={changes['agents']} "

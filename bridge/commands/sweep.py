@@ -107,6 +107,8 @@ def register(sub) -> None:
                         "seconds (and every 5%% of the runs) (default: %(default)s)")
     p.add_argument("--no-plots", action="store_true", help="write the CSV only")
     p.add_argument("--json", action="store_true", help="print a JSON summary line")
+    from bridge.commands.run import add_trust_arg
+    add_trust_arg(p)
     p.set_defaults(func=cmd_sweep)
 
 
@@ -123,6 +125,12 @@ def _seeds(text: str) -> list[int]:
             if a > b:
                 raise UsageError(f"--seeds {text}: the range is empty (A > B); "
                                  f"expected A-B with A <= B, e.g. {b}-{a}")
+            if a < SEED_MIN or b > SEED_MAX:
+                # before the list is built: 1-99999999999999 must not exhaust memory
+                bad = a if a < SEED_MIN else SEED_MAX + 1
+                raise UsageError(f"--seeds {text}: seed {bad} is outside {SEED_MIN}..{SEED_MAX} "
+                                 f"(the firmware RNG takes seeds modulo 1000003; at most "
+                                 f"{SEED_MAX - SEED_MIN + 1:,} seeds)")
             seeds = list(range(a, b + 1))
         else:
             n = int(text)
@@ -225,6 +233,8 @@ def _compiling(behaviour: str, folder: Path) -> None:
 def cmd_sweep(args: argparse.Namespace) -> int:
     from sim_backend import scenario, sweep
 
+    from bridge.commands.run import trust_from_args
+    trust_from_args(args)
     cfg = _settings(args)
     base = scenario.load(cfg["scenario"])
     overrides = dict(cfg["set"])

@@ -29,7 +29,9 @@ refused in one line naming the version.
 
 from __future__ import annotations
 
+import fcntl
 import json
+import os
 import sqlite3
 from pathlib import Path
 from typing import Any, NamedTuple, Union
@@ -75,16 +77,37 @@ class Decision(NamedTuple):
 Entry = Union[Report, Decision]
 
 
+def _ints(v: Any) -> bool:
+    # a snapshot's values: integers (flags as JSON booleans) and lists of them
+    return isinstance(v, int) or (isinstance(v, list) and all(isinstance(x, int) for x in v))
+
+
 class Journal:
     def __init__(self, path: str | Path, readonly: bool = False) -> None:
         """readonly: only read a journal a host may be writing (`touchswarm
-        view`); the file must exist and hold a journal's tables."""
+        view`); the file must exist and hold a journal's tables. A writer
+        holds an exclusive lock on the file (flock, beside SQLite's own
+        locks) until close(): one writer per journal; a second one is
+        refused in one line."""
         self.path = Path(path)
         self.db: sqlite3.Connection | None = None
         self.live_db: sqlite3.Connection | None = None     # set_live's own connection
+        self.lock_fd: int | None = None
         if readonly:
             self._open_readonly()
             return
+        try:
+            self.lock_fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as err:
+            raise JournalError(f"cannot open journal {self.path}: {err.strerror}") from None
+        try:
+            fcntl.flock(self.lock_fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(self.lock_fd)
+            self.lock_fd = None
+            raise JournalError(f"journal {self.path} is in use by another host (one writer "
+                               f"per journal); stop that host first, or give another "
+                               f"--journal") from None
         try:
             self.db = sqlite3.connect(str(self.path), isolation_level=None, timeout=5.0,
                                       check_same_thread=False)
@@ -94,11 +117,9 @@ class Journal:
             self.db.execute("PRAGMA synchronous=FULL")
             tables = {r[0] for r in self.db.execute(
                 "SELECT name FROM sqlite_master WHERE type = 'table'")}
-            if "touches" in tables:
-                raise JournalError(
-                    f"journal {self.path} has layout version 1 (the thesis-only touches "
-                    f"table); this host reads version {VERSION}: finish that mission with "
-                    f"the touchswarm that wrote it, or start a new journal")
+            if "meta" in tables:
+                self._check_version()
+            self._check_layout_1(tables)
             self.db.executescript(SCHEMA)
             self.db.execute("INSERT OR IGNORE INTO meta VALUES ('version', ?)", (str(VERSION),))
         except (sqlite3.Error, JournalError) as err:
@@ -118,10 +139,52 @@ class Journal:
             self.close()
             raise JournalError(f"cannot open journal {self.path}: {err}") from err
         missing = {"reports", "decisions", "meta"} - tables
+        try:
+            self._check_layout_1(tables)
+        except JournalError:
+            self.close()
+            raise
         if missing:
             self.close()
             raise JournalError(f"{self.path} is not a host journal (no {', '.join(sorted(missing))} "
                                f"table{'s' if len(missing) > 1 else ''})")
+        try:
+            self._check_version()
+        except JournalError:
+            self.close()
+            raise
+
+    def _check_layout_1(self, tables: set[str]) -> None:
+        if "touches" in tables:
+            raise JournalError(
+                f"journal {self.path} has layout version 1 (the thesis-only touches "
+                f"table); this host reads version {VERSION}: finish that mission with "
+                f"the touchswarm that wrote it, or start a new journal")
+
+    def _check_version(self) -> None:
+        """A journal of a newer layout is refused in one line (this host
+        would misread it); so is an unreadable version."""
+        assert self.db is not None
+        try:
+            rows = self.db.execute("SELECT value FROM meta WHERE key = 'version'").fetchall()
+        except sqlite3.Error as err:
+            raise JournalError(f"journal {self.path}: {err}") from None
+        if not rows:
+            return
+        try:
+            version = int(rows[0][0])
+        except (TypeError, ValueError):
+            raise JournalError(f"journal {self.path}: layout version {rows[0][0]!r} is not a "
+                               f"number; not a journal this host wrote") from None
+        if version != VERSION:
+            raise JournalError(f"journal {self.path} has layout version {version}; this host "
+                               f"reads version {VERSION}: use the touchswarm that wrote it, or "
+                               f"start a new journal")
+
+    def held(self) -> int:
+        """Reports and decisions journalled (0: a fresh journal)."""
+        return (self._sql("SELECT COUNT(*) FROM reports")[0][0]
+                + self._sql("SELECT COUNT(*) FROM decisions")[0][0])
 
     def _sql(self, sql: str, args: tuple = ()) -> list[tuple]:
         """Run one statement (committed on return: autocommit); every SQLite
@@ -180,10 +243,15 @@ class Journal:
             f"SELECT node, kind, tick, {', '.join(FIELD_COLUMNS)} FROM reports{where} "
             "ORDER BY id")]
 
-    @staticmethod
-    def _report(r: tuple) -> Report:
+    def _report(self, r: tuple) -> Report:
         # a field's column is NULL past the message's last field
-        return Report(r[0], r[1], tuple(v for v in r[3:] if v is not None), r[2])
+        fields = tuple(v for v in r[3:] if v is not None)
+        if not all(type(v) is int for v in (r[0], r[1], r[2]) + fields) \
+                or (r[1] in msg.SCHEMA and len(fields) != len(msg.SCHEMA[r[1]][1])):
+            raise JournalError(f"journal {self.path}: a malformed report (node {r[0]!r}, kind "
+                               f"{r[1]!r}, tick {r[2]!r}, fields {list(fields)!r}); not a "
+                               f"journal this host can resume")
+        return Report(r[0], r[1], fields, r[2])
 
     def nodes(self) -> dict[int, tuple[int, int]]:
         """node -> (model, power) of each journalled HELLO."""
@@ -215,16 +283,57 @@ class Journal:
     def _decision(self, row: tuple) -> Decision:
         try:
             state = json.loads(row[2])
-        except ValueError as err:
+        except (ValueError, TypeError) as err:
             raise JournalError(f"journal {self.path}: unreadable decision at tick "
-                               f"{row[0]}: {err}") from err
+                               f"{row[0]}: {err}") from None
+        why = self._bad_state(state)
+        if why is None and type(row[0]) is not int:
+            why = f"tick {row[0]!r} is not an integer"
+        if why is not None:
+            raise JournalError(f"journal {self.path}: a malformed decision snapshot at tick "
+                               f"{row[0]!r} ({why}); not a journal this host can resume")
         return Decision(int(row[0]), str(row[1]), state)
+
+    @staticmethod
+    def _bad_state(state: Any) -> str | None:
+        """Why a decision's snapshot is not {"host": {...}, "coordinator":
+        {...}} of integers and lists of integers, or None."""
+        if not isinstance(state, dict):
+            return f"{type(state).__name__} instead of an object"
+        for part in ("host", "coordinator"):
+            v = state.get(part, {})
+            if not isinstance(v, dict):
+                return f"{part!r} is {type(v).__name__}, not an object"
+            for k, x in v.items():
+                if not _ints(x):
+                    return f"{part}.{k} = {json.dumps(x)[:40]}, not an integer"
+        return None
 
     def last_tick(self) -> int:
         """The latest host tick anything was journalled at."""
         v = self._sql("SELECT MAX(t) FROM (SELECT MAX(tick) AS t FROM reports "
                       "UNION ALL SELECT MAX(tick) FROM decisions)")[0][0]
         return int(v) if v is not None else 0
+
+    def set_outcome(self, outcome: str, reason: str, tick: int) -> None:
+        """How the host's run ended (HostProcess.outcome), durable like a
+        decision: the meta key `outcome`, {"outcome", "reason", "tick"}."""
+        self._sql("INSERT OR REPLACE INTO meta VALUES ('outcome', ?)",
+                  (json.dumps({"outcome": outcome, "reason": reason, "tick": tick},
+                              sort_keys=True),))
+
+    def outcome(self) -> dict[str, Any] | None:
+        """The last run's outcome (set_outcome); None when no run ended."""
+        rows = self._sql("SELECT value FROM meta WHERE key = 'outcome'")
+        if not rows:
+            return None
+        try:
+            v = json.loads(rows[0][0])
+        except ValueError:
+            v = None
+        if not isinstance(v, dict) or not isinstance(v.get("outcome"), str):
+            raise JournalError(f"journal {self.path}: unreadable outcome {rows[0][0][:60]!r}")
+        return v
 
     def set_live(self, view: dict[str, Any]) -> None:
         """Overwrite the live view (what `touchswarm view` shows besides the
@@ -272,6 +381,9 @@ class Journal:
                 except sqlite3.Error:
                     pass      # nothing uncommitted: every write committed on return
         self.db = self.live_db = None
+        if self.lock_fd is not None:
+            os.close(self.lock_fd)       # after SQLite closed: releases the writer's lock
+            self.lock_fd = None
 
     def __enter__(self) -> "Journal":
         return self

@@ -17,10 +17,13 @@ snapshot at its place, so a host killed at any moment goes on where it
 stopped: it never makes a decision twice (a transport step, the start of the
 transport after delivery).
 
-Liveness: `run` gives up when no robot has been heard for `bus_timeout`
-seconds, or one of the coordinator's `carriers()` (the thesis: a robot whose
+Liveness: `run` gives up when no known robot (one that said HELLO) has been
+heard for `bus_timeout` seconds, or one of the coordinator's `carriers()` (the thesis: a robot whose
 touch was accepted, the object cannot move without it) for `node_timeout`
-seconds; the summary then says why.
+seconds; the summary then says why. A command the link does not take within
+its write timeout (LinkTimeoutError: an adapter that stopped reading) is
+counted (`write_timeouts`) and the run goes on, so these limits and a signal
+still end it.
 """
 
 from __future__ import annotations
@@ -33,10 +36,11 @@ from typing import Any, Callable
 
 from bridge.errors import UsageError
 from bridge.links.codec import UNANNOUNCED, BadFrames, Message
-from bridge.host.journal import Journal, Report
+from bridge.links.errors import LinkTimeoutError
+from bridge.host.journal import Journal, JournalError, Report
 from bridge.transport import RobotTransport
 from firmware_logic import messages as msg
-from firmware_logic import registry
+from firmware_logic import registry, roster
 from sim_backend.scenario import CHOICES
 
 # A coordinator is any behaviour's that meets the host contract
@@ -123,6 +127,8 @@ class HostProcess:
         self.messages = 0
         self.gave_up: str | None = None       # why run() stopped waiting for the robots
         self.gave_up_on: str | None = None    # which limit: "bus" or "node"
+        self.stopped: str | None = None       # why run() was stopped from outside
+        self.write_timeouts = 0               # ticks whose commands the link did not take
         self.poses: dict[int, list[int]] = {}     # node -> [tick, *its last HEARTBEAT fields]
         self.live_written: dict[str, Any] | None = None
 
@@ -146,7 +152,15 @@ class HostProcess:
                 c.replay(e.node, e.kind, e.fields, e.tick)
                 replayed += 1
             else:
-                unknown = c.adopt(e.state.get("coordinator", {}))
+                state = e.state.get("coordinator", {})
+                for k, v in state.items():
+                    have = getattr(c, k, None)
+                    if have is not None and isinstance(have, tuple) != isinstance(v, list):
+                        raise JournalError(
+                            f"journal {journal.path}: the snapshot at tick {e.tick} sets "
+                            f"{k} to {v!r}, not {'a list' if isinstance(have, tuple) else 'an integer'}"
+                            f"; not a journal this host can resume")
+                unknown = c.adopt(state)
                 if unknown:
                     log.warning("journal snapshot: ignoring unknown coordinator "
                                 "attributes %s", ", ".join(sorted(unknown)))
@@ -225,8 +239,20 @@ class HostProcess:
         if decided is not None and self.journal is not None:
             # before anything is sent: a command on the bus is always journalled
             self.journal.add_decision(self.tick, decided[0], self.snapshot())
-        for node, kind, fields in out:
-            self.transport.send(node, kind, fields)
+        try:
+            for node, kind, fields in out:
+                self.transport.send(node, kind, fields)
+        except LinkTimeoutError as err:
+            # the link took no frame within its write timeout (an adapter
+            # that stopped reading): this tick's other commands are dropped
+            # too (a robot retransmits for its ACK, the coordinator resends a
+            # step, HALT repeats); the liveness limits and a signal still end
+            # the run
+            self.write_timeouts += 1
+            if self.write_timeouts == 1:
+                log.warning("tick %d: %s; the tick's commands are dropped, further "
+                            "write timeouts are only counted", self.tick, err)
+                self._event(f"tick {self.tick}: write timed out ({err})")
         if decided is not None and decided[1]:
             self._event(f"tick {self.tick}: {decided[1]}")
         if self.journal is not None and self.tick % LIVE_EVERY == 0:
@@ -258,20 +284,26 @@ class HostProcess:
         heard: dict[int, float] = {}      # node -> when last heard (this run)
         while not self.done():
             if stop is not None and stop():
+                self.stopped = "stopped by a signal"
                 self._event(f"tick {self.tick}: stopped")
                 break
             if max_ticks is not None and self.tick - start_tick >= max_ticks:
-                self._event(f"tick {self.tick}: gave up after {max_ticks} ticks")
+                self.stopped = f"gave up after {max_ticks} ticks"
+                self._event(f"tick {self.tick}: {self.stopped}")
                 break
             now = clock()
             while now < next_tick:
                 got = self.transport.poll(next_tick - now)
                 now = clock()
                 if got:
-                    heard_bus = now
-                    for m in got:
-                        heard[m[0]] = now
                     self.handle(got)
+                    # liveness: only frames from known nodes (announced with
+                    # HELLO); noise or a forger's unknown ids keep nothing alive
+                    known = self.coord.nodes
+                    for m in got:
+                        if m[0] in known:
+                            heard_bus = now
+                            heard[m[0]] = now
             self.step()
             why = self._silence(now, started, heard, heard_bus, node_timeout, bus_timeout)
             if why is not None:
@@ -281,9 +313,15 @@ class HostProcess:
             next_tick += self.tick_seconds
             if next_tick < now:
                 next_tick = now + self.tick_seconds
+        return self.finish()
+
+    def finish(self) -> dict[str, Any]:
+        """The summary, its outcome journalled (with the last live view)."""
+        summary = self.summary()
         if self.journal is not None:
             self._journal_live()         # the last poses, between two LIVE_EVERY ticks
-        return self.summary()
+            self.journal.set_outcome(summary["outcome"], summary["reason"], self.tick)
+        return summary
 
     def _silence(self, now: float, started: float, heard: dict[int, float],
                  heard_bus: float, node_timeout: float | None,
@@ -309,8 +347,22 @@ class HostProcess:
             out[k] = out.get(k, 0) + v
         return out
 
+    def outcome(self) -> tuple[str, str]:
+        """(outcome, reason): how the mission ended by the host's own model
+        (firmware_logic/roster.py OUTCOMES): delivered only with a delivered
+        tick; else halted / stalled by the coordinator, stalled when the
+        robots fell silent, stopped when run() was stopped or ran out of ticks."""
+        c = self.coord
+        ended = c.ended()
+        if ended:
+            return ended, c.status()
+        if self.gave_up is not None:
+            return roster.STALLED, self.gave_up
+        return roster.STOPPED, (self.stopped or "not ended") + "; " + c.status()
+
     def summary(self) -> dict[str, Any]:
         c = self.coord
+        outcome, reason = self.outcome()
         return {
             "ticks": self.tick,
             "nodes": sorted(c.nodes),
@@ -322,10 +374,15 @@ class HostProcess:
             "rejected": dict(c.rejected),
             "converged_tick": c.converged_tick if c.converged_tick >= 0 else None,
             "home_tick": c.delivered_tick if c.delivered_tick >= 0 else None,
-            "delivered": c.done(),
+            # true only for a delivered tick of the host's own model; a mission
+            # the coordinator stopped (stalled, no path home) is not delivered
+            "delivered": outcome == roster.DELIVERED,
+            "outcome": outcome,
+            "reason": reason,
             "transport_step": getattr(c, "step", 0),
             "gave_up": self.gave_up,
             "gave_up_on": self.gave_up_on,
             "messages": self.messages,
             "bad_frames": self.bad_frames(),
+            "write_timeouts": self.write_timeouts,
         }

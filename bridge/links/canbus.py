@@ -12,6 +12,7 @@ from collections import deque
 from typing import Any, Iterator
 
 import can
+import serial
 from can.interfaces.slcan import slcanBus
 
 from bridge.links.errors import (LinkError, LinkInitError, LinkOperationError,
@@ -20,6 +21,9 @@ from bridge.links.errors import (LinkError, LinkInitError, LinkOperationError,
 log = logging.getLogger(__name__)
 
 READ_CHUNK = 65536
+# seconds a write to an SLCAN adapter may block before it fails (a typed
+# LinkTimeoutError): an adapter that stops reading must not hang the host
+WRITE_TIMEOUT = 0.25
 
 
 def _why(err: BaseException) -> str:
@@ -181,6 +185,28 @@ class SlcanBus(slcanBus):
                 self._queue.put_nowait(line.decode("latin-1") + "\r")
                 return super()._recv_internal(0.0)
             # an adapter reply (CR, z, Z, BEL, version): not a frame, read on
+
+    # -- writing -----------------------------------------------------------------
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        """python-can's send, never without a write timeout (it sets the
+        port's write_timeout to `timeout`, None blocking for ever)."""
+        super().send(msg, WRITE_TIMEOUT if timeout is None else timeout)
+
+    def _write(self, string: str) -> None:
+        """One adapter line; CanTimeoutError when the adapter does not take it
+        within the write timeout. No tcdrain (python-can's flush): it waits,
+        with no timeout at all, until the adapter read everything."""
+        port = self.serialPortOrig
+        if port.write_timeout is None:
+            port.write_timeout = WRITE_TIMEOUT
+        try:
+            port.write(string.encode() + self.LINE_TERMINATOR)
+        except serial.SerialTimeoutException as err:
+            raise can.CanTimeoutError(f"the adapter took no frame for {port.write_timeout:g} "
+                                      f"s (it stopped reading)") from err
+        except (serial.SerialException, OSError) as err:
+            raise can.CanOperationError(f"Could not write to serial device: {err}") from err
 
     def flush(self) -> None:
         self._lines.clear()

@@ -71,9 +71,10 @@ def _sidecar(path: Path) -> dict:
     if not mp.is_file():
         raise UsageError(f"replay: {path} has no sidecar {mp.name} (scenario and seed); "
                          f"{redo}")
+    from sim_backend.textfile import TextFileError, read_small_text
     try:
-        meta = json.loads(mp.read_text())
-    except (OSError, UnicodeDecodeError) as err:
+        meta = json.loads(read_small_text(mp))
+    except TextFileError as err:
         raise UsageError(f"replay: sidecar {mp} cannot be read ({err}); {redo}") from None
     except json.JSONDecodeError as err:
         raise UsageError(f"replay: sidecar {mp} is not valid JSON ({err}); {redo}") from None
@@ -141,6 +142,12 @@ def behaviour(meta: dict, path: Path, folder: Path | None = None) -> registry.Be
                              f"{' (' + repr(name) + ')' if name else ''} is not a folder "
                              f"relative to {Path(path).parent or '.'} nor installed; point at its "
                              f"folder with `touchswarm replay --behaviour DIR {path}`")
+        # the sidecar names, never imports: a folder only when the user
+        # trusted it (--trust-behaviour DIR), or --behaviour DIR above
+        try:
+            registry.named_by_data(ref, where)
+        except registry.BehaviourError as err:
+            raise UsageError(str(err)) from None
     try:
         return registry.load(ref).activate()
     except registry.BehaviourError as err:

@@ -394,6 +394,12 @@ class JournalSource:
                 j.last_tick()
         except JournalError as err:
             raise UsageError(f"--journal {err}") from None
+        # the journal names, never imports: a folder only when trusted
+        from firmware_logic import registry
+        try:
+            registry.named_by_data(behaviour, f"--journal {path}: its meta")
+        except registry.BehaviourError as err:
+            raise UsageError(str(err)) from None
         self.path = path
         # the behaviour the journal was written by, whatever the scenario says
         self.sc = sc.replace(behaviour=behaviour) if behaviour != sc.behaviour else sc

@@ -17,6 +17,7 @@ reason, passed to `on_reject` (the host process logs it) and not ACKed.
 
 from firmware_logic import messages as msg
 from firmware_logic.roster import BAD_HELLO, CHANGED_HELLO, Roster  # noqa: F401 (re-exported)
+from firmware_logic.roster import STALLED as STALLED_OUTCOME
 from . import spec
 from .recognising import Recognising
 
@@ -366,6 +367,12 @@ class Coordinator(Recognising, Roster):
 
     def done(self):
         return self.delivered_tick >= 0 or self.stopped_tick >= 0
+
+    def ended(self):
+        """The roster's outcome; a transport that stopped moving is STALLED."""
+        if self.delivered_tick < 0 and self.stopped_tick >= 0 and self.stop_code == STALLED:
+            return STALLED_OUTCOME
+        return Roster.ended(self)
 
     def measures(self):
         """Why the run ended or where it stands (RunResult.summary's `outcome`),
