@@ -130,6 +130,14 @@ def figure(result: RunResult, trails: Any = None) -> Any:
     if w.object_cells:
         handles[:0] = [Patch(color=OBJECT_RGB, label="object at the end"),
                        Patch(color=HELD_RGB, label="held segment")]
+    if w.decoy_cells:
+        # decoys are objects too (yellow): outlined and named, so a reader
+        # tells them from the target
+        for (x, y) in w.decoy_cells:
+            ax1.add_patch(plt.Rectangle((x - .5, y - .5), 1, 1, fill=False, ec="darkred",
+                                        lw=1.2, hatch="xx", zorder=2))
+        handles[0] = Patch(color=OBJECT_RGB, label="target at the end")
+        handles.append(Patch(fill=False, ec="darkred", hatch="xx", label="decoy (not the target)"))
     if w.obstacle_cells:
         handles.append(Patch(color=OBSTACLE_RGB, label="obstacle"))
     if trails is not None:
@@ -158,7 +166,7 @@ def figure(result: RunResult, trails: Any = None) -> Any:
     ax1.set_title(f"world at tick {result.ticks} (seed {result.seed}, {w.sc.agents} robots, "
                   f"behaviour {said.name})\nfield as the world holds it then: "
                   f"{lit} beacon(s) lit where their robots lit them", fontsize=9)
-    ax1.legend(handles=handles, loc="upper left", fontsize=6, framealpha=0.8)
+    ax1.legend(handles=handles, loc="best", fontsize=6, framealpha=0.8)
     if said.shape is not None and result.true_cells():
         _shape_panel(ax2, result, said.label(said.shape))
     else:
@@ -237,6 +245,9 @@ def _shape_panel(ax2: Any, result: RunResult, label: str) -> None:
     ax2.set_ylim(min(p[1] for p in pts) - 1.5, max(p[1] for p in pts) + 1.5)
     ax2.set_aspect("equal")
     ax2.set_xlabel("x (patches, the object's frame at the start)")
+    # on the right: on the left it met the world panel's colour-bar label
+    ax2.yaxis.set_label_position("right")
+    ax2.yaxis.tick_right()
     ax2.set_ylabel("y (patches)")
     title = (f"hull (blue outline, x = touched, numbered in order) vs true "
              f"(yellow): {label} {result.shape_iou():.2f}")
