@@ -545,3 +545,20 @@ def test_page_sets_a_parameter_runs_to_delivery_and_inspects(sim, browser, capsy
     browser.execute_script("document.getElementById('arena').dispatchEvent("
                            "new MouseEvent('dblclick', {bubbles: true}));")
     assert browser.execute_script("return window.view.zoom") == 1
+
+
+def test_the_live_view_draws_the_hosts_estimate_as_world_png_does(sim):
+    """issue 30: the estimate where the object is now, with its verdict, the
+    same cells world.png and the animation draw (sim_backend/render.py)."""
+    from sim_backend import render
+    assert "estimate" not in get(sim, "/state.json")          # nothing touched yet
+    post(sim, "/control/step", {"ticks": 120})
+    st = get(sim, "/state.json")
+    assert st["tick"] == 120 and st["estimate"] and st["verdict"]
+    src = sim.source
+    cells, recognised, p = render.estimate_of(src.engine.instruments)
+    dx, dy = render.displacement(src.engine.world)
+    assert st["estimate"] == [[x + dx, y + dy] for x, y in sorted(cells)]
+    assert st["verdict"] == render.verdict_text(recognised, p)
+    info = get(sim, "/info.json")
+    assert info["source"] == "sim"

@@ -371,12 +371,26 @@ class SimSource:
                 "field": {"n": int(field.shape[0]), "max": int(field.max()),
                           "cells": field.ravel().tolist()},
                 **({"iou": s.iou} if "perceived" in view else {}),
+                **self._estimate(),
                 "bad_frames": {"link": self.bad_frames} if self.bad_frames else {},
                 "events": self.events[-EVENTS_SHOWN:],
                 "claimed": self._claimed(),
                 "plots": self.history.columns(panels.series_keys(self.plots)),
             }
         return out
+
+
+    def _estimate(self) -> dict[str, Any]:
+        """The host's shape estimate where the object is now and its verdict,
+        as world.png and the animation draw it (sim_backend/render.py); none
+        when no perception measure watches the run."""
+        from sim_backend import render
+        view = render.estimate_of(self.engine.instruments)
+        if view is None or not view[0]:
+            return {}
+        dx, dy = render.displacement(self.engine.world)
+        return {"estimate": [[x + dx, y + dy] for x, y in sorted(view[0])],
+                "verdict": render.verdict_text(view[1], view[2])}
 
 
 class JournalSource:

@@ -8,7 +8,8 @@ const POLL_MS = 200;
 const MARGIN = {left: 36, bottom: 30, top: 6, right: 6};   // the arena's axes
 const PLOT = {w: 376, h: 96, left: 44, right: 8, top: 18, bottom: 20};
 const COLOURS = {object: "#ffd800", decoy: "#c8a2c8", obstacle: "#808080", home: "rgba(0,180,180,0.35)",
-                 estimate: "#1040d0", claimed: "#000000"};
+                 estimate: "#1040d0", claimed: "#000000",
+                 guess: "rgba(40, 160, 60, 0.45)"};
 const $ = (id) => document.getElementById(id);
 let info = null;
 // the page's state, readable from the tests and the bench (window.view)
@@ -140,7 +141,8 @@ function legends() {
   const items = [[COLOURS.object, info.source === "sim" ? "object (target)" : null],
                  [COLOURS.decoy, info.decoys ? "decoy" : null],
                  [COLOURS.obstacle, info.obstacles ? "obstacle" : null],
-                 ["outline:" + COLOURS.estimate, info.shape ? "perceived estimate" : null],
+                 ["outline:" + COLOURS.estimate, info.shape ? "perceived (hull)" : null],
+                 [COLOURS.guess, info.source === "sim" ? "host's estimate" : null],
                  [COLOURS.home, "home (radius 2)"],
                  ["outline:" + COLOURS.claimed, info.source === "sim" ? "held cell" : null]];
   for (const [c, t] of items) if (t) map.appendChild(legendItem(c, t));
@@ -205,6 +207,8 @@ function draw() {
   ctx.strokeStyle = COLOURS.claimed;             // cells a robot holds
   ctx.lineWidth = 1;
   for (const [x, y] of st.claimed || []) ctx.strokeRect(g.px(x) - g.s / 2 + 0.5, g.py(y) - g.s / 2 + 0.5, g.s - 1, g.s - 1);
+  ctx.fillStyle = COLOURS.guess;                 // the host's shape estimate, filled
+  for (const [x, y] of st.estimate || []) ctx.fillRect(g.px(x) - g.s / 2 + 1, g.py(y) - g.s / 2 + 1, g.s - 2, g.s - 2);
   ctx.strokeStyle = COLOURS.estimate;            // the perceived shape
   ctx.lineWidth = 2;
   for (const [x, y] of st.perceived || []) ctx.strokeRect(g.px(x) - g.s / 2 + 2, g.py(y) - g.s / 2 + 2, g.s - 4, g.s - 4);
