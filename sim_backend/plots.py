@@ -520,6 +520,22 @@ def shape_table(rows: Sequence[dict], fig: dict) -> dict:
     return dict(out)
 
 
+def estimate_table(rows: Sequence[dict], fig: dict) -> dict:
+    """{category value: [(N, mean estimate IoU, sem, n)]} over the rows that
+    carry the host's estimate (sweep.csv's estimate_iou; issue 30)."""
+    cat = fig.get("category", "object")
+    groups: dict[tuple, list] = defaultdict(list)
+    for r in _of(rows, fig):
+        v = _num(r.get("estimate_iou"))
+        if isinstance(v, (int, float)):
+            groups[(r[cat], _n(r))].append(float(v))
+    out: dict[str, list] = defaultdict(list)
+    for (obj, n), vals in sorted(groups.items()):
+        m, sem, _ = _stats(vals)
+        out[obj].append((n, m, sem, len(vals)))
+    return dict(out)
+
+
 def _example(rows: Sequence[dict], fig: dict, obj, n):
     """The run of median IoU among those at (category value, N)."""
     cat = fig.get("category", "object")
@@ -584,7 +600,13 @@ def shapes_plot(rows: Sequence[dict], fig: dict, path: Path) -> Path | None:
         ax = row_axes[-1]
         pts = table[obj]
         ax.errorbar([p[0] for p in pts], [p[1] for p in pts], yerr=[1.96 * p[2] for p in pts],
-                    marker="o", capsize=3)
+                    marker="o", capsize=3, label="hull")
+        est = estimate_table(rows, fig).get(obj)
+        if est:
+            ax.errorbar([p[0] for p in est], [p[1] for p in est],
+                        yerr=[1.96 * p[2] for p in est], marker="s", capsize=3, color="C2",
+                        label="host's estimate")
+            ax.legend(fontsize=6)
         ax.set_ylim(0, 1)
         ax.set_xlabel("touching robots", fontsize=7)
         ax.set_ylabel("mean IoU", fontsize=7)

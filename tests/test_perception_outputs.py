@@ -62,3 +62,21 @@ def test_the_animation_draws_the_estimate_where_the_object_is(tmp_path):
         b.seek(b.n_frames - 1)
         diff = np.asarray(a.convert("RGB"), dtype=int) - np.asarray(b.convert("RGB"), dtype=int)
     assert np.abs(diff).sum() > 0                # the estimate is in the picture
+
+
+def test_the_shapes_figure_plots_the_estimate_beside_the_hull(tmp_path, monkeypatch):
+    """Figures 22-24 (the studies' `shapes` kind): the IoU panel has the
+    host's estimate (sweep.csv's estimate_iou) beside the hull (issue 30)."""
+    import touchswarm
+    from sim_backend import plots
+    rows = touchswarm.sweep({"objectWeight": [4.0]}, seeds=2, engine="reference",
+                            progress=False, object="L", maxTicks=300).to_dict("records")
+    fig = {"experiment": "grid", "levels": ["L"], "category": "object", "title": "t"}
+    table = plots.estimate_table(rows, fig)
+    assert [p[0] for p in table["L"]] == [4] and table["L"][0][3] == 2
+    saved = []
+    monkeypatch.setattr(plots, "_save", lambda f, path: saved.append(f) or path)
+    assert plots.shapes_plot(rows, fig, tmp_path / "fig.png") is not None
+    iou_panel = saved[0].axes[-1]
+    labels = [t.get_text() for t in iou_panel.get_legend().get_texts()]
+    assert labels == ["hull", "host's estimate"]
