@@ -131,6 +131,8 @@ def _declares(rows: Sequence[dict], measure: str) -> list[dict]:
     behaviour's rows leave empty is no data, not a run that never got there)."""
     from sim_backend import words
     from sim_backend.scenario import DEFAULT_BEHAVIOUR
+    if measure in dict(words.INSTRUMENT_PLOTS):
+        return [r for r in rows if _num(r.get(measure)) is not None]
     cache: dict[str, bool] = {}
     out = []
     for r in rows:

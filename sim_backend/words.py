@@ -269,4 +269,14 @@ def plot_panels(behaviours: Sequence[Any], columns: dict[str, list]) -> list[tup
             kind = plot_kind(name, columns[name])
             if kind is not None:
                 out[name] = (name, label, kind)
+    # the host perception's estimate (a column of every sweep, not a
+    # behaviour's measure): a panel when the rows carry it, beside the
+    # behaviour's own shape measure
+    for name, label in INSTRUMENT_PLOTS:
+        if name in columns and plot_kind(name, columns[name]) == "value":
+            out[name] = (name, label, "value")
     return list(out.values())
+
+
+# sweep columns an instrument watching every run gives (perception/tracker.py)
+INSTRUMENT_PLOTS = (("estimate_iou", "host's shape estimate IoU"),)

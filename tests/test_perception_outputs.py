@@ -80,3 +80,17 @@ def test_the_shapes_figure_plots_the_estimate_beside_the_hull(tmp_path, monkeypa
     iou_panel = saved[0].axes[-1]
     labels = [t.get_text() for t in iou_panel.get_legend().get_texts()]
     assert labels == ["hull", "host's estimate"]
+
+
+def test_the_sweep_plots_have_an_estimate_panel_when_rows_carry_it():
+    """The sweep plots draw the host's estimate IoU beside the behaviour's
+    own panels (issue 30 item 3); rows without it get no such panel."""
+    from sim_backend import plots
+    rows = [{"behaviour": "thesis", "seed": s, "maxTicks": 100, "shape_iou": 0.5,
+             "estimate_iou": 0.9, "converged_tick": 50, "delivered": True} for s in (1, 2)]
+    names = [p[0] for p in plots.panels(rows)]
+    assert "estimate_iou" in names and "shape_iou" in names
+    assert plots._panel_values(rows, ("estimate_iou", "", "value")) == [0.9, 0.9]
+    for r in rows:
+        r["estimate_iou"] = None
+    assert "estimate_iou" not in [p[0] for p in plots.panels(rows)]
