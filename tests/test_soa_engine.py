@@ -152,10 +152,12 @@ def test_a_second_process_loads_the_compiled_step_from_the_disk_cache():
     assert warm["transforms"] == 0          # the generated text is kept too
     assert warm["xs"] == first["xs"]
     # sweep.warm compiles before the runs, and says so only when the cache lacks the step
-    if first["misses"]:
+    # (the first process may or may not have found it: another worker of the
+    # suite can compile it meanwhile; what it said must match what it thought)
+    if first["cold"]:
         assert first["cold"] == ["aggregate"] and first["told"] == [["aggregate", first["dir"]]]
     else:
-        assert first["cold"] == [] and first["told"] == []
+        assert first["told"] == [] and first["misses"] == 0
     assert warm["cold"] == [] and warm["told"] == []
     assert Path(warm["dir"]).parent == cache_root() and warm["dir"] == first["dir"]
     assert list(Path(warm["dir"]).glob("__pycache__/*.nbi"))

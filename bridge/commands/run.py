@@ -320,12 +320,17 @@ def _perception_lines(s: dict) -> list[str]:
     if "estimate_iou" not in s:
         return []
     by = " (the decision's verdict)" if s.get("verdict_by") == "decision" else ""
-    if s["recognised"] is None:
-        rec = f"no shape above p {s['recognition_threshold']:g} (best p {s['p']:.3f}){by}"
+    if s.get("recognised") is None:
+        # the end-state fields (a mission or a sweep row) carry no threshold
+        above = (f" above p {s['recognition_threshold']:g}" if "recognition_threshold" in s
+                 else "")
+        rec = f"no shape{above} (best p {s['p']:.3f}){by}"
     else:
-        rec = f"{s['recognised']} p {s['p']:.3f}, from tick {s['recognised_tick']}{by}"
-    return [f"  estimate IoU     {s['estimate_iou']:.3f} ({s['estimate_kind']}; hull minus "
-            f"free {s['hull_free_iou']:.3f})",
+        when = f", from tick {s['recognised_tick']}" if "recognised_tick" in s else ""
+        rec = f"{s['recognised']} p {s['p']:.3f}{when}{by}"
+    how = (f" ({s['estimate_kind']}; hull minus free {s['hull_free_iou']:.3f})"
+           if "estimate_kind" in s else "")
+    return [f"  estimate IoU     {s['estimate_iou']:.3f}{how}",
             f"  recognised       {rec}"]
 
 
