@@ -72,12 +72,14 @@ def check_seed(seed: Any, source: str = "seed") -> int:
 class Scenario:
     name: str = "default"
     description: str = ""
-    agents: int = 20
-    sigRadius: int = 5
-    objectWeight: float = 5.0
-    object: str = "bar"
-    worldSize: int = 18          # patches run from -worldSize to +worldSize
-    homeX: int = -15
+    agents: int = 20             # the thesis's (5.2.4, "Total Robot Population was 20")
+    sigRadius: int = 5           # ours: the text gives no base value
+    objectWeight: float = 5.0    # ours: the text gives no base value
+    object: str = "bar"           # the thesis's DrawObject object 1 (Appendix A)
+    # patches run from -worldSize to +worldSize; 18 is the thesis's (3.7, "a grid of
+    # 18 x 18 square patches": NetLogo's screen-edge 18, as home at -15, -15 needs)
+    worldSize: int = 18
+    homeX: int = -15             # the thesis's (Appendix A, PaintHome)
     homeY: int = -15
     objectX: int | None = None   # None: `random 10`, as CreateWorld draws it
     objectY: int | None = None
@@ -97,7 +99,7 @@ class Scenario:
     # robots in the carried object's way step aside (NetLogo's turtles
     # overlap, so nothing stopped the thesis's object), or block it ("block")
     crowd: str = "yield"
-    wrap: bool = False           # a toroidal search phase (NetLogo's default world)
+    wrap: bool = False           # ours; true: a toroidal search phase (NetLogo's default world)
     # faults (sim_backend/faults.py), all off by default; rates are shares of the swarm
     deathRate: float = 0.0       # robots that stop for good at a random tick, holders too
     deadlockRate: float = 0.0    # robots stuck in place for deadlockTicks from a random tick
