@@ -47,6 +47,16 @@ CHOICES: dict[str, tuple[str, ...]] = {
     # starts redrawn off the object and other robots with a fresh heading, or
     # CreateSwarm's `fd random max-pxcor` keeping the walk's heading
     "starts": ("redraw", "netlogo"),
+    # HeadCarefully's probe: the robot does not see itself, or it does, as
+    # `any? turtles-on patch-at-heading-and-distance heading 1` counts the
+    # caller when the point one ahead lies in its own patch (kernel.SELF_COUNTS)
+    "probeSelf": ("skip", "netlogo"),
+    # the first go iteration: look for the object before the first move, or
+    # move first as go's RandomHead, FindObject, FindField (the behaviour reads it)
+    "firstMove": ("look", "netlogo"),
+    # uphill's heading: a multiple of 45 degrees, or `towards` the winning
+    # patch's centre from the robot's position (kernel.TOWARDS)
+    "uphillHeading": ("octant", "netlogo"),
 }
 # issue 10 section 2: how robots take turns. sync: every robot decides on the
 # tick-start world, conflicts resolved at the tick's end (real robots act in
@@ -91,6 +101,9 @@ class Scenario:
     arrival: str = CHOICES["arrival"][0]
     starts: str = CHOICES["starts"][0]
     activation: str = CHOICES["activation"][0]
+    probeSelf: str = CHOICES["probeSelf"][0]
+    firstMove: str = CHOICES["firstMove"][0]
+    uphillHeading: str = CHOICES["uphillHeading"][0]
     # -- the arena the user draws (docs/scenarios.md, "Objects and obstacles");
     # objects empty: the flat object/objectX/objectY/objectWeight keys
     objects: tuple = ()          # objects.Piece, the target among them
