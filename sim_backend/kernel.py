@@ -47,6 +47,14 @@ YIELD = 2           # crowd "yield": robots in the carried object's way step
 WRAP = 4            # wrap: the search phase is toroidal as NetLogo's default
                     # world (moves, probes, uphill and the field wrap at the
                     # edges); the carried object stays inside the arena
+SELF_COUNTS = 8     # probeSelf "netlogo": a probe whose point one ahead falls in
+                    # the robot's own patch sees the robot itself (HeadCarefully's
+                    # `any? turtles-on patch-at-heading-and-distance heading 1`
+                    # counts the caller); without, the robot is not counted
+TOWARDS = 16        # uphillHeading "netlogo": uphill's heading points from the
+                    # robot's position to the winning patch's centre (NetLogo 3's
+                    # reporter, which depends on where the robot stands in its
+                    # patch); without, a multiple of 45 degrees
 
 # crowd "yield": how many patches a push along a crowd may reach (make_way)
 CHAIN_DEPTH = 4
@@ -119,7 +127,7 @@ def probe(obj, occ, base, w, n, x, y, h, rules):
     if o == BLUE:
         return CLAIMED
     c = occ[k]
-    if px == fx.patch(x) and py == fx.patch(y):
+    if px == fx.patch(x) and py == fx.patch(y) and (rules & SELF_COUNTS) == 0:
         c -= 1               # the robot itself (a turn within its own patch)
     if c > 0:
         return ROBOT
@@ -168,8 +176,10 @@ def uphill(field, base, w, n, x, y, ties, tie, i, rules):
                 count = 1
             elif v == best and count > 0:
                 count += 1
-    if ties == ORDERED or out < 0:
+    if out < 0:
         return out
+    if ties == ORDERED:
+        return aim(x, y, px, py, out // 45, rules)
     tie[i] = (tie[i] * TIE_MUL + TIE_ADD) % TIE_MOD
     k = (tie[i] >> 16) % count
     for j in range(8):
@@ -177,9 +187,30 @@ def uphill(field, base, w, n, x, y, ties, tie, i, rules):
         qy = fold(w, n, py + UPHILL_DY[j], rules)
         if inside(w, qx, qy) and field[base + cell(w, n, qx, qy)] == best:
             if k == 0:
-                return UPHILL_H[j]
+                return aim(x, y, px, py, j, rules)
             k -= 1
     return out
+
+
+def aim(x, y, px, py, j, rules):
+    """uphill's heading to neighbour j of patch (px, py): UPHILL_H[j], or with
+    TOWARDS the whole degree nearest `towards` that neighbour's centre from
+    the Q8 position (x, y) (always within 45 degrees of UPHILL_H[j]; the
+    first of equally near headings); integer maths, so the engines agree."""
+    h0 = UPHILL_H[j]
+    if (rules & TOWARDS) == 0:
+        return h0
+    ddx = (px + UPHILL_DX[j]) * fx.ONE - x
+    ddy = (py + UPHILL_DY[j]) * fx.ONE - y
+    best_h = h0
+    best = ddx * fx.sin14(h0) + ddy * fx.cos14(h0)
+    for d in range(-45, 46):
+        h = (h0 + d + 360) % 360
+        v = ddx * fx.sin14(h) + ddy * fx.cos14(h)
+        if v > best:
+            best = v
+            best_h = h
+    return best_h
 
 
 def holding(owner, base, held, node):

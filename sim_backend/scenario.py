@@ -47,6 +47,16 @@ CHOICES: dict[str, tuple[str, ...]] = {
     # starts redrawn off the object and other robots with a fresh heading, or
     # CreateSwarm's `fd random max-pxcor` keeping the walk's heading
     "starts": ("redraw", "netlogo"),
+    # HeadCarefully's probe: the robot does not see itself, or it does, as
+    # `any? turtles-on patch-at-heading-and-distance heading 1` counts the
+    # caller when the point one ahead lies in its own patch (kernel.SELF_COUNTS)
+    "probeSelf": ("skip", "netlogo"),
+    # the first go iteration: look for the object before the first move, or
+    # move first as go's RandomHead, FindObject, FindField (the behaviour reads it)
+    "firstMove": ("look", "netlogo"),
+    # uphill's heading: a multiple of 45 degrees, or `towards` the winning
+    # patch's centre from the robot's position (kernel.TOWARDS)
+    "uphillHeading": ("octant", "netlogo"),
 }
 # issue 10 section 2: how robots take turns. sync: every robot decides on the
 # tick-start world, conflicts resolved at the tick's end (real robots act in
@@ -72,12 +82,14 @@ def check_seed(seed: Any, source: str = "seed") -> int:
 class Scenario:
     name: str = "default"
     description: str = ""
-    agents: int = 20
-    sigRadius: int = 5
-    objectWeight: float = 5.0
-    object: str = "bar"
-    worldSize: int = 18          # patches run from -worldSize to +worldSize
-    homeX: int = -15
+    agents: int = 20             # the thesis's (5.2.4, "Total Robot Population was 20")
+    sigRadius: int = 5           # ours: the text gives no base value
+    objectWeight: float = 5.0    # ours: the text gives no base value
+    object: str = "bar"           # the thesis's DrawObject object 1 (Appendix A)
+    # patches run from -worldSize to +worldSize; 18 is the thesis's (3.7, "a grid of
+    # 18 x 18 square patches": NetLogo's screen-edge 18, as home at -15, -15 needs)
+    worldSize: int = 18
+    homeX: int = -15             # the thesis's (Appendix A, PaintHome)
     homeY: int = -15
     objectX: int | None = None   # None: `random 10`, as CreateWorld draws it
     objectY: int | None = None
@@ -89,6 +101,9 @@ class Scenario:
     arrival: str = CHOICES["arrival"][0]
     starts: str = CHOICES["starts"][0]
     activation: str = CHOICES["activation"][0]
+    probeSelf: str = CHOICES["probeSelf"][0]
+    firstMove: str = CHOICES["firstMove"][0]
+    uphillHeading: str = CHOICES["uphillHeading"][0]
     # -- the arena the user draws (docs/scenarios.md, "Objects and obstacles");
     # objects empty: the flat object/objectX/objectY/objectWeight keys
     objects: tuple = ()          # objects.Piece, the target among them
@@ -100,7 +115,7 @@ class Scenario:
     # robots in the carried object's way step aside (NetLogo's turtles
     # overlap, so nothing stopped the thesis's object), or block it ("block")
     crowd: str = "yield"
-    wrap: bool = False           # a toroidal search phase (NetLogo's default world)
+    wrap: bool = False           # ours; true: a toroidal search phase (NetLogo's default world)
     # faults (sim_backend/faults.py), all off by default; rates are shares of the swarm
     deathRate: float = 0.0       # robots that stop for good at a random tick, holders too
     deadlockRate: float = 0.0    # robots stuck in place for deadlockTicks from a random tick

@@ -85,7 +85,9 @@ class World:
         # the arena's rules (kernel.DYNAMIC, YIELD flags; 0 the thesis's)
         self.rules = (kernel.DYNAMIC if sc.field == arena.FIELD_MODES[1] else 0) | \
             (kernel.YIELD if sc.crowd == arena.CROWD_MODES[1] else 0) | \
-            (kernel.WRAP if sc.wrap else 0)
+            (kernel.WRAP if sc.wrap else 0) | \
+            (kernel.SELF_COUNTS if sc.probeSelf == "netlogo" else 0) | \
+            (kernel.TOWARDS if sc.uphillHeading == "netlogo" else 0)
         self.xs: list[int] = []
         self.ys: list[int] = []
         if sc.starts == "netlogo":

@@ -67,6 +67,61 @@ def test_uphill_tie_draws_repeat_for_the_same_seed():
     assert [a.uphill(0) for _ in range(50)] == [b.uphill(0) for _ in range(50)]
 
 
+def test_netlogo_uphill_heading_points_at_the_winning_patch_centre_from_the_robot():
+    for heading in ("octant", "netlogo"):
+        w = world(uphillHeading=heading)
+        w.xs[0], w.ys[0] = 100, -100                     # SE of its patch centre
+        put(w, 1, 1, 7)                                 # NE neighbour wins
+        got = w.uphill(0)
+        if heading == "octant":
+            assert got == 45
+        else:
+            # towards (1, 1) from (0.39, -0.39): atan2(0.61, 1.39) = 23.7 degrees
+            assert got == round(math.degrees(math.atan2(256 - 100, 256 + 100)))
+    w = world(uphillHeading="netlogo")
+    w.xs[0], w.ys[0] = 0, 0                             # at the centre: the octant itself
+    put(w, -1, 0, 4)
+    assert w.uphill(0) == 270
+
+
+# -- HeadCarefully's probe -----------------------------------------------------------
+
+def probe_self(rule):
+    w = world(probeSelf=rule)
+    w.xs[0], w.ys[0] = 120, 120                         # NE corner of patch (0, 0)
+    for i in (1, 2, 3):                                 # the others well away
+        w.xs[i], w.ys[i] = 5 * 256, 2 * i * 256
+    w.recount()
+    # heading 225: the point one ahead (-61, -61) in Q8 is still patch (0, 0)
+    return kernel.probe(w.obj, w.occ, 0, w.w, w.n, w.xs[0], w.ys[0], 225, w.rules), \
+        kernel.probe(w.obj, w.occ, 0, w.w, w.n, w.xs[0], w.ys[0], 45, w.rules)
+
+
+def test_netlogo_probe_counts_the_robot_itself_in_its_own_patch():
+    assert probe_self("skip") == (kernel.NOTHING, kernel.NOTHING)
+    assert probe_self("netlogo") == (kernel.ROBOT, kernel.NOTHING)   # 45: the next patch
+
+
+# -- the first go iteration ----------------------------------------------------------
+
+def test_netlogo_first_move_moves_before_the_first_look():
+    def ticks(rule):
+        robot = registry.load("thesis").make_robot(1, 3, validate({"firstMove": rule}))
+        out = []
+        for _ in range(2):
+            hal = FakeHal()
+            robot.step(hal)
+            out.append([c[0] for c in hal.log if c[0] in ("probe", "field_ahead", "forward")])
+        return out
+    look, move = ticks("look"), ticks("netlogo")
+    # the default: FindObject (four probes), FindField, RandomHead on tick 1
+    assert look[0] == ["probe"] * 4 + ["field_ahead", "probe", "forward"]
+    # go's order: RandomHead alone on tick 1 (HeadCarefully's probe, fd 1),
+    # then FindObject, FindField, RandomHead as the default's rotation
+    assert move[0] == ["probe", "forward"]
+    assert move[1] == look[1] == ["probe"] * 4 + ["field_ahead", "probe", "forward"]
+
+
 # -- Signal ------------------------------------------------------------------------
 
 def beacon_on(w, i, x, y, value=1):
@@ -220,7 +275,8 @@ def test_batch_engine_equals_reference_with_the_netlogo_options(model):
     scs, seeds = [], []
     every = {k: "netlogo" for k in CHOICES}
     for j in range(8):
-        opts = every if j < 2 else {k: rnd.choice(CHOICES[k]) for k in CHOICES}
+        # the first: the netlogo scenario's world too (wrapping), the same compile
+        opts = {**every, "wrap": j == 0} if j < 2 else {k: rnd.choice(CHOICES[k]) for k in CHOICES}
         scs.append(validate({"movementModel": model, "fieldDefiance": rnd.choice([0, 1, 2]),
                              "sigRadius": rnd.choice([2, 5, 8]), "maxTicks": 2500,
                              "object": rnd.choice(["bar", "L", "X"]), **opts}))

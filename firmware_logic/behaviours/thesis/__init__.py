@@ -37,7 +37,8 @@ def robot_args(node, seed, sc):
     levy_q = round(1000 * 2 ** (1 - sc.levyMu))
     return (node, seed, model, sc.robotVisionSpan, sc.fieldDefiance, power_centi(sc),
             1 if sc.leaderField == "netlogo" else 0, 1 if sc.antBlocked == "turn" else 0,
-            levy_q, sc.mothNoise, sc.frogPause, sc.frogJump)
+            levy_q, sc.mothNoise, sc.frogPause, sc.frogJump,
+            1 if sc.firstMove == "netlogo" else 0)
 
 
 def holders_needed(sc, weight_centi):

@@ -41,7 +41,8 @@ MOTH_SPIRAL = 45
 
 class Robot:
     def __init__(self, node, seed, model, vision_span, field_defiance, power, leader_field=0,
-                 ant_turn=0, levy_q=500, moth_noise=30, frog_pause=4, frog_jump=4):
+                 ant_turn=0, levy_q=500, moth_noise=30, frog_pause=4, frog_jump=4,
+                 move_first=0):
         self.node = node
         # 1: a leader (found the object from outside any field) lights its
         # beacon as BEACON_LEADER, and the world pins its patch's field to 10
@@ -59,6 +60,10 @@ class Robot:
         self.moth_noise = moth_noise  # degrees either side of the moth's uphill heading
         self.frog_pause = frog_pause  # ticks a frog sits between jumps
         self.frog_jump = frog_jump    # steps of one jump
+        # 1: the first tick is go's RandomHead alone, so the search runs
+        # RandomHead, FindObject, FindField from the start as Appendix A's go
+        # (scenario firstMove "netlogo"); 0: it starts with FindObject
+        self.move_first = move_first
         self.flight = 0               # Levy: steps left of the flight; frog: of the jump
         self.pause = 0                # frog: ticks left sitting
         self.rng = Rng(seed, node)
@@ -126,6 +131,9 @@ class Robot:
 
     def _search(self, hal):
         # FindObject, then FindField, then RandomHead (one move at most)
+        if self.move_first and self.ticks == 1:
+            self._random_head(hal)
+            return
         if self._find_object(hal):
             return
         if hal.field_ahead(self.heading) > 0:

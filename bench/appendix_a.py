@@ -1,0 +1,232 @@
+"""An independent reading of Appendix A's NetLogo model, written from the
+appendix alone (none of the project's kernel or FSM): floats, NetLogo's
+wrapping world -18..18, `ask robots` in a random order every go iteration,
+the search until `power >= objectWeight` (the iteration is the thesis's
+convergence). Compared with `--scenario netlogo` (the soa engine) at
+fieldDefiance 0, 1, 4, both movement models: stalls and Mann-Whitney U on
+the go iterations to convergence. Prints JSON.
+
+    .venv/bin/python bench/appendix_a.py [--seeds 50] [--defiance 0,1,4]
+
+Readings the appendix leaves open, each NetLogo 3's: `uphill field` reports
+the heading `towards` the greatest neighbour (ties at random), and the
+robot keeps its heading when no neighbour is greater than its own patch;
+`patch-at-heading-and-distance heading 1` is the patch holding the point
+one ahead; headings are floats; `round` rounds halves up.
+"""
+
+import argparse
+import json
+import math
+import os
+import random
+import statistics
+import sys
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+
+E = 18                      # screen-edge: patches -18..18 (3.7, "18 x 18")
+N = 2 * E + 1
+WHITE, YELLOW, BLUE = 0, 1, 2
+
+
+def wrapc(v):               # a continuous coordinate on the torus
+    return (v + E + 0.5) % N - E - 0.5
+
+
+def pcor(v):                # the patch holding a coordinate
+    return int(math.floor(wrapc(v) + 0.5))
+
+
+def wrapp(p):
+    return (p + E) % N - E
+
+
+class Model:
+    def __init__(self, seed, model, defiance, span=45, radius=5, weight=5.0, power=1.0, agents=20):
+        self.r = random.Random(seed)
+        self.firefly = model == "firefly"
+        self.fd = defiance
+        self.span, self.radius, self.weight, self.rpower = span, radius, weight, power
+        self.color = {}
+        self.field = {}
+        ox, oy = self.r.randrange(10), self.r.randrange(10)     # CreateWorld
+        for a in range(1, 9):                                   # DrawObject, object 1
+            self.color[(wrapp(ox + a), wrapp(oy))] = YELLOW
+            self.color[(wrapp(ox + a), wrapp(oy + 1))] = YELLOW
+        self.bots = []
+        for _ in range(agents):                                 # CreateSwarm
+            h = self.r.random() * 360
+            d = self.r.randrange(E)                             # fd random max-pxcor
+            self.bots.append({"x": wrapc(d * math.sin(math.radians(h))),
+                              "y": wrapc(d * math.cos(math.radians(h))), "h": h,
+                              "obj": False, "fld": False, "mob": True})
+        self.found = False
+        self.loc = (0.0, 0.0)
+        self.power = 0.0
+
+    def ahead(self, b):
+        return (pcor(b["x"] + math.sin(math.radians(b["h"]))),
+                pcor(b["y"] + math.cos(math.radians(b["h"]))))
+
+    def here(self, b):
+        return (pcor(b["x"]), pcor(b["y"]))
+
+    def head_carefully(self, b):
+        p = self.ahead(b)
+        occupied = any(self.here(o) == p for o in self.bots)    # the caller counts too
+        if occupied or self.color.get(p, WHITE) != WHITE:
+            b["h"] = self.r.randrange(360)
+        else:
+            step = 1.0 if self.firefly else 0.25
+            b["x"] = wrapc(b["x"] + step * math.sin(math.radians(b["h"])))
+            b["y"] = wrapc(b["y"] + step * math.cos(math.radians(b["h"])))
+
+    def random_head(self, b):
+        if self.firefly:
+            b["h"] = self.r.randrange(360)
+        self.head_carefully(b)
+
+    def look(self, b):
+        p = self.ahead(b)
+        if self.color.get(p, WHITE) == YELLOW:
+            self.color[p] = BLUE
+            b["obj"], b["mob"] = True, False
+            self.loc = (b["x"], b["y"])
+            self.found = True
+            self.power += self.rpower
+
+    def find_object(self, b):
+        if self.firefly:
+            for h in (0, 90, 180, 270):
+                if not b["obj"]:
+                    b["h"] = h
+                    self.look(b)
+                if not b["obj"]:
+                    b["h"] = self.r.randrange(360)
+        else:
+            turn = self.r.randrange(self.span) if self.span > 0 else 0
+            b["h"] = (b["h"] + (turn if self.r.randrange(100) % 2 == 0 else -turn)) % 360
+            self.look(b)
+
+    def follow_field(self, b):
+        px, py = self.here(b)
+        best, win = self.field.get((px, py), 0), []
+        for dx in (-1, 0, 1):
+            for dy in (-1, 0, 1):
+                if dx or dy:
+                    v = self.field.get((wrapp(px + dx), wrapp(py + dy)), 0)
+                    if v > best:
+                        best, win = v, [(dx, dy)]
+                    elif v == best and win:
+                        win.append((dx, dy))
+        if win:
+            dx, dy = win[self.r.randrange(len(win))]
+            b["h"] = math.degrees(math.atan2(px + dx - b["x"], py + dy - b["y"])) % 360
+        self.head_carefully(b)
+
+    def signal(self, tx, ty):
+        cx, cy = pcor(tx), pcor(ty)
+        r = self.radius
+        for dx in range(-r, r + 1):
+            for dy in range(-r, r + 1):
+                if dx * dx + dy * dy <= r * r:
+                    p = (wrapp(cx + dx), wrapp(cy + dy))
+                    ddx, ddy = cx + dx - tx, cy + dy - ty
+                    d = math.hypot(ddx, ddy)
+                    self.field[p] = self.field.get(p, 0) + math.floor(10 / (1 + d) + 0.5)
+
+    def go(self):
+        order = self.bots[:]
+        self.r.shuffle(order)
+        for b in order:
+            if b["mob"] and not b["obj"] and not b["fld"]:
+                self.random_head(b)
+                self.find_object(b)
+                if not b["obj"]:
+                    p = self.ahead(b)
+                    if self.field.get(p, 0) > 0:                # FindField
+                        b["fld"] = True
+                        self.follow_field(b)
+            if b["fld"] and not b["obj"]:
+                self.follow_field(b)
+                for _ in range(self.fd):
+                    self.random_head(b)
+                self.find_object(b)
+                if b["obj"]:
+                    continue
+            if not b["fld"] and b["obj"]:
+                self.field[self.here(b)] = 10
+        if self.found:
+            self.signal(*self.loc)
+            self.found = False
+
+    def run(self, max_iter=5000):
+        for it in range(1, max_iter + 1):
+            self.go()
+            if self.power >= self.weight:
+                return it
+        return None
+
+
+def mann_whitney(a, b):
+    """Two-sided Mann-Whitney U with the normal approximation (tie-corrected)."""
+    try:
+        from scipy.stats import mannwhitneyu
+        return float(mannwhitneyu(a, b, alternative="two-sided").pvalue)
+    except ImportError:
+        pass
+    allv = sorted((v, i) for i, v in enumerate(a + b))
+    ranks = [0.0] * len(allv)
+    i, ties = 0, 0.0
+    while i < len(allv):
+        j = i
+        while j + 1 < len(allv) and allv[j + 1][0] == allv[i][0]:
+            j += 1
+        for k in range(i, j + 1):
+            ranks[allv[k][1]] = (i + j) / 2 + 1
+        t = j - i + 1
+        ties += t ** 3 - t
+        i = j + 1
+    n1, n2 = len(a), len(b)
+    u = sum(ranks[:n1]) - n1 * (n1 + 1) / 2
+    n = n1 + n2
+    sd = math.sqrt(n1 * n2 / 12 * ((n + 1) - ties / (n * (n - 1))))
+    z = (abs(u - n1 * n2 / 2) - 0.5) / sd if sd else 0.0
+    return math.erfc(z / math.sqrt(2))
+
+
+def project(model, defiance, seeds):
+    from sim_backend import scenario, sweep
+    from sim_backend.sweep import Point
+    pt = Point("a", (("movementModel", model), ("fieldDefiance", defiance)))
+    rows = sweep.sweep([pt], seeds, base=scenario.load("netlogo"), until="converged",
+                       overrides={"maxTicks": 5000})
+    return [r["converged_tick"] for r in rows]
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--seeds", type=int, default=50)
+    ap.add_argument("--defiance", default="0,1,4")
+    a = ap.parse_args()
+    seeds = list(range(1, a.seeds + 1))
+    out = []
+    for model in ("firefly", "ant"):
+        for fd in (int(v) for v in a.defiance.split(",")):
+            ours = [Model(s, model, fd).run() for s in seeds]
+            proj = project(model, fd, seeds)
+            x = [v for v in ours if v is not None]
+            y = [v for v in proj if v is not None]
+            out.append({"movementModel": model, "fieldDefiance": fd, "n": len(seeds),
+                        "appendix_stalled": len(ours) - len(x),
+                        "project_stalled": len(proj) - len(y),
+                        "appendix_median": statistics.median(x) if x else None,
+                        "project_median": statistics.median(y) if y else None,
+                        "mann_whitney_p": round(mann_whitney(x, y), 3) if x and y else None})
+            print(json.dumps(out[-1]), file=sys.stderr)
+    print(json.dumps(out, indent=1))
+
+
+if __name__ == "__main__":
+    main()
