@@ -101,6 +101,11 @@ class Coordinator(Roster):
         return False
 
     def _leave(self, node):
+        # once the quorum is reached the stops it counted are the result: the
+        # robots halt and leave their stops then (their HEARTBEATs say halt),
+        # which must not empty the mission's record after the fact
+        if self.delivered_tick >= 0:
+            return
         if node in self.stopped:
             s = self.stopped[node]
             del self.stopped[node]
