@@ -343,6 +343,16 @@ class Side:
     def rate(self) -> float:
         return self.robot_ticks / self.cpu if self.cpu else 0.0
 
+    def mesa_run(self, agents, world, seed, act, max_ticks):
+        """One Mesa run to its end, its CPU time and live robot-ticks counted here."""
+        t = time.process_time()
+        m = Thesis(agents, world, seed, act, max_ticks)
+        while m.live():
+            m.step()
+        self.cpu += time.process_time() - t
+        self.robot_ticks += agents * m.tick
+        return m
+
 
 def single_runs(agents, world, act, seeds, max_ticks, rounds):
     """Each run alone, built and stepped to the end (set-up counted): the
@@ -363,12 +373,7 @@ def single_runs(agents, world, act, seeds, max_ticks, rounds):
                     soa.robot_ticks += agents * r.ticks
                     conv["soa"].append(r.summary()["converged_tick"])
                 else:
-                    t = time.process_time()
-                    m = Thesis(agents, world, s, act, max_ticks)
-                    while m.live():
-                        m.step()
-                    mes.cpu += time.process_time() - t
-                    mes.robot_ticks += agents * m.tick
+                    m = mes.mesa_run(agents, world, s, act, max_ticks)
                     conv["mesa"].append(m.converged_tick)
     return soa, mes, conv
 
@@ -387,13 +392,7 @@ def batch_runs(agents, world, act, soa_seeds, mesa_seeds, max_ticks, chunk_ticks
     todo = list(mesa_seeds)
     while todo or not eng.finished():
         if todo:
-            s = todo.pop(0)
-            t = time.process_time()
-            m = Thesis(agents, world, s, act, max_ticks)
-            while m.live():
-                m.step()
-            mes.cpu += time.process_time() - t
-            mes.robot_ticks += agents * m.tick
+            mes.mesa_run(agents, world, todo.pop(0), act, max_ticks)
         for _ in range(chunk_ticks):
             if eng.finished():
                 break

@@ -383,19 +383,28 @@ def _in(r: dict, fig: dict, value) -> bool:
     return col is None or _num(r[col]) == value
 
 
-def factor_table(rows: Sequence[dict], fig: dict) -> dict:
-    """{series value: [(x, mean, sem, median, n, censored)]} of the tick
-    column y against x (a run whose y never came counts at maxTicks)."""
+def _by_series_and_x(rows: Sequence[dict], fig: dict) -> dict:
+    """{series value: {x: [rows]}} of the figure's experiment, series in
+    first-seen order (one series, None, when the figure has none)."""
     rs = _of(rows, fig)
     out: dict = {}
     for value in _series(rs, fig):
         by_x: dict = defaultdict(list)
         for r in rs:
             if _in(r, fig, value):
-                by_x[_num(r[fig["x"]])].append(_tick(r, fig["y"]))
+                by_x[_num(r[fig["x"]])].append(r)
+        out[value] = by_x
+    return out
+
+
+def factor_table(rows: Sequence[dict], fig: dict) -> dict:
+    """{series value: [(x, mean, sem, median, n, censored)]} of the tick
+    column y against x (a run whose y never came counts at maxTicks)."""
+    out: dict = {}
+    for value, by_x in _by_series_and_x(rows, fig).items():
         pts = []
         for x in sorted(by_x):
-            vals = by_x[x]
+            vals = [_tick(r, fig["y"]) for r in by_x[x]]
             m, sem, med = _stats([v for v, _ in vals])
             pts.append((x, m, sem, med, len(vals), sum(1 for _, ok in vals if not ok)))
         out[value] = pts
@@ -451,13 +460,8 @@ def units_table(rows: Sequence[dict], fig: dict) -> dict:
     """{series value: [(x, (mean, sem) per y column, got there, runs)]} over
     the runs whose first y column came."""
     cols = [c for c, _ in fig["y"]]
-    rs = _of(rows, fig)
     out: dict = {}
-    for value in _series(rs, fig):
-        by_x: dict = defaultdict(list)
-        for r in rs:
-            if _in(r, fig, value):
-                by_x[_num(r[fig["x"]])].append(r)
+    for value, by_x in _by_series_and_x(rows, fig).items():
         pts = []
         for x in sorted(by_x):
             done = [r for r in by_x[x] if _num(r[cols[0]]) is not None]

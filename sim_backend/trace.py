@@ -19,7 +19,8 @@ from sim_backend.observe import OutputFormatError, Snapshot, output_format
 SUFFIXES = (".csv", ".parquet")
 # measures the world computes each tick; a column only for a behaviour that
 # declares the measure (spec.MEASURES), as in summary.json
-OFFERED = ("power", "shape_iou")
+# column -> the Snapshot attribute holding it
+OFFERED = {"power": "power", "shape_iou": "iou"}
 FIXED = (("tick", "tick, 1..ticks"),
          ("power", "holders' power in weight units (summary.json power)"),
          ("shape_iou", "IoU of the perceived shape with the true one (summary.json shape_iou)"),
@@ -56,7 +57,7 @@ class Trace:
 
     def __init__(self, engine: Any) -> None:
         self.names = [name for name, _ in columns(engine.behaviour)]
-        self.offered = [k for k in OFFERED if k in self.names]
+        self.offered = [OFFERED[k] for k in OFFERED if k in self.names]   # attributes
         # the engine's instruments add their columns last (docs/outputs.md)
         self.instruments = list(getattr(engine, "instruments", ()))
         self.names += [name for inst in self.instruments for name, _ in inst.COLUMNS]
@@ -65,8 +66,7 @@ class Trace:
 
     def add(self, s: Snapshot) -> None:
         counts = s.counts()
-        world = {"power": s.power, "shape_iou": s.iou}
-        self.rows.append([s.tick, *counts.values(), *(world[k] for k in self.offered),
+        self.rows.append([s.tick, *counts.values(), *(getattr(s, a) for a in self.offered),
                           len(s.touches),
                           s.msgs_up, s.msgs_down, s.bad_frames, *s.reporters.values(),
                           *(v for inst in self.instruments for v in inst.row())])
