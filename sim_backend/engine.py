@@ -24,7 +24,7 @@ from firmware_logic import registry
 from sim_backend import kernel
 from sim_backend.body import SimBody
 from sim_backend.errors import EngineError
-from sim_backend.measures import power_held, shape_iou
+from sim_backend.measures import polygon_iou, power_held, shape_iou
 from sim_backend.scenario import Scenario
 from sim_backend.world import World
 
@@ -128,6 +128,7 @@ class RunResult:
             "segments": lambda: [[t.sx, t.sy] for t in c.touches],
             "power": lambda: power_held(c),
             "shape_iou": self.shape_iou,
+            "polygon_iou": lambda: polygon_iou(c, self.world),
             "leader": lambda: c.leader or None,
             "converged_moves": self.converged_moves,
         }

@@ -6,6 +6,7 @@ from __future__ import annotations
 from typing import Any
 
 from firmware_logic import perception
+from perception.polygon import polygon_iou as _polygon_iou
 
 
 def power_held(coordinator: Any) -> float:
@@ -27,3 +28,12 @@ def shape_iou(coordinator: Any, world: Any) -> float:
                                           for x, y in coordinator.segments_now()])
     inter, union = perception.iou_counts(perceived, world.start_cells)
     return round(inter / union, 6) if union else 0.0
+
+
+def polygon_iou(coordinator: Any, world: Any) -> float:
+    """IoU with the object's true cells of the cells enclosed by the polygon
+    through the holders' rounded positions (the touches' rx, ry, in angle
+    order about their centroid: perception/polygon.py), rounded to 6 places.
+    The host stores the touches in the object's frame where it stood at the
+    start, so they are compared with world.start_cells, as shape_iou's."""
+    return _polygon_iou([(t.rx, t.ry) for t in coordinator.touches], world.start_cells)

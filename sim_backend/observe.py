@@ -18,7 +18,7 @@ import numpy as np
 
 from firmware_logic import fixedpoint as fx
 from firmware_logic import perception
-from sim_backend.measures import power_held, shape_iou
+from sim_backend.measures import polygon_iou, power_held, shape_iou
 
 
 class OutputFormatError(ValueError):
@@ -44,6 +44,7 @@ class Snapshot:
     holders       nodes whose touch the host accepted, first touch first
     power         holders' power in weight units (summary "power")
     perceived     cells of the perceived shape; iou its IoU with the object
+    polygon_iou   IoU with the object of the cells the holders' polygon encloses
     object_cells  the object's cells where they are now
     msgs_up/down  messages the host received / sent this tick
     bad_frames    frames the link refused this tick (0 on an in-process link)
@@ -51,7 +52,7 @@ class Snapshot:
     """
 
     __slots__ = ("tick", "xs", "ys", "states", "state_names", "touches", "holders", "power",
-                 "perceived", "iou", "object_cells", "msgs_up", "msgs_down", "bad_frames",
+                 "perceived", "iou", "polygon_iou", "object_cells", "msgs_up", "msgs_down", "bad_frames",
                  "reporters", "home", "_world")
 
     def __init__(self, **kw: Any) -> None:
@@ -100,7 +101,8 @@ def snapshot(engine: Any) -> Snapshot:
         touches=tuple((t.node, t.tick, t.rx, t.ry) for t in c.touches),
         holders=tuple(dict.fromkeys(t.node for t in c.touches)),
         power=power_held(c),
-        perceived=perceived, iou=shape_iou(c, w), object_cells=cells,
+        perceived=perceived, iou=shape_iou(c, w), polygon_iou=polygon_iou(c, w),
+        object_cells=cells,
         msgs_up=engine.msgs_up, msgs_down=engine.msgs_down, bad_frames=fresh,
         reporters=engine.behaviour.report(c),
         home=(w.sc.homeX, w.sc.homeY), _world=w)

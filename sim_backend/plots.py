@@ -512,13 +512,15 @@ def _n(r) -> int:
     return int(_num(r["required"]))
 
 
-def shape_table(rows: Sequence[dict], fig: dict) -> dict:
+def shape_table(rows: Sequence[dict], fig: dict, col: str = "") -> dict:
     """{category value: [(N, mean IoU, sem, mean touches, n)]}: N the robots
-    required to hold it."""
+    required to hold it; the IoU column `col`, else the figure's y, else
+    shape_iou."""
     cat = fig.get("category", "object")
+    col = col or fig.get("y", "shape_iou")
     groups: dict[tuple, list] = defaultdict(list)
     for r in _of(rows, fig):
-        groups[(r[cat], _n(r))].append((float(_num(r["shape_iou"])), int(_num(r["n_touches"]))))
+        groups[(r[cat], _n(r))].append((float(_num(r[col])), int(_num(r["n_touches"]))))
     out: dict[str, list] = defaultdict(list)
     for (obj, n), vals in sorted(groups.items()):
         m, sem, _ = _stats([v for v, _ in vals])
@@ -543,12 +545,14 @@ def estimate_table(rows: Sequence[dict], fig: dict) -> dict:
 
 
 def _example(rows: Sequence[dict], fig: dict, obj, n):
-    """The run of median IoU among those at (category value, N)."""
+    """The run of median IoU (the figure's y, else shape_iou) among those at
+    (category value, N)."""
     cat = fig.get("category", "object")
+    col = fig.get("y", "shape_iou")
     cand = [r for r in _of(rows, fig) if r[cat] == obj and _n(r) == n]
     if not cand:
         return None
-    cand.sort(key=lambda r: (float(_num(r["shape_iou"])), int(_num(r["seed"]))))
+    cand.sort(key=lambda r: (float(_num(r[col])), int(_num(r["seed"]))))
     return cand[len(cand) // 2]
 
 
@@ -624,26 +628,14 @@ def shapes_plot(rows: Sequence[dict], fig: dict, path: Path) -> Path | None:
     return _save(f, path)
 
 
-def polygon(points: Sequence[tuple[int, int]]) -> list[tuple[float, float]]:
-    """The closed polygon through the points in angle order about their
-    centroid (duplicates dropped): the outline a reader draws through the
-    holders' positions."""
-    pts = sorted(set(points))
-    if len(pts) < 2:
-        return [(float(x), float(y)) for x, y in pts]
-    mx = sum(x for x, _ in pts) / len(pts)
-    my = sum(y for _, y in pts) / len(pts)
-    pts.sort(key=lambda p: (math.atan2(p[1] - my, p[0] - mx), p))
-    return [(float(x), float(y)) for x, y in pts + [pts[0]]]
-
-
 def _pairs(text) -> list[tuple[int, int]]:
     return [tuple(int(v) for v in p.split(":")) for p in str(text or "").split()]  # type: ignore
 
 
-def _draw_touches(ax, obj: str, n: int, r: dict | None) -> None:
+def _draw_touches(ax, obj: str, n: int, r: dict | None, col: str) -> None:
     """One panel: the object, the run's touches (holders' rounded positions),
-    their polygon."""
+    their polygon and the cells it encloses (perception/polygon.py)."""
+    from perception.polygon import enclosed_cells, polygon
     ax.set_xticks([])
     ax.set_yticks([])
     if r is None:
@@ -652,6 +644,10 @@ def _draw_touches(ax, obj: str, n: int, r: dict | None) -> None:
     true = _true_cells(r)
     holders = _pairs(r.get("touches"))
     ax.scatter([c[0] for c in true], [c[1] for c in true], marker="s", s=60, c="#f2d06b")
+    inside = enclosed_cells(holders)
+    if inside:
+        ax.scatter([c[0] for c in inside], [c[1] for c in inside], marker="s", s=18,
+                   c="#c0392b", alpha=0.35)
     if holders:
         poly = polygon(holders)
         ax.plot([p[0] for p in poly], [p[1] for p in poly], "-", c="#c0392b", lw=1)
@@ -661,28 +657,47 @@ def _draw_touches(ax, obj: str, n: int, r: dict | None) -> None:
     ax.set_ylim(min(p[1] for p in pts) - 2, max(p[1] for p in pts) + 2)
     ax.set_aspect("equal")
     ax.set_title(f"{obj}: {n} holders (seed {r['seed']}), IoU "
-                 f"{float(_num(r['shape_iou'])):.2f}", fontsize=6)
+                 f"{float(_num(r[col])):.2f}", fontsize=6)
 
 
 def touchmap_plot(rows: Sequence[dict], fig: dict, path: Path) -> Path | None:
     """Kind touchmap: per level of the category and required holders N, the
-    median-IoU run's touches over the true cells and the polygon through
-    them (a shape judged by eye, as a reader of the touches would)."""
+    median run (of the figure's y, else shape_iou) drawn as its touches over
+    the true cells, the polygon through them and the cells it encloses (a
+    shape judged by eye, as a reader of the touches would), and a last panel
+    of mean y (95% CI) against N, shape_iou beside it when y is another."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     rs = _of(rows, fig)
     cat = fig.get("category", "object")
+    col = fig.get("y", "shape_iou")
     objs = [o for o in fig["levels"] if any(r[cat] == o for r in rs)]
     if not objs:
         return None
     ns = sorted({_n(r) for r in rs})
-    f, axes = plt.subplots(len(objs), len(ns), figsize=(2.2 * len(ns), 2.4 * len(objs)),
+    f, axes = plt.subplots(len(objs), len(ns) + 1, figsize=(2.2 * (len(ns) + 1), 2.4 * len(objs)),
                            squeeze=False)
     for row_axes, obj in zip(axes, objs):
         for ax, n in zip(row_axes, ns):
-            _draw_touches(ax, obj, n, _example(rows, fig, obj, n))
+            _draw_touches(ax, obj, n, _example(rows, fig, obj, n), col)
+        ax = row_axes[-1]
+        if col != "shape_iou" and all(r.get("shape_iou") not in (None, "") for r in rs):
+            pts = shape_table(rows, fig, "shape_iou").get(obj, [])
+            ax.errorbar([p[0] for p in pts], [p[1] for p in pts],
+                        yerr=[1.96 * p[2] for p in pts], marker="s", capsize=3, ls="--",
+                        color="0.5", label="shape_iou")
+        pts = shape_table(rows, fig, col).get(obj, [])
+        ax.errorbar([p[0] for p in pts], [p[1] for p in pts], yerr=[1.96 * p[2] for p in pts],
+                    marker="o", capsize=3, color="#c0392b", label=col)
+        ax.set_ylim(0, 1)
+        ax.set_xlabel("touching robots", fontsize=7)
+        ax.set_ylabel("mean IoU (95% CI)", fontsize=7)
+        ax.tick_params(labelsize=6)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=5)
+        ax.set_title(f"{obj}: n={min((p[4] for p in pts), default=0)}/point", fontsize=7)
     f.suptitle(fig.get("title", "touches and the polygon through them"), fontsize=9)
     f.tight_layout()
     return _save(f, path)

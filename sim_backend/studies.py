@@ -57,8 +57,9 @@ FIGURES: dict[str, tuple[str, tuple[str, ...], tuple[str, ...]]] = {
     # run's perceived shape over the true cells, and mean IoU against N
     "shapes": ("shapes_plot", ("levels",), ("experiment", "category", "title")),
     # the same runs' touches (holders' rounded positions) over the true
-    # cells and the polygon through them
-    "touchmap": ("touchmap_plot", ("levels",), ("experiment", "category", "title")),
+    # cells, the polygon through them and the cells it encloses, and mean y
+    # (an IoU column; default shape_iou) against N
+    "touchmap": ("touchmap_plot", ("levels",), ("experiment", "category", "title", "y")),
     # delivery rate and median delivery tick against each fault's rate: each
     # experiment is named after the key it varies (reference: a point drawn
     # as a line; scale: ((key, divisor), ...) for a key that is not a rate)

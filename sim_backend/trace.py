@@ -3,9 +3,9 @@ tick, the DataCollector idea; columns documented in docs/outputs.md.
 
 The columns, in order, are `columns(behaviour)`: tick, n_<state> for each
 state the behaviour declares, the FIXED ones (the world's measures among them,
-power and shape_iou, only when the behaviour declares them in spec.MEASURES),
-then its spec.REPORTERS. The last row's power, shape_iou and reporters equal
-summary.json's.
+power, shape_iou and polygon_iou, only when the behaviour declares them in
+spec.MEASURES), then its spec.REPORTERS. The last row's power, shape_iou,
+polygon_iou and reporters equal summary.json's.
 """
 
 from __future__ import annotations
@@ -20,10 +20,12 @@ SUFFIXES = (".csv", ".parquet")
 # measures the world computes each tick; a column only for a behaviour that
 # declares the measure (spec.MEASURES), as in summary.json
 # column -> the Snapshot attribute holding it
-OFFERED = {"power": "power", "shape_iou": "iou"}
+OFFERED = {"power": "power", "shape_iou": "iou", "polygon_iou": "polygon_iou"}
 FIXED = (("tick", "tick, 1..ticks"),
          ("power", "holders' power in weight units (summary.json power)"),
          ("shape_iou", "IoU of the perceived shape with the true one (summary.json shape_iou)"),
+         ("polygon_iou", "IoU with the true shape of the cells the polygon through the holders' "
+                         "rounded positions encloses (summary.json polygon_iou)"),
          ("touches", "touches the host has accepted so far"),
          ("msgs_up", "messages the host received in this tick"),
          ("msgs_down", "messages the host sent in this tick"),

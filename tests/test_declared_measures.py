@@ -11,7 +11,7 @@ from pathlib import Path
 from firmware_logic import registry
 from sim_backend import engine, scenario, sweep, trace
 
-THESIS_WORDS = {"power", "shape_iou", "segments", "leader", "converged_moves"}
+THESIS_WORDS = {"power", "shape_iou", "polygon_iou", "segments", "leader", "converged_moves"}
 
 
 def _run(behaviour: str) -> engine.RunResult:
@@ -51,8 +51,9 @@ def test_sweep_csv_columns_follow_the_declared_measures(tmp_path: Path) -> None:
 def test_the_trace_has_power_and_shape_iou_only_where_declared() -> None:
     agg = [n for n, _ in trace.columns(registry.load("aggregate"))]
     th = [n for n, _ in trace.columns(registry.load("thesis"))]
-    assert "power" not in agg and "shape_iou" not in agg and "touches" in agg
-    assert "power" in th and "shape_iou" in th
+    assert "power" not in agg and "shape_iou" not in agg and "polygon_iou" not in agg
+    assert "touches" in agg
+    assert "power" in th and "shape_iou" in th and "polygon_iou" in th
     sc = scenario.validate({"behaviour": "aggregate", "agents": 12, "maxTicks": 30})
     e = engine.Engine(sc, seed=3)
     t = trace.Trace(e)

@@ -21,8 +21,8 @@ from sim_backend.trace import Trace, columns
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "outputs.md"
 THESIS_COLUMNS = ["tick", "n_search", "n_field", "n_grasp", "n_hold", "n_carry", "n_halt",
-                  "power", "shape_iou", "touches", "msgs_up", "msgs_down", "bad_frames",
-                  "holders", "home_d2",
+                  "power", "shape_iou", "polygon_iou", "touches", "msgs_up", "msgs_down",
+                  "bad_frames", "holders", "home_d2",
                   "estimate_iou", "recognised", "p"]   # `touchswarm run` adds perception's
 
 
@@ -48,7 +48,7 @@ def check_trace(names: list[str], rows: list[dict], summary: dict, states: tuple
     for r in rows:
         assert sum(int(r[f"n_{s}"]) for s in states) == summary["robots"], r
     last = rows[-1]
-    for world in ("power", "shape_iou"):          # only where the behaviour declares it
+    for world in ("power", "shape_iou", "polygon_iou"):   # only where the behaviour declares it
         assert (world in names) == (world in summary)
         if world in names:
             assert float(last[world]) == summary[world]

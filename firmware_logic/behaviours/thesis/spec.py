@@ -82,6 +82,9 @@ MEASURES = (
     ("home_tick", "tick the object arrived home"),
     ("power", "power held at the end"),
     ("shape_iou", "IoU of the perceived shape with the true one"),
+    # the thesis's own shape (DrawShape, Figures 22-24): the polygon through
+    # the holders' rounded positions; the cells it encloses against the object
+    ("polygon_iou", "IoU with the true shape of the cells the holders' polygon encloses"),
     ("leader", "node of the first finder"),
     ("segments", "the touched segments, in touch order (object cells relative to its centre)"),
     ("converged_moves", "robot moves to convergence (under netlogo more than one per tick)"),
@@ -111,6 +114,7 @@ SUMMARY = (
     ("leader", "robot {leader}"),
     ("touches", "{touches!n} robots hold the object, power {power:g}"),
     ("shape IoU", "{shape_iou:.3f}"),
+    ("polygon IoU", "{polygon_iou:.3f}"),
 )
 RESULT = ("delivered", "DELIVERED", "NOT delivered")
 SHAPE = "shape_iou"          # world.png's perceived-vs-true panel, perceived cells drawn
@@ -119,4 +123,5 @@ PLOTS = (
     ("converged_tick", "convergence tick"),
     ("delivered", "delivery rate"),
     ("shape_iou", "shape IoU"),
+    ("polygon_iou", "holder polygon IoU"),
 )

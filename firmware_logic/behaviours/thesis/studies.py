@@ -90,14 +90,18 @@ THESIS = {
          "title": "Graph 1 in both units"},
         # Figures 22-24 as the thesis drew them: the rounded positions of the
         # robots holding the object (DrawShape's shape.txt) and the polygon
-        # through them, judged by eye
+        # through them, judged by eye; measured as the IoU of the cells the
+        # polygon encloses (polygon_iou), its mean against N in the last panel
         {"name": "fig22_bar_thesis", "kind": "touchmap", "experiment": "shapes",
+         "y": "polygon_iou",
          "levels": FIG22, "title": "Figure 22 the thesis's way: holders' rounded positions "
                                    "and the polygon through them (bar)"},
         {"name": "fig23_L_plus_thesis", "kind": "touchmap", "experiment": "shapes",
+         "y": "polygon_iou",
          "levels": FIG23, "title": "Figure 23 the thesis's way: holders' rounded positions "
                                    "and the polygon through them (L, cross)"},
         {"name": "fig24_X_thesis", "kind": "touchmap", "experiment": "shapes",
+         "y": "polygon_iou",
          "levels": FIG24, "title": "Figure 24 the thesis's way: holders' rounded positions "
                                    "and the polygon through them (X)"},
     ),
