@@ -81,7 +81,7 @@ def test_an_unknown_study_names_the_behaviours_studies(capsys):
     assert main(["sweep", "--study", "nope", "--out", "/nonexistent/never"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "study 'nope': behaviour 'thesis' declares no such study; " \
-        "its studies: thesis, faults, breeds" in err
+        "its studies: thesis, faults, breeds, scalability" in err
     assert main(["sweep", "--thesis", "--set", "behaviour=aggregate", "--out",
                  "/nonexistent/never"]) == 2
     assert "its studies: none (no studies.py in its folder)" in capsys.readouterr().err
@@ -92,7 +92,7 @@ def test_the_thesis_presets_are_its_studies():
     fault study's goal mix is one point of it (robustness.why reads it)."""
     from sim_backend.robustness import study_point
     own = studies.of("thesis")
-    assert list(own) == ["thesis", "faults", "breeds"]
+    assert list(own) == ["thesis", "faults", "breeds", "scalability"]
     t = own["thesis"]
     assert (len(t.points), t.seeds, t.until, dict(t.overrides)) == \
         (62, 150, "converged", {"maxTicks": 5000})

@@ -170,4 +170,24 @@ BREEDS = {
     ),
 }
 
-STUDIES = (THESIS, FAULTS, BREEDS)
+# 5.1 Scalability: "performance of the system actually improves with the
+# increase in number of Robots. Convergence time has been averaged over values
+# taken from 50 simulations." The text names no populations: these are ours
+SCALABILITY = {
+    "name": "scalability",
+    "about": "5.1 scalability: 10-40 robots, both movement models, until convergence "
+             "(50 seeds a point, as the thesis)",
+    "seeds": 50,
+    "until": "converged",
+    "set": (("maxTicks", 5000),),
+    "grids": (
+        ("scalability", (("movementModel", MODELS2), ("agents", (10, 15, 20, 30, 40)))),
+    ),
+    "figures": (
+        {"name": "scalability", "kind": "factor", "experiment": "scalability", "x": "agents",
+         "series": "movementModel", "y": "converged_tick", "ylabel": "convergence (ticks)",
+         "title": "5.1 scalability: robots vs convergence"},
+    ),
+}
+
+STUDIES = (THESIS, FAULTS, BREEDS, SCALABILITY)
