@@ -4,9 +4,13 @@ wrapping world -18..18, `ask robots` in a random order every go iteration,
 the search until `power >= objectWeight` (the iteration is the thesis's
 convergence). Compared with `--scenario netlogo` (the soa engine) at
 fieldDefiance 0, 1, 4, both movement models: stalls and Mann-Whitney U on
-the go iterations to convergence. Prints JSON.
+the go iterations to convergence, and whether the appendix model's stall
+count lies in the binomial 95% range of the project's. Prints JSON; with
+--markdown also the table docs/thesis-reproduction.md carries (between its
+markers; a test runs this script in a tiny mode and checks its rows).
 
     .venv/bin/python bench/appendix_a.py [--seeds 50] [--defiance 0,1,4]
+        [--engine soa|reference|auto] [--max-ticks 5000] [--markdown]
 
 Readings the appendix leaves open, each NetLogo 3's: `uphill field` reports
 the heading `towards` the greatest neighbour (ties at random), and the
@@ -196,37 +200,78 @@ def mann_whitney(a, b):
     return math.erfc(z / math.sqrt(2))
 
 
-def project(model, defiance, seeds):
+def binomial_range(k, n, level=0.95):
+    """The central `level` range of Binomial(n, k / n): the stall counts a
+    model with the project's stall rate gives in n runs."""
+    p = k / n
+    cdf, lo, hi = 0.0, None, n
+    for i in range(n + 1):
+        cdf += math.comb(n, i) * p ** i * (1 - p) ** (n - i)
+        if lo is None and cdf >= (1 - level) / 2:
+            lo = i
+        if cdf >= 1 - (1 - level) / 2 - 1e-12:
+            hi = i
+            break
+    return lo, hi
+
+
+def project(model, defiance, seeds, engine="auto", max_ticks=5000):
     from sim_backend import scenario, sweep
     from sim_backend.sweep import Point
     pt = Point("a", (("movementModel", model), ("fieldDefiance", defiance)))
     rows = sweep.sweep([pt], seeds, base=scenario.load("netlogo"), until="converged",
-                       overrides={"maxTicks": 5000})
+                       overrides={"maxTicks": max_ticks}, engine=engine)
     return [r["converged_tick"] for r in rows]
 
 
-def main():
+def markdown(out):
+    """The agreement table: per model and fieldDefiance, both models' median
+    go iterations (stalled/runs), the Mann-Whitney p and the stall check."""
+    lines = ["| model | fD | appendix model: median (stalled/runs) | `--scenario netlogo`: "
+             "median (stalled/runs) | Mann-Whitney p | project's binomial 95% stall range: "
+             "appendix inside |", "|---|---|---|---|---|---|"]
+    for c in out:
+        def med(v):
+            return "-" if v is None else f"{v:g}"
+        lo, hi = c["project_stall_range"]
+        lines.append(f"| {c['movementModel']} | {c['fieldDefiance']} | "
+                     f"{med(c['appendix_median'])} ({c['appendix_stalled']}/{c['n']}) | "
+                     f"{med(c['project_median'])} ({c['project_stalled']}/{c['n']}) | "
+                     f"{med(c['mann_whitney_p'])} | {lo}-{hi}: "
+                     f"{'yes' if lo <= c['appendix_stalled'] <= hi else 'no'} |")
+    return "\n".join(lines)
+
+
+def main(argv=None):
     ap = argparse.ArgumentParser()
     ap.add_argument("--seeds", type=int, default=50)
     ap.add_argument("--defiance", default="0,1,4")
-    a = ap.parse_args()
+    ap.add_argument("--engine", choices=("auto", "soa", "reference"), default="auto",
+                    help="the project's engine (bit-identical; soa is the fast one)")
+    ap.add_argument("--max-ticks", type=int, default=5000)
+    ap.add_argument("--markdown", action="store_true")
+    a = ap.parse_args(argv)
     seeds = list(range(1, a.seeds + 1))
     out = []
     for model in ("firefly", "ant"):
         for fd in (int(v) for v in a.defiance.split(",")):
-            ours = [Model(s, model, fd).run() for s in seeds]
-            proj = project(model, fd, seeds)
+            ours = [Model(s, model, fd).run(a.max_ticks) for s in seeds]
+            proj = project(model, fd, seeds, a.engine, a.max_ticks)
             x = [v for v in ours if v is not None]
             y = [v for v in proj if v is not None]
             out.append({"movementModel": model, "fieldDefiance": fd, "n": len(seeds),
                         "appendix_stalled": len(ours) - len(x),
                         "project_stalled": len(proj) - len(y),
+                        "project_stall_range": binomial_range(len(proj) - len(y), len(seeds)),
                         "appendix_median": statistics.median(x) if x else None,
                         "project_median": statistics.median(y) if y else None,
                         "mann_whitney_p": round(mann_whitney(x, y), 3) if x and y else None})
             print(json.dumps(out[-1]), file=sys.stderr)
     print(json.dumps(out, indent=1))
+    if a.markdown:
+        print(markdown(out))
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

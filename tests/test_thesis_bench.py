@@ -1,0 +1,165 @@
+"""The tables of docs/thesis-reproduction.md that a command produces are
+produced by a bench script (issue 31): the claims table is exactly what
+bench/thesis_claims.py renders from its committed statistics; the options
+and Appendix A tables have the rows and columns bench/thesis_options.py and
+bench/appendix_a.py print, which run here in a tiny mode (one or two seeds,
+the reference engine, a few ticks) so they cannot rot."""
+
+from __future__ import annotations
+
+import csv
+import importlib.util
+import json
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+DOC = ROOT / "docs" / "thesis-reproduction.md"
+
+
+def _bench(name: str):
+    spec = importlib.util.spec_from_file_location(f"bench_{name}", ROOT / "bench" / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def _block(script: str) -> str:
+    text = DOC.read_text()
+    begin, end = f"<!-- bench/{script}.py: begin -->", f"<!-- bench/{script}.py: end -->"
+    assert text.count(begin) == 1 and text.count(end) == 1, script
+    return text.split(begin, 1)[1].split(end, 1)[0].strip()
+
+
+def _table(text: str) -> list[list[str]]:
+    """The markdown table's rows (header first, the --- line dropped) as cells."""
+    rows = [line.strip().strip("|").split(" | ") for line in text.splitlines()
+            if line.startswith("|")]
+    return [[c.strip() for c in r] for r in rows if not set("".join(r)) <= set("-| ")]
+
+
+def test_the_claims_table_is_what_the_script_renders_from_its_statistics() -> None:
+    claims = _bench("thesis_claims")
+    data = json.loads((ROOT / "bench" / "thesis_claims.json").read_text())
+    assert _block("thesis_claims") == claims.render(data)
+    assert data["claims"] == claims.claims(data["points"])
+    verdicts = {c["verdict"] for c in data["claims"]}
+    assert verdicts <= {"holds", "does not hold", "depends on the time unit"} | {
+        v for v in verdicts if v.startswith("holds for ")}
+    # every claim the issue names has its row
+    text = " ".join(c["claim"] for c in data["claims"])
+    for words in ("Graph 1a", "Graph 1b", "Graph 2", "Graph 3", "Graph 4", "rPower 1.25",
+                  "firefly robots converge quicker", "more robots", "Figures 22-24"):
+        assert words in text, words
+
+
+def _rows(tmp_path: Path) -> Path:
+    """A small synthetic sweep.csv: firefly's time rises with fieldDefiance
+    in robot moves only, the ant's in neither; sigRadius and rPower speed
+    both up; the holder polygon improves with N."""
+    rows = []
+    for seed in range(1, 6):
+        jitter = seed - 3
+        for m, base in (("firefly", 50), ("ant", 200)):
+            for fd in (0, 1, 2, 4):
+                it = None if fd == 0 and seed < 3 else base + jitter
+                mv = None if it is None else it * (1 + fd)
+                rows.append({"experiment": "graph1", "movementModel": m, "fieldDefiance": fd,
+                             "converged_tick": it, "converged_moves": mv})
+            for r in (1, 5, 9):
+                rows.append({"experiment": "graph2", "movementModel": m, "sigRadius": r,
+                             "converged_tick": base * 10 / r + jitter,
+                             "converged_moves": base * 12 / r + jitter})
+            for p, req in (("0.5", 10), ("1.0", 5), ("1.25", 4), ("1.5", 4), ("5.0", 1)):
+                rows.append({"experiment": "graph3", "movementModel": m, "rPower": p,
+                             "required": req, "converged_tick": base * req + jitter,
+                             "converged_moves": base * req + jitter})
+            for n in (10, 20, 40):
+                rows.append({"experiment": "scalability", "movementModel": m, "agents": n,
+                             "converged_tick": base * 40 / n + jitter,
+                             "converged_moves": base * 40 / n + jitter})
+        for obj in ("bar", "L", "cross", "X"):
+            for n in (4, 8, 12):
+                rows.append({"experiment": "shapes", "movementModel": "firefly", "object": obj,
+                             "required": n, "converged_tick": 50, "converged_moves": 50,
+                             "polygon_iou": n / 20 + jitter / 100, "shape_iou": 0.4})
+    names = ["experiment", "movementModel", "object", "fieldDefiance", "sigRadius", "rPower",
+             "agents", "required", "seed", "maxTicks", "converged_tick", "converged_moves",
+             "polygon_iou", "shape_iou"]
+    path = tmp_path / "sweep.csv"
+    with path.open("w", newline="") as f:
+        w = csv.DictWriter(f, names)
+        w.writeheader()
+        for i, r in enumerate(rows):
+            r.setdefault("object", "bar")
+            r.setdefault("required", 5)
+            r.setdefault("agents", 20)
+            w.writerow({**r, "seed": 1 + i % 5, "maxTicks": 5000})
+    return path
+
+
+def test_the_claims_script_judges_a_sweep_csv(tmp_path: Path, capsys) -> None:
+    claims = _bench("thesis_claims")
+    out = tmp_path / "c.json"
+    assert claims.main([str(_rows(tmp_path)), "--json", str(out)]) == 0
+    table = capsys.readouterr().out
+    data = json.loads(out.read_text())
+    got = {c["claim"].split(":")[0]: c["verdict"] for c in data["claims"]}
+    assert got["Graph 1a"] == "depends on the time unit"
+    assert got["Graph 1b"] == "depends on the time unit"      # it rises in moves, steadily
+    assert got["Graph 2"] == got["Graph 3"] == got["Graph 4"] == "holds"
+    assert got["rPower 1.25 (ant) took unreasonably long to converge"] == "does not hold"
+    assert got["firefly robots converge quicker than ant robots (Graphs 1-4)"] == "holds"
+    assert got["more robots converge quicker (scalability)"] == "holds"
+    assert got["Figures 22-24"] == "holds"
+    fd0 = next(c for c in data["claims"] if c["source"] == "3.9.2")
+    assert fd0["verdict"] == "holds" and "firefly: 2 of 5 stalled" in fd0["figure"]
+    assert data["meta"]["runs"][0]["seeds"] == 5
+    assert table.startswith("Made by `touchswarm sweep --thesis --scenario netlogo")
+    assert claims.render(data) in table
+    # and it renders the same table again from its JSON
+    assert claims.main(["--from-json", str(out)]) == 0
+    assert claims.render(data) in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("argv, words", [([], "give sweep.csv files or --from-json FILE"),
+                                         (["/nonexistent.csv"], "no such file")])
+def test_the_claims_script_refuses_bad_input_in_one_line(argv, words, capsys) -> None:
+    assert _bench("thesis_claims").main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and words in err
+
+
+def test_a_sweep_without_the_polygon_column_is_named(tmp_path: Path, capsys) -> None:
+    path = tmp_path / "old.csv"
+    path.write_text("experiment,converged_tick,converged_moves,shape_iou\ngraph1,1,1,0.5\n")
+    assert _bench("thesis_claims").main([str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "no polygon_iou" in err
+
+
+def test_the_options_script_runs_and_prints_the_docs_tables_rows(capsys) -> None:
+    opts = _bench("thesis_options")
+    assert opts.main(["--seeds", "1", "--engine", "reference", "--max-ticks", "40",
+                      "--workers", "0", "--markdown"]) == 0
+    out = capsys.readouterr().out
+    tiny = _table(out[out.index("| option |"):])
+    docs = _table(_block("thesis_options"))
+    assert tiny[0] == docs[0]
+    assert [r[:3] for r in tiny] == [r[:3] for r in docs]
+    assert all(len(r) == len(docs[0]) for r in docs + tiny)
+    assert all(c.endswith("(1/1)") for r in tiny[1:] for c in r[3:])
+
+
+def test_the_appendix_script_runs_and_prints_the_docs_tables_rows(capsys) -> None:
+    app = _bench("appendix_a")
+    assert app.main(["--seeds", "2", "--engine", "reference", "--max-ticks", "40",
+                     "--markdown"]) == 0
+    out = capsys.readouterr().out
+    tiny = _table(out[out.index("| model |"):])
+    docs = _table(_block("appendix_a"))
+    assert tiny[0] == docs[0]
+    assert [r[:2] for r in tiny] == [r[:2] for r in docs]
+    assert all(len(r) == len(docs[0]) for r in docs + tiny)
+    assert app.binomial_range(18, 50) == (12, 25)
