@@ -52,14 +52,31 @@ def strictly_inside(poly: Sequence[Cell], p: Cell) -> bool:
 
 def enclosed_cells(points: Iterable[Cell]) -> set[Cell]:
     """The patches whose centres lie strictly inside the polygon through the
-    points; none when fewer than three distinct points span an area."""
+    points (as `strictly_inside` says, row by row: the even-odd intervals
+    between a row's edge crossings, less the boundary's points); none when
+    fewer than three distinct points span an area."""
     poly = polygon(points)
     if len(poly) < 4:
         return set()
-    xs = [p[0] for p in poly]
+    edges = list(zip(poly, poly[1:]))
     ys = [p[1] for p in poly]
-    return {(x, y) for x in range(min(xs) + 1, max(xs)) for y in range(min(ys) + 1, max(ys))
-            if strictly_inside(poly, (x, y))}
+    out: set[Cell] = set()
+    for y in range(min(ys) + 1, max(ys)):
+        cuts = []                       # crossings x = num / den, den > 0
+        edge_points = {p[0] for p in poly[:-1] if p[1] == y}
+        for (x1, y1), (x2, y2) in edges:
+            if (y1 > y) != (y2 > y):
+                num, den = x1 * (y2 - y1) + (y - y1) * (x2 - x1), y2 - y1
+                cuts.append((num, den) if den > 0 else (-num, -den))
+            elif y1 == y2 == y:
+                edge_points.update(range(min(x1, x2), max(x1, x2) + 1))
+        cuts.sort(key=lambda c: c[0] / c[1])
+        for (n0, d0), (n1, d1) in zip(cuts[::2], cuts[1::2]):
+            # the integers x with n0/d0 < x < n1/d1
+            for x in range(n0 // d0 + 1, -(-n1 // d1)):
+                if x not in edge_points:
+                    out.add((x, y))
+    return out
 
 
 def polygon_iou(points: Iterable[Cell], cells: Iterable[Cell]) -> float:

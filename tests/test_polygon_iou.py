@@ -111,3 +111,17 @@ def test_the_touchmap_figure_draws_the_declared_column(tmp_path: Path) -> None:
     assert [p[0] for p in table["bar"]] == [4, 6]
     assert table["bar"] != plots.shape_table(read, fig, "shape_iou")["bar"]
     assert plots.touchmap_plot(read, fig, tmp_path / "t.png").stat().st_size > 1000
+
+
+def test_the_row_scan_encloses_what_the_point_test_says() -> None:
+    import random
+    rnd = random.Random(7)
+    for _ in range(300):
+        w = rnd.choice((3, 6, 12))
+        pts = [(rnd.randint(-w, w), rnd.randint(-w, w)) for _ in range(rnd.randint(0, 12))]
+        poly = polygon(pts)
+        want = set()
+        if len(poly) >= 4:
+            want = {(x, y) for x in range(-w, w + 1) for y in range(-w, w + 1)
+                    if strictly_inside(poly, (x, y))}
+        assert enclosed_cells(pts) == want, pts
