@@ -8,9 +8,10 @@ from typing import TYPE_CHECKING, Callable
 import can
 
 from bridge.links.canbus import converted, shutdown_quietly
-from bridge.links.codec import BadFrames, Decoder, Message, encode
+from bridge.links.codec import OUT_OF_RANGE, BadFrames, Decoder, Message, encode
 from bridge.links.errors import KeyMismatch, LinkOperationError
 from firmware_logic import messages as msg
+from firmware_logic import registry
 
 if TYPE_CHECKING:
     from bridge.links.secoc import Sealer
@@ -74,12 +75,34 @@ class CanTransport:
         return out
 
     def _decode_keyed(self, frame: can.Message) -> Message | None:
-        """With keys: a HELLO is verified first (secoc.Sealer.open_hello);
-        frames of a locked-out node are dropped. Other frames cost one range
-        test and one set test more than without keys."""
-        if frame.arbitration_id in _HELLO_IDS or self._locked:
+        """With keys: a HELLO is verified first (secoc.Sealer.open_hello),
+        every other report opened (secoc.Sealer.open_report) and then checked
+        like a plain one; frames of a locked-out node are dropped."""
+        ident = frame.arbitration_id
+        if ident in _HELLO_IDS or self._locked:
             return self._keyed_slow(frame)
-        return self.decoder.decode(frame)
+        decoder = self.decoder
+        if decoder.bound is not registry._ACTIVE and decoder.fixed is None:
+            decoder._bind()
+        kind = ident >> 7
+        if kind in decoder.accept and ident & 0x7F and not (
+                frame.is_extended_id or frame.is_remote_frame or frame.is_error_frame
+                or frame.is_fd):
+            return self._opened(frame, ident)
+        return decoder.decode(frame)
+
+    def _opened(self, frame: can.Message, ident: int) -> Message | None:
+        """A sealed report, verified and restored to its plain fields, then
+        held to the same ranges as a plain one."""
+        assert self.sealer is not None
+        f = self.sealer.open_report(frame, ident & 0x7F)
+        if f is None:
+            return None
+        entry = self.decoder.fast.get(ident)
+        if entry is not None and entry[4](f):
+            return entry[0], entry[1], f
+        self.decoder.bad.add(OUT_OF_RANGE, frame)
+        return None
 
     def _keyed_slow(self, frame: can.Message) -> Message | None:
         sealer = self.sealer
@@ -89,12 +112,15 @@ class CanTransport:
             from bridge.links.secoc import LOCKED_NODE
             self.decoder.bad.add(LOCKED_NODE, frame)
             return None
-        if ident in _HELLO_IDS and not (frame.is_extended_id or frame.is_remote_frame
-                                        or frame.is_error_frame):
+        if frame.is_extended_id or frame.is_remote_frame or frame.is_error_frame:
+            return self.decoder.decode(frame)
+        if ident in _HELLO_IDS:
             opened = sealer.open_hello(frame, ident & 0x7F)
             if opened is None:
                 return None
-            frame = opened
+            return self.decoder.decode(opened)
+        if (ident >> 7) in self.decoder.accept and ident & 0x7F:
+            return self._opened(frame, ident)
         return self.decoder.decode(frame)
 
     def _plain_host_hello(self, frame: can.Message) -> None:
