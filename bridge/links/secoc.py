@@ -70,7 +70,6 @@ LOCKED_NODE = "frame of a locked-out node"
 # a behaviour's own): docs/protocol.md "Authenticated robot reports"
 REPORT_BAD_MAC = "report with a bad MAC"
 REPORT_PLAIN = "report without a MAC"
-REPORT_STALE = "stale report (replayed or reordered)"
 REPORT_UNKEYED = "report from a node without a key"
 REPORT_BYTES = 4       # a sealed report's payload: 4 + 1 freshness byte + 3 MAC = 8
 
@@ -540,7 +539,10 @@ class Sealer:
     def open_report(self, frame: can.Message, node: int) -> tuple | None:
         """A sealed report's plain fields, verified and fresh, or None
         (counted). H is found among the counters this host sealed for the
-        node: the last accepted H first (the robot took nothing since), then
+        node, r from its low byte as the smallest above the last one taken
+        under that H (so a replayed or reordered report reads as a later one
+        and fails its MAC, as a replayed TRANSPORT does at a robot): the
+        last accepted H first (the robot took nothing since), then
         the newest REPORT_WINDOW; a resumed host, once per node, also the
         2 x RESERVE below its first counter (its predecessor's last ones)."""
         key = self.keys.get(node)
@@ -578,9 +580,6 @@ class Sealer:
             found = self._find_h(c, ident, payload, low or 256, tag, top, bottom)
         if found is None:
             return self._report_failed(node, frame, REPORT_BAD_MAC)
-        if at is not None and found <= at:
-            self._count(REPORT_STALE, frame)
-            return None
         fields = self.layout(ident >> 7).open(payload, self.hello_of(node))
         if fields is None:
             return self._report_failed(node, frame, REPORT_BAD_MAC)
