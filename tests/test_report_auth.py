@@ -83,7 +83,7 @@ class HomeHeartbeat:
 
 
 @pytest.mark.parametrize("keys, sealed_with, fault", [
-    (KEYS, None, secoc.REPORT_PLAIN),
+    (KEYS, None, secoc.REPORT_BAD_MAC),     # a plain HEARTBEAT has 8 bytes too
     (KEYS, ALIEN, secoc.REPORT_BAD_MAC),
     (None, None, None),
 ])
@@ -228,3 +228,23 @@ def test_a_behaviours_own_report_is_sealed_in_whole_patches():
     finally:
         registry.load("thesis").activate()
     assert b.name == "aggregate"
+
+
+def test_a_touch_on_a_segment_another_robot_holds_is_rejected_and_journalled(tmp_path):
+    """Keys or not: a robot holds a segment alone (the world's claim has one
+    owner), so a second node's TOUCH of it is a forgery or a fault; it is
+    refused, never acted on, and kept in the journal's `rejected` table as
+    evidence (never replayed)."""
+    from bridge.host.journal import Journal
+    from firmware_logic.behaviours.thesis import coordinator as tc
+    from tests.test_journal import FakeTransport
+    with Journal(tmp_path / "j.sqlite") as j:
+        h = HostProcess(FakeTransport(), weight=500, journal=j)
+        h.handle([(4, msg.HELLO, (1, 100, 1)), (5, msg.HELLO, (1, 100, 1))])
+        h.step()
+        h.handle([(4, msg.TOUCH, (1, 2, 2, 3, 2, 100)), (5, msg.TOUCH, (1, 4, 2, 3, 2, 100))])
+        h.step()
+        assert [t.node for t in h.coord.touches] == [4] and h.coord.power == 100
+        assert h.coord.rejected == {tc.CLAIMED: 1}
+        assert j.rejected() == [(5, msg.TOUCH, 1, tc.CLAIMED, (1, 4, 2, 3, 2, 100))]
+        assert [r.node for r in j.reports(msg.TOUCH)] == [4]
