@@ -248,3 +248,24 @@ def test_a_touch_on_a_segment_another_robot_holds_is_rejected_and_journalled(tmp
         assert h.coord.rejected == {tc.CLAIMED: 1}
         assert j.rejected() == [(5, msg.TOUCH, 1, tc.CLAIMED, (1, 4, 2, 3, 2, 100))]
         assert [r.node for r in j.reports(msg.TOUCH)] == [4]
+
+
+def test_a_resumed_host_takes_reports_sealed_under_its_predecessors_counters(tmp_path):
+    """The robots ran on while the host was restarted with --resume: their
+    reports are bound to the last command of the old host. The resumed host
+    (its freshness file starts it above every counter the old one used)
+    looks for H below its first counter once per node, and takes a TOUCH's
+    power from the journal's HELLO (`nodes`, the coordinator's record)."""
+    store = tmp_path / "k.toml.fv.json"
+    old = secoc.Sealer(KEYS, secoc.FreshnessStore(store))
+    robots = secoc.Opener(KEYS, BadFrames("robots"))
+    for seq in range(1, 40):
+        assert robots.open(old.seal(encode(6, msg.ACK, (seq,)))[0]) is not None
+    touch = (1, 2, 2, 3, 2, 100)
+    new = secoc.Sealer(KEYS, secoc.FreshnessStore(store))
+    new.bad = BadFrames("host")
+    new.nodes = {6: (1, 100)}
+    assert new.open_report(robots.seal_report(6, msg.TOUCH, touch), 6) is None   # not resumed
+    new.resumed = True
+    assert new.open_report(robots.seal_report(6, msg.TOUCH, touch), 6) == touch
+    assert new.open_report(robots.seal_report(6, msg.TOUCH, touch), 6) == touch
