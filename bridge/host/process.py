@@ -132,6 +132,7 @@ class HostProcess:
         self.poses: dict[int, list[int]] = {}     # node -> [tick, *its last HEARTBEAT fields]
         self.live_written: dict[str, Any] | None = None
         self.kind_now = 0                     # the kind of the report being handled
+        self.uncommitted: list[str] = []      # events of reports not yet committed
 
     # -- journal ----------------------------------------------------------------
 
@@ -191,8 +192,22 @@ class HostProcess:
             self.journal.add_report(node, kind, fields, self.tick, commit=False)
         name, layout = msg.SCHEMA[kind]
         way = "to" if msg.spec(kind)[2] == msg.DOWN else "from"    # a RELEASE is the host's
-        self._event(f"tick {self.tick}: {name} {way} robot {node} journalled ("
-                    + ", ".join(f"{f[0]} {v}" for f, v in zip(layout, fields)) + ")")
+        text = (f"tick {self.tick}: {name} {way} robot {node} journalled ("
+                + ", ".join(f"{f[0]} {v}" for f, v in zip(layout, fields)) + ")")
+        if self.journal is None:
+            self._event(text)
+        else:
+            self.uncommitted.append(text)      # said once it is durable: _commit()
+
+    def _commit(self) -> None:
+        """Make the reports journalled since the last commit durable, then
+        say so (an operator, or a test killing the host, may act on it)."""
+        if self.journal is not None:
+            self.journal.commit()
+        if self.uncommitted:
+            texts, self.uncommitted = self.uncommitted, []
+            for text in texts:
+                self._event(text)
 
     def _rejected(self, reason: str, node: int, fields: tuple) -> None:
         # like a bad frame: the first of each reason is logged, the rest counted
@@ -249,8 +264,7 @@ class HostProcess:
         if decided is not None and self.journal is not None:
             # before anything is sent: a command on the bus is always journalled
             self.journal.add_decision(self.tick, decided[0], self.snapshot())
-        if self.journal is not None:
-            self.journal.commit()        # the tick's reports and decision: one fsync
+        self._commit()                   # the tick's reports and decision: one fsync
         try:
             for node, kind, fields in out:
                 self.transport.send(node, kind, fields)
@@ -330,6 +344,7 @@ class HostProcess:
     def finish(self) -> dict[str, Any]:
         """The summary, its outcome journalled (with the last live view)."""
         summary = self.summary()
+        self._commit()
         if self.journal is not None:
             self._journal_live()         # the last poses, between two LIVE_EVERY ticks
             self.journal.set_outcome(summary["outcome"], summary["reason"], self.tick)
