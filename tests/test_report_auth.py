@@ -27,8 +27,9 @@ ALIEN = {n: bytes([0x5A]) * 16 for n in range(1, 21)}
 
 def _mission(keys, strike, max_ticks=6000):
     """The default mission over a virtual CAN bus on a simulated clock
-    (hil_tests' Lockstep); `strike(host, bus)` runs before every robot tick
-    with a forger's handle on the bus."""
+    (hil_tests' Lockstep); `strike(host, bus)` runs after every robot tick
+    (its frames are on the bus: the forger has the last word before the
+    host's tick) with a forger's handle on the bus."""
     from hil_tests.test_can_auth import Draining
     from hil_tests.test_can_mission import TICK, SimClock
     sc = scenario.load("default")
@@ -42,8 +43,8 @@ def _mission(keys, strike, max_ticks=6000):
         step = engine.step
 
         def forged_step():
-            strike(host, fb)
             step()
+            strike(host, fb)
         engine.step = forged_step
         with host.transport:
             out = host.run(max_ticks=max_ticks, clock=clock)
