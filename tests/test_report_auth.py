@@ -149,11 +149,15 @@ def test_forged_seq_1_touches_for_every_node_are_dropped_with_keys():
         assert bad[secoc.REPORT_PLAIN] == 5 and bad[secoc.REPORT_BAD_MAC] == 5
         genuine = robots.seal_report(3, msg.TOUCH, touch)
         rb.send(genuine)
+        rb.send(genuine)                                         # duplicated
+        rb.send(robots.seal_report(3, msg.TOUCH, touch))         # the retransmission
         rb.send(genuine)                                         # replayed
-        sent += 2
-        assert _poll_all(host, sent) == [(3, msg.TOUCH, touch)]
-        # the replay reads as the next report under that H: its MAC fails
-        assert host.bad_frames()[secoc.REPORT_BAD_MAC] == 6
+        sent += 4
+        assert _poll_all(host, sent) == [(3, msg.TOUCH, touch)] * 2
+        # a duplicate of the last report is counted as such; a replay of an
+        # older one reads as the next report under that H: its MAC fails
+        bad = host.bad_frames()
+        assert bad[secoc.REPORT_DUPLICATE] == 1 and bad[secoc.REPORT_BAD_MAC] == 6
 
 
 def sealer_frame(bus):

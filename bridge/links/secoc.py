@@ -71,6 +71,7 @@ LOCKED_NODE = "frame of a locked-out node"
 REPORT_BAD_MAC = "report with a bad MAC"
 REPORT_PLAIN = "report without a MAC"
 REPORT_UNKEYED = "report from a node without a key"
+REPORT_DUPLICATE = "duplicate report"
 REPORT_BYTES = 4       # a sealed report's payload: 4 + 1 freshness byte + 3 MAC = 8
 
 # Brute force: a 24-bit MAC is guessed in 2^23 trials on average. A robot
@@ -397,6 +398,7 @@ class Sealer:
         # takes (its first counter for the node: nothing from an earlier run),
         # the HELLO fields (a sealed TOUCH's power), failures since confirmed
         self.report_at: dict[int, tuple[int, int]] = {}
+        self.report_last: dict[int, bytes] = {}     # the last report's bytes
         self.report_floor: dict[int, int] = {}
         self.hellos: dict[int, tuple] = {}
         self.nodes: Any = None                  # node -> HELLO fields known from elsewhere
@@ -593,6 +595,11 @@ class Sealer:
                 bottom = max(bottom, top - REPORT_WINDOW + 1)
             found = self._find_h(c, head, low or 256, bytes(tag), top, bottom)
         if found is None:
+            if data == self.report_last.get(node):
+                # the last report again (a bus or link duplicate, or a
+                # replay of it): dropped, not held against the node
+                self._count(REPORT_DUPLICATE, frame)
+                return None
             return self._report_failed(node, frame, REPORT_BAD_MAC)
         if self._rows is None or msg.ACTIVE != self._rows:
             self._layouts, self._rows = report_layouts(), list(msg.ACTIVE)
@@ -601,6 +608,7 @@ class Sealer:
         if fields is None:
             return self._report_failed(node, frame, REPORT_BAD_MAC)
         self.report_at[node] = found
+        self.report_last[node] = bytes(data)
         return fields
 
     @staticmethod
