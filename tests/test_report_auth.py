@@ -274,3 +274,27 @@ def test_a_resumed_host_takes_reports_sealed_under_its_predecessors_counters(tmp
     new.resumed = True
     assert new.open_report(robots.seal_report(6, msg.TOUCH, touch), 6) == touch
     assert new.open_report(robots.seal_report(6, msg.TOUCH, touch), 6) == touch
+
+
+def test_a_keyed_aggregation_mission_delivers_with_every_report_sealed():
+    """Another behaviour's reports (aggregate: TOUCH as a stop, LEAVE, the
+    HEARTBEAT's state) are sealed and opened the same way: the mission ends
+    with its quorum and the host drops none of the robots' frames."""
+    from hil_tests.test_can_auth import Draining
+    from hil_tests.test_can_mission import TICK, SimClock
+    from bridge.host.swarm import swarm_summary
+    sc = scenario.load("default").replace(behaviour="aggregate", quorum=80)
+    url = f"virtual://{private_channel('agg')}"
+    clock = SimClock()
+    with open_bus(url) as rb:
+        engine = swarm_engine(sc, 1, rb, keys=KEYS)
+        host = HostProcess(Draining(CanTransport(open_bus(url), sealer=secoc.Sealer(KEYS)),
+                                    engine, clock), 0, behaviour="aggregate", scenario=sc,
+                           tick_seconds=TICK)
+        with host.transport:
+            out = host.run(max_ticks=6000, clock=clock)
+        r = swarm_summary(engine)
+    assert out["outcome"] == "delivered", out
+    assert not [k for k in out["bad_frames"] if "MAC" in k or "report" in k], out["bad_frames"]
+    assert r["bad_frames"] == {} and r["halted"]
+    assert {tuple(t) for t in out["touches"]} <= {tuple(t) for t in r["reported"]}
