@@ -78,6 +78,28 @@ MESSAGES = (
       ("b", 2, 1, 1, "", None, None, ""))),
 )
 
+# The sealed form of the link's reports (with keys, docs/protocol.md
+# "Authenticated robot reports"): a keyed robot sends these 4 payload bytes,
+# then a freshness byte and a 24-bit MAC, in place of the plain layout above
+# (7 and 8 bytes leave no room for them). (kind, fields), a field as in
+# MESSAGES. A field named as a plain one carries it (a Q8 field, divisor 256
+# there, in whole units); `near` carries the robot patch as the index of
+# (rx - sx, ry - sy) in NEAR; a plain field the sealed form lacks is the
+# node's value of that name in its HELLO (TOUCH power), else 0 (HEARTBEAT
+# heading). A behaviour's own report has no row here: sealed, each Q8 field
+# travels in whole units, and it must then fit 4 bytes.
+NEAR = ((-1, -1), (0, -1), (1, -1), (-1, 0), (1, 0), (-1, 1), (0, 1), (1, 1))
+SEALED = (
+    (TOUCH, (("seq", 1, 0, 1, "", 1, None, ""),
+             ("sx", 1, 1, 1, "patch", None, None, ""),
+             ("sy", 1, 1, 1, "patch", None, None, ""),
+             ("near", 1, 0, 1, "", 0, 7, ""))),
+    (HEARTBEAT, (("state", 1, 0, 1, "", None, None, "states"),
+                 ("x", 1, 1, 1, "patch", None, None, ""),
+                 ("y", 1, 1, 1, "patch", None, None, ""),
+                 ("step", 1, 0, 1, "", None, None, ""))),
+)
+
 # kind -> (name, ((field, size in bytes, signed), ...)): what pack/unpack and
 # the framing decoder need, derived from MESSAGES once at import
 SCHEMA = {}

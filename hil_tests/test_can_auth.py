@@ -142,6 +142,8 @@ def test_host_and_robots_processes_with_keys_deliver_and_drop_nothing_genuine(tm
         stop_all(procs)
     assert h["delivered"] and r["halted"]
     assert r["bad_frames"] == {}            # every sealed command opened
+    # and every sealed report: the host dropped none of the robots' frames
+    assert not [k for k in h["bad_frames"] if "MAC" in k or "report" in k], h["bad_frames"]
     assert {tuple(t) for t in r["reported"]} == {tuple(t) for t in h["touches"]}
     fv = json.loads((tmp_path / "keys.toml.fv.json").read_text())
     assert set(fv) == {str(n) for n in range(1, 21)}     # HALT went to every robot

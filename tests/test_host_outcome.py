@@ -109,3 +109,19 @@ def test_an_in_process_run_names_its_outcome_for_any_behaviour() -> None:
     sc = scenario.load("default").replace(agents=6, maxTicks=5)
     s = Engine(sc, 1).run().summary()
     assert s["outcome"] == "collecting touches" and s["delivered"] is False
+
+
+def test_the_exit_status_follows_the_outcome_alone(tmp_path, capsys) -> None:
+    """0 delivered, 1 every other outcome: silent robots (stalled, the host
+    gave up) exit 1 like a stuck object, a halt or a stop (it was 3, alone
+    among them). The CLI: no robot behind the adapter, a short bus limit."""
+    from bridge.commands.host import exit_status
+    assert [exit_status(o) for o in OUTCOMES] == [0, 1, 1, 1]
+    from bridge.links import open_bus
+    with open_bus(f"slcan-pty://{tmp_path / 'ada'}"):        # an adapter, no robots
+        rc = main(["host", "--bus", f"slcan://{tmp_path / 'ada'}?settle_ms=0", "--json",
+                   "--tick-ms", "1", "--bus-timeout", "0.02"])
+    out = capsys.readouterr()
+    s = json.loads(out.out.strip().splitlines()[-1])
+    assert rc == 1 and s["outcome"] == "stalled" and s["gave_up_on"] == "bus"
+    assert "host gave up at tick" in out.err and "(--bus-timeout)" in out.err

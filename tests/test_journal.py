@@ -57,23 +57,30 @@ def test_touch_is_journalled_before_its_ack(tmp_path):
     order = []
     with Journal(tmp_path / "j.sqlite") as j:
         h = HostProcess(tr, weight=500, journal=j)
-        real = j.add_report
-        j.add_report = lambda node, kind, f, tick: (
+        real, commit = j.add_report, j.commit
+        j.add_report = lambda node, kind, f, tick, **kw: (
             order.append(("journal", node, msg.SCHEMA[kind][0], len(tr.sent))),
-            real(node, kind, f, tick))
+            real(node, kind, f, tick, **kw))
+        # a tick's reports are committed at once, before the tick's commands
+        j.commit = lambda: (order.append(("commit", j.db.in_transaction, len(tr.sent))),
+                            commit())
         h.handle([(4, msg.HELLO, (1, 100, 1))])
         assert order == [("journal", 4, "HELLO", 0)]          # before its ACK
         h.step()
+        assert order[1] == ("commit", True, 0)                # durable before its ACK
         assert (4, msg.ACK, (0,)) in tr.sent and j.nodes() == {4: (1, 100)}
         h.handle([(4, msg.TOUCH, (1, 2, 2, 3, 2, 100))])
         acks_before = len(tr.sent)
-        assert order[1:] == [("journal", 4, "TOUCH", acks_before)]     # nothing sent yet
+        assert order[2:] == [("journal", 4, "TOUCH", acks_before)]     # nothing sent yet
         h.step()
+        assert order[3] == ("commit", True, acks_before)
         assert tr.sent[-1] == (4, msg.ACK, (1,))
         # a duplicate is ACKed again but not journalled or counted again
         h.handle([(4, msg.TOUCH, (1, 2, 2, 3, 2, 100))])
         h.step()
-        assert tr.sent[-1] == (4, msg.ACK, (1,)) and len(order) == 2
+        assert tr.sent[-1] == (4, msg.ACK, (1,))
+        assert [o for o in order if o[0] == "journal"] == [o for o in order[:3] if
+                                                           o[0] == "journal"]
         assert h.coord.power == 100 and h.coord.duplicates == 1
 
 

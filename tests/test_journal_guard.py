@@ -101,3 +101,27 @@ def test_every_malformed_snapshot_or_report_is_one_line_on_resume(case, tmp_path
             db.execute(f"UPDATE {table} SET {column} = {value} WHERE kind = {msg.TOUCH}")
     assert main(["host", "--resume", str(p), *BUS]) == 2
     one_line(capsys, needle, str(p))
+
+
+def test_resuming_into_a_second_journal_that_holds_a_mission_is_refused(tmp_path, capsys) -> None:
+    """`--resume A --journal B` carries A's mission over into B and goes on
+    there; when B holds a mission of its own (ended, or another one in
+    progress) the two would be mixed: refused in one line, B untouched.
+    Into a new B, or --resume of B itself, is welcome."""
+    a, b = tmp_path / "a.sqlite", tmp_path / "b.sqlite"
+    mission(a)
+    stalled_journal(b)
+    capsys.readouterr()
+    with Journal(b, readonly=True) as j:
+        before = j.held()
+    assert main(["host", "--resume", str(a), "--journal", str(b), *BUS]) == 2
+    one_line(capsys, f"--journal {b} already holds", "ended stalled at tick",
+             f"to resume {a} into", f"--resume {b}")
+    with Journal(b, readonly=True) as j:
+        assert j.held() == before
+    mission(b2 := tmp_path / "b2.sqlite")            # a mission in progress
+    assert main(["host", "--resume", str(a), "--journal", str(b2), *BUS]) == 2
+    one_line(capsys, "a mission in progress")
+    from bridge.commands.host import refuse_appending
+    with Journal(tmp_path / "new.sqlite") as j:      # a new journal takes it
+        refuse_appending(j, a)

@@ -20,7 +20,6 @@ from bridge.commands.run import add_scenario_args, scenario_from_args
 # ticks; the bus limit also covers robots being switched on after the host.
 NODE_TIMEOUT = 20.0
 BUS_TIMEOUT = 60.0
-EXIT_SILENT = 3          # the host gave up: robots went silent
 
 
 def register(sub) -> None:
@@ -30,9 +29,9 @@ def register(sub) -> None:
                                    "Runs until the object is home, it is stopped, or the "
                                    "robots fall silent (--node-timeout, --bus-timeout). Exit "
                                    "status: 0 delivered (the host's own model has the object home), "
-                                   "1 any other outcome (halted, stalled, stopped: the summary's "
-                                   "outcome and reason) or a link or journal failure, 2 a usage "
-                                   "error, 3 gave up on silent robots (outcome stalled).")
+                                   "1 any other outcome (halted; stalled, the object stuck or the "
+                                   "robots silent; stopped: the summary's outcome and reason say "
+                                   "which) or a link or journal failure, 2 a usage error.")
     p.add_argument("--bus", metavar="URL",
                    help="socketcan://can0, slcan:///dev/ttyACM0?bitrate=500000 (or the "
                         "robots' slcan-pty face: slcan:///tmp/adapter?settle_ms=0) or "
@@ -55,11 +54,11 @@ def register(sub) -> None:
                    help="host tick period (default: %(default)s)")
     p.add_argument("--max-ticks", type=N.count(1, what="ticks"), metavar="N", help="give up after N host ticks")
     p.add_argument("--node-timeout", type=N.at_least(0, "seconds", " (0: never give up)"), default=NODE_TIMEOUT, metavar="S",
-                   help="give up (exit 3) when a carrier, a robot whose touch was accepted, "
+                   help="give up (outcome stalled, exit 1) when a carrier, a robot whose touch was accepted, "
                         "is silent this long; robots send a HEARTBEAT at least every 64 of "
                         "their ticks (0: never; default: %(default)s)")
     p.add_argument("--bus-timeout", type=N.at_least(0, "seconds", " (0: never give up)"), default=BUS_TIMEOUT, metavar="S",
-                   help="give up (exit 3) when no robot at all is heard this long, start-up "
+                   help="give up (outcome stalled, exit 1) when no robot at all is heard this long, start-up "
                         "included (0: never; default: %(default)s)")
     add_keys_arg(p)
     p.add_argument("--json", action="store_true",
@@ -115,8 +114,10 @@ def cmd_host(args: argparse.Namespace) -> int:
     try:
         if journal_path:
             journal = Journal(journal_path)
-            if args.resume is None:
-                refuse_appending(journal)
+            if args.resume is None or args.resume.resolve() != Path(journal_path).resolve():
+                # a mission goes on in its own journal, or into a new one;
+                # never into a journal that holds another mission
+                refuse_appending(journal, args.resume)
             if args.resume is not None and args.resume.resolve() != Path(journal_path).resolve():
                 with Journal(args.resume) as old:     # carry it over, then go on there
                     journal.copy_from(old)
@@ -144,6 +145,11 @@ def cmd_host(args: argparse.Namespace) -> int:
         if journal is not None:
             journal.close()
         raise
+    if sealer is not None:
+        # a sealed TOUCH's power is its node's HELLO's (from the journal too),
+        # and a resumed host looks for its predecessor's counters once per node
+        sealer.nodes = host.coord.nodes
+        sealer.resumed = args.resume is not None
     parts: list = []
     try:
         if args.bus:
@@ -183,8 +189,15 @@ def cmd_host(args: argparse.Namespace) -> int:
         limit = {"bus": "--bus-timeout", "node": "--node-timeout"}[summary["gave_up_on"]]
         print(f"touchswarm: host gave up at tick {summary['ticks']}: {summary['gave_up']} "
               f"({limit})", file=sys.stderr, flush=True)
-        return EXIT_SILENT
-    return 0 if summary["outcome"] == "delivered" else 1
+    return exit_status(summary["outcome"])
+
+
+def exit_status(outcome: str) -> int:
+    """The exit status of a host run: its outcome alone decides (docs/cli.md
+    "Exit status"): 0 delivered, 1 every other outcome (halted, stalled,
+    whether the object stuck or the robots fell silent, stopped); the
+    summary's outcome and reason say which."""
+    return 0 if outcome == "delivered" else 1
 
 
 def check_resumable(path: Path) -> None:
@@ -205,9 +218,10 @@ def check_resumable(path: Path) -> None:
         raise UsageError(f"--resume {path}: {err}") from None
 
 
-def refuse_appending(journal) -> None:
+def refuse_appending(journal, resume: Path | None = None) -> None:
     """A journal that holds a mission is only ever resumed: a second mission
-    appended to it would be mixed with the first on a later resume."""
+    appended to it (a new one, or another journal's resumed into it) would
+    be mixed with the first on a later resume."""
     from bridge.host.journal import JournalError
     held = journal.held()
     if not held:
@@ -215,8 +229,10 @@ def refuse_appending(journal) -> None:
     end = journal.outcome()
     state = (f"its mission ended {end['outcome']} at tick {end['tick']}" if end
              else "a mission in progress")
-    raise JournalError(f"--journal {journal.path} already holds {held} entries ({state}); "
-                       f"go on with it with --resume {journal.path}, or give a new --journal")
+    into = f" to resume {resume} into" if resume is not None else ""
+    raise JournalError(f"--journal {journal.path} already holds {held} entries ({state}), "
+                       f"not a journal{into} for a new mission; go on with that mission "
+                       f"with --resume {journal.path}, or give a new --journal")
 
 
 def host_line(behaviour, summary: dict) -> str:

@@ -18,6 +18,9 @@ Behaviour-neutral (layout version 2):
   host needs to go on from there (JSON, `HostProcess.snapshot`), `after`
   the last report journalled before it.
 - `meta`: the behaviour the journal belongs to and the layout version.
+- `rejected`: reports the coordinator refused (node, kind, tick, reason,
+  fields as JSON), the first REJECTED_KEPT of each reason: evidence, never
+  replayed (additive, like `live`).
 - `live`: the latest live view (robots' last HEARTBEAT poses, bad-frame
   counters), overwritten every few ticks for `touchswarm view`; never
   replayed, not needed to resume (the table is additive: layout version 2).
@@ -43,6 +46,7 @@ from firmware_logic import messages as msg
 DEFAULT_BEHAVIOUR = "thesis"
 VERSION = 2
 MAX_FIELDS = 6          # messages.check: at most 6 fields fit a frame
+REJECTED_KEPT = 100     # refused reports journalled per reason (the rest only counted)
 FIELD_COLUMNS = tuple("f%d" % (i + 1) for i in range(MAX_FIELDS))
 
 SCHEMA = """
@@ -54,6 +58,9 @@ CREATE TABLE IF NOT EXISTS decisions (id INTEGER PRIMARY KEY AUTOINCREMENT,
     after INTEGER NOT NULL);
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
 CREATE TABLE IF NOT EXISTS live (key TEXT PRIMARY KEY, value TEXT NOT NULL);
+CREATE TABLE IF NOT EXISTS rejected (id INTEGER PRIMARY KEY AUTOINCREMENT,
+    node INTEGER NOT NULL, kind INTEGER NOT NULL, tick INTEGER NOT NULL,
+    reason TEXT NOT NULL, fields TEXT NOT NULL);
 """ % ", ".join(c + " INTEGER" for c in FIELD_COLUMNS)
 
 
@@ -206,14 +213,45 @@ class Journal:
             self._sql(f"CREATE VIEW IF NOT EXISTS reports_{name.lower()} AS SELECT id, node, "
                       f"tick, {cols} FROM reports WHERE kind = {kind}")
 
-    def add_report(self, node: int, kind: int, fields: tuple[int, ...], tick: int) -> None:
-        """One report as the coordinator accepted it (before its ACK)."""
+    def add_report(self, node: int, kind: int, fields: tuple[int, ...], tick: int,
+                   commit: bool = True) -> None:
+        """One report as the coordinator accepted it (before its ACK).
+        commit=False: in a transaction that `commit()` ends (the host commits
+        a tick's reports at once, before that tick's commands go out)."""
         if len(fields) > MAX_FIELDS:
             raise JournalError(f"journal {self.path}: a {len(fields)}-field report "
                                f"(at most {MAX_FIELDS})")
         row = tuple(fields) + (None,) * (MAX_FIELDS - len(fields))
+        if not commit:
+            self._begin()
         self._sql(f"INSERT INTO reports (node, kind, tick, {', '.join(FIELD_COLUMNS)}) "
                   f"VALUES (?, ?, ?, {', '.join('?' * MAX_FIELDS)})", (node, kind, tick) + row)
+
+    def _begin(self) -> None:
+        if self.db is not None and not self.db.in_transaction:
+            self._sql("BEGIN IMMEDIATE")
+
+    def commit(self) -> None:
+        """Make every write since the last commit durable (one fsync)."""
+        if self.db is not None and self.db.in_transaction:
+            self._sql("COMMIT")
+
+    def add_rejected(self, node: int, kind: int, fields: tuple, tick: int, reason: str,
+                     commit: bool = True) -> None:
+        """A report the coordinator refused, as evidence (never replayed)."""
+        if not commit:
+            self._begin()
+        self._sql("INSERT INTO rejected (node, kind, tick, reason, fields) VALUES "
+                  "(?, ?, ?, ?, ?)", (node, kind, tick, reason, json.dumps(list(fields))))
+
+    def rejected(self) -> list[tuple[int, int, int, str, tuple]]:
+        """(node, kind, tick, reason, fields) of the refused reports journalled."""
+        try:
+            rows = self._sql("SELECT node, kind, tick, reason, fields FROM rejected "
+                             "ORDER BY id")
+        except JournalError:
+            return []          # a journal written before the table (read only)
+        return [(n, k, t, r, tuple(json.loads(f))) for n, k, t, r, f in rows]
 
     def behaviour(self) -> str:
         rows = self._sql("SELECT value FROM meta WHERE key = 'behaviour'")
@@ -343,6 +381,7 @@ class Journal:
         view reads."""
         if self.db is None:
             raise JournalError(f"journal {self.path} is closed")
+        self.commit()           # one writer at a time: the batch first
         try:
             if self.live_db is None:
                 self.live_db = sqlite3.connect(str(self.path), isolation_level=None,
@@ -373,7 +412,12 @@ class Journal:
                 self.add_decision(*e)
 
     def close(self) -> None:
-        """Idempotent; never raises."""
+        """Idempotent; never raises; commits what a batch left open."""
+        if self.db is not None and self.db.in_transaction:
+            try:
+                self.db.execute("COMMIT")
+            except sqlite3.Error:
+                pass
         for db in (self.live_db, self.db):
             if db is not None:
                 try:

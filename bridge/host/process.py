@@ -37,7 +37,7 @@ from typing import Any, Callable
 from bridge.errors import UsageError
 from bridge.links.codec import UNANNOUNCED, BadFrames, Message
 from bridge.links.errors import LinkTimeoutError
-from bridge.host.journal import Journal, JournalError, Report
+from bridge.host.journal import REJECTED_KEPT, Journal, JournalError, Report
 from bridge.transport import RobotTransport
 from firmware_logic import messages as msg
 from firmware_logic import registry, roster
@@ -131,6 +131,8 @@ class HostProcess:
         self.write_timeouts = 0               # ticks whose commands the link did not take
         self.poses: dict[int, list[int]] = {}     # node -> [tick, *its last HEARTBEAT fields]
         self.live_written: dict[str, Any] | None = None
+        self.kind_now = 0                     # the kind of the report being handled
+        self.uncommitted: list[str] = []      # events of reports not yet committed
 
     # -- journal ----------------------------------------------------------------
 
@@ -185,15 +187,36 @@ class HostProcess:
         # called by the coordinator for a report that changed what it knows,
         # before the report's ACK is queued
         if self.journal is not None:
-            self.journal.add_report(node, kind, fields, self.tick)
+            # committed with the tick's other reports, before its commands
+            # (their ACKs) are sent: step()
+            self.journal.add_report(node, kind, fields, self.tick, commit=False)
         name, layout = msg.SCHEMA[kind]
         way = "to" if msg.spec(kind)[2] == msg.DOWN else "from"    # a RELEASE is the host's
-        self._event(f"tick {self.tick}: {name} {way} robot {node} journalled ("
-                    + ", ".join(f"{f[0]} {v}" for f, v in zip(layout, fields)) + ")")
+        text = (f"tick {self.tick}: {name} {way} robot {node} journalled ("
+                + ", ".join(f"{f[0]} {v}" for f, v in zip(layout, fields)) + ")")
+        if self.journal is None:
+            self._event(text)
+        else:
+            self.uncommitted.append(text)      # said once it is durable: _commit()
+
+    def _commit(self) -> None:
+        """Make the reports journalled since the last commit durable, then
+        say so (an operator, or a test killing the host, may act on it)."""
+        if self.journal is not None:
+            self.journal.commit()
+        if self.uncommitted:
+            texts, self.uncommitted = self.uncommitted, []
+            for text in texts:
+                self._event(text)
 
     def _rejected(self, reason: str, node: int, fields: tuple) -> None:
         # like a bad frame: the first of each reason is logged, the rest counted
-        # (`rejected` in the summary), so a flood cannot flood the log
+        # (`rejected` in the summary), so a flood cannot flood the log; the
+        # first REJECTED_KEPT of each are journalled as evidence (never replayed)
+        if self.journal is not None and self.coord.rejected.get(reason, 0) <= REJECTED_KEPT \
+                and self.kind_now:
+            self.journal.add_rejected(node, self.kind_now, fields, self.tick, reason,
+                                      commit=False)
         if reason not in self.rejects_logged:
             self.rejects_logged.add(reason)
             log.warning("tick %d: rejected a report from robot %d (%s): %s; further ones "
@@ -218,7 +241,9 @@ class HostProcess:
                 continue
             if kind == msg.HEARTBEAT:
                 self.poses[node] = [tick, *f]
+            self.kind_now = kind
             on_message(node, kind, f, tick)
+        self.kind_now = 0
 
     # -- ticks --------------------------------------------------------------------------
 
@@ -239,6 +264,7 @@ class HostProcess:
         if decided is not None and self.journal is not None:
             # before anything is sent: a command on the bus is always journalled
             self.journal.add_decision(self.tick, decided[0], self.snapshot())
+        self._commit()                   # the tick's reports and decision: one fsync
         try:
             for node, kind, fields in out:
                 self.transport.send(node, kind, fields)
@@ -318,6 +344,7 @@ class HostProcess:
     def finish(self) -> dict[str, Any]:
         """The summary, its outcome journalled (with the last live view)."""
         summary = self.summary()
+        self._commit()
         if self.journal is not None:
             self._journal_live()         # the last poses, between two LIVE_EVERY ticks
             self.journal.set_outcome(summary["outcome"], summary["reason"], self.tick)

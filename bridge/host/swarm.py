@@ -75,6 +75,8 @@ def swarm_summary(engine: Any) -> dict[str, Any]:
     }
     if gw.opener is not None:
         out["locked_out"] = sorted(gw.opener.locked)
+        # reports not sent: their robot had taken no host command yet (secoc)
+        out["reports_held_back"] = gw.opener.held_back
     for name, f in (("faults_up", gw.faults), ("faults_down", gw.faults_down)):
         if f is not None:
             out[name] = {"dropped": f.dropped, "duplicated": f.duplicated}

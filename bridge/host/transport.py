@@ -8,14 +8,16 @@ from typing import TYPE_CHECKING, Callable
 import can
 
 from bridge.links.canbus import converted, shutdown_quietly
-from bridge.links.codec import BadFrames, Decoder, Message, encode
+from bridge.links.codec import OUT_OF_RANGE, BadFrames, Decoder, Message, encode
 from bridge.links.errors import KeyMismatch, LinkOperationError
 from firmware_logic import messages as msg
+from firmware_logic import registry
 
 if TYPE_CHECKING:
     from bridge.links.secoc import Sealer
 
 BATCH = 4096       # at most this many frames per poll, so a flood cannot starve the tick
+CHECK_EVERY = 64   # frames read between two looks at the clock
 MALFORMED = "malformed adapter line"
 KEYED_HELLO = "authenticated HELLO to a host without keys"
 _HELLO_IDS = range(msg.HELLO << 7, (msg.HELLO + 1) << 7)
@@ -42,9 +44,11 @@ class CanTransport:
 
     def poll(self, timeout: float) -> list[Message]:
         """Messages received within `timeout` seconds: waits up to `timeout` for
-        the first frame, then takes frames while they keep coming, and returns
-        by the deadline (one frame at most past it: a read under way is
-        finished, never cut), or after BATCH frames."""
+        the first frame, then takes the frames waiting, and returns by the
+        deadline (looked at every CHECK_EVERY frames: at most that many past
+        it, a fraction of a millisecond; a read under way is finished, never
+        cut), or after BATCH frames. So poll(0) takes up to CHECK_EVERY of
+        the frames waiting, not one."""
         if self._closed:
             raise LinkOperationError("host recv: the transport is closed")
         clock = self.clock
@@ -64,7 +68,7 @@ class CanTransport:
                         append(m)
                     elif self.sealer is None and frame.arbitration_id in _HELLO_IDS:
                         self._plain_host_hello(frame)
-                    if n >= BATCH or clock() >= deadline:
+                    if n >= BATCH or (not n % CHECK_EVERY and clock() >= deadline):
                         break
                     frame = recv(0.0)
         except (ValueError, IndexError):      # an adapter line python-can cannot parse
@@ -74,12 +78,41 @@ class CanTransport:
         return out
 
     def _decode_keyed(self, frame: can.Message) -> Message | None:
-        """With keys: a HELLO is verified first (secoc.Sealer.open_hello);
-        frames of a locked-out node are dropped. Other frames cost one range
-        test and one set test more than without keys."""
-        if frame.arbitration_id in _HELLO_IDS or self._locked:
+        """With keys: a HELLO is verified first (secoc.Sealer.open_hello),
+        every other report opened (secoc.Sealer.open_report) and then checked
+        like a plain one; frames of a locked-out node are dropped."""
+        ident = frame.arbitration_id
+        if ident in _HELLO_IDS or self._locked:
             return self._keyed_slow(frame)
-        return self.decoder.decode(frame)
+        decoder = self.decoder
+        if decoder.bound is not registry._ACTIVE and decoder.fixed is None:
+            decoder._bind()
+        if (ident >> 7) in decoder.accept and ident & 0x7F and not (
+                frame.is_extended_id or frame.is_remote_frame or frame.is_error_frame
+                or frame.is_fd):
+            # a sealed report (the body of _opened, inlined: every keyed report)
+            f = self.sealer.open_report(frame, ident & 0x7F)    # type: ignore[union-attr]
+            if f is None:
+                return None
+            entry = decoder.fast.get(ident)
+            if entry is not None and entry[4](f):
+                return entry[0], entry[1], f
+            decoder.bad.add(OUT_OF_RANGE, frame)
+            return None
+        return decoder.decode(frame)
+
+    def _opened(self, frame: can.Message, ident: int) -> Message | None:
+        """A sealed report, verified and restored to its plain fields, then
+        held to the same ranges as a plain one."""
+        assert self.sealer is not None
+        f = self.sealer.open_report(frame, ident & 0x7F)
+        if f is None:
+            return None
+        entry = self.decoder.fast.get(ident)
+        if entry is not None and entry[4](f):
+            return entry[0], entry[1], f
+        self.decoder.bad.add(OUT_OF_RANGE, frame)
+        return None
 
     def _keyed_slow(self, frame: can.Message) -> Message | None:
         sealer = self.sealer
@@ -89,12 +122,15 @@ class CanTransport:
             from bridge.links.secoc import LOCKED_NODE
             self.decoder.bad.add(LOCKED_NODE, frame)
             return None
-        if ident in _HELLO_IDS and not (frame.is_extended_id or frame.is_remote_frame
-                                        or frame.is_error_frame):
+        if frame.is_extended_id or frame.is_remote_frame or frame.is_error_frame:
+            return self.decoder.decode(frame)
+        if ident in _HELLO_IDS:
             opened = sealer.open_hello(frame, ident & 0x7F)
             if opened is None:
                 return None
-            frame = opened
+            return self.decoder.decode(opened)
+        if (ident >> 7) in self.decoder.accept and ident & 0x7F:
+            return self._opened(frame, ident)
         return self.decoder.decode(frame)
 
     def _plain_host_hello(self, frame: can.Message) -> None:

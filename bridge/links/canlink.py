@@ -137,9 +137,16 @@ class Gateway:
 
     def robot_send(self, node: int, kind: int, fields: tuple) -> None:
         frame = encode(node, kind, fields)
-        if kind == HELLO and self.opener is not None:
-            self.hellos[node] = frame
-            frame = self.opener.hello(frame)
+        if self.opener is not None:
+            if kind == HELLO:
+                self.hellos[node] = frame
+                frame = self.opener.hello(frame)
+            else:
+                # a report is sealed too; before the robot took a host
+                # command it is held back (secoc.Opener.seal_report)
+                frame = self.opener.seal_report(node, kind, fields)
+                if frame is None:
+                    return
         self.up.append(frame)
 
     def robot_recv(self, node: int) -> tuple[int, tuple] | None:

@@ -35,6 +35,7 @@ import secrets
 import stat
 import tomllib
 from pathlib import Path
+from typing import Any
 
 import can
 from cryptography.hazmat.primitives.ciphers import Cipher
@@ -65,6 +66,13 @@ HELLO_BAD_MAC = "HELLO with a bad MAC"
 HELLO_PLAIN = "HELLO without a MAC"
 HELLO_UNKEYED = "HELLO from a node without a key"
 LOCKED_NODE = "frame of a locked-out node"
+# what a keyed host counts when it drops a robot's report (TOUCH, HEARTBEAT,
+# a behaviour's own): docs/protocol.md "Authenticated robot reports"
+REPORT_BAD_MAC = "report with a bad MAC"
+REPORT_PLAIN = "report without a MAC"
+REPORT_UNKEYED = "report from a node without a key"
+REPORT_DUPLICATE = "duplicate report"
+REPORT_BYTES = 4       # a sealed report's payload: 4 + 1 freshness byte + 3 MAC = 8
 
 # Brute force: a 24-bit MAC is guessed in 2^23 trials on average. A robot
 # counts the host commands to it that fail their MAC and, at LOCKOUT, takes
@@ -79,6 +87,12 @@ MISMATCH_AFTER = 2
 BLOCK = 8              # a HELLO names the robot's freshness floor in blocks of 256
 RESYNC = 16            # ticks between a robot's HELLOs after stale host commands
 WINDOW = 64            # blocks below the host's counter tried before a full search
+# a sealed report's MAC is bound to H, the last host counter its robot took
+# (in this run), and r, its count of reports since: the host tries H from
+# the counters it sealed for that node, the newest REPORT_WINDOW of them
+# (one AES call), then, once per node, the last 2 x RESERVE (a resumed host,
+# whose first counter is up to RESERVE above the last one it sent before)
+REPORT_WINDOW = 64
 
 
 class SecocError(BridgeError):
@@ -149,10 +163,64 @@ def check_layout() -> None:
                                f"the {MAC_BYTES}-byte MAC and a freshness byte")
 
 
-def _mac(key: bytes, arbitration_id: int, payload: bytes, fv: int) -> bytes:
+_MASK128 = (1 << 128) - 1
+
+
+class Cmac1:
+    """AES-128-CMAC of messages shorter than one block, for one key: such a
+    message is padded (0x80 0...) and XORed with the subkey K2, then
+    encrypted once (RFC 4493); the cipher and K2 are made once per key, so
+    a frame costs one AES call and no CMAC object (every MAC of this module
+    covers at most 12 bytes). `many` computes one MAC per block in one call."""
+
+    __slots__ = ("enc", "k2")
+
+    def __init__(self, key: bytes) -> None:
+        self.enc = Cipher(AES(key), ECB()).encryptor()
+        k = int.from_bytes(self.enc.update(bytes(16)), "big")
+        for _ in range(2):                        # L -> K1 -> K2
+            k = ((k << 1) & _MASK128) ^ (0x87 if k >> 127 else 0)
+        self.k2 = k
+
+    def block(self, message: bytes) -> int:
+        """The block to encrypt for `message` (< 16 bytes), as an integer."""
+        return int.from_bytes(message + b"\x80" + bytes(15 - len(message)), "big") ^ self.k2
+
+    def mac(self, message: bytes) -> bytes:
+        return self.enc.update(self.block(message).to_bytes(16, "big"))[:MAC_BYTES]
+
+    def report_block(self, head: int, h: int, r: int) -> int:
+        """The block of a report's MAC (_report_message): `head` is the
+        identifier and the sealed payload as one integer (6 bytes)."""
+        return (head << 80 | (h & 0xFFFFFFFF) << 48 | (r & 0xFFFFFFFF) << 16 | 0x8000) ^ self.k2
+
+    def report(self, head: int, h: int, r: int) -> bytes:
+        return self.enc.update(self.report_block(head, h, r).to_bytes(16, "big"))[:MAC_BYTES]
+
+    def many(self, blocks: list[int]) -> list[bytes]:
+        out = self.enc.update(b"".join(b.to_bytes(16, "big") for b in blocks))
+        return [out[i:i + MAC_BYTES] for i in range(0, len(out), 16)]
+
+
+_CMACS: dict[bytes, Cmac1] = {}
+
+
+def cmac1(key: bytes) -> Cmac1:
+    c = _CMACS.get(key)
+    if c is None:
+        c = _CMACS[key] = Cmac1(key)
+    return c
+
+
+def reference_mac(key: bytes, message: bytes) -> bytes:
+    """The truncated CMAC by the cryptography library (tests compare Cmac1 to it)."""
     c = CMAC(AES(key))
-    c.update(arbitration_id.to_bytes(2, "big") + payload + fv.to_bytes(4, "big"))
+    c.update(message)
     return c.finalize()[:MAC_BYTES]
+
+
+def _mac(key: bytes, arbitration_id: int, payload: bytes, fv: int) -> bytes:
+    return cmac1(key).mac(arbitration_id.to_bytes(2, "big") + payload + fv.to_bytes(4, "big"))
 
 
 def _hello_macs(key: bytes, arbitration_id: int, payload: bytes, blocks: range) -> bytes:
@@ -326,6 +394,20 @@ class Sealer:
         self.searched: set[int] = set()         # nodes given the one full search
         self.locked: set[int] = set()
         self.bad = None                         # the transport's BadFrames
+        # reports: per node the (H, r) last accepted, the lowest H this host
+        # takes (its first counter for the node: nothing from an earlier run),
+        # the HELLO fields (a sealed TOUCH's power), failures since confirmed
+        self.report_at: dict[int, tuple[int, int]] = {}
+        self.report_last: dict[int, bytes] = {}     # the last report's bytes
+        self.report_floor: dict[int, int] = {}
+        self.hellos: dict[int, tuple] = {}
+        self.nodes: Any = None                  # node -> HELLO fields known from elsewhere
+        self.report_failed: dict[int, int] = {}
+        self.report_searched: set[int] = set()
+        self.resumed = False                    # a resumed host: see open_report
+        self._layouts: dict[int, ReportLayout] = {}
+        self._rows: list | None = None
+        self._cmacs: dict[int, Cmac1] = {}
 
     def _count(self, fault: str, frame: can.Message) -> None:
         if self.bad is not None:
@@ -351,6 +433,8 @@ class Sealer:
         if block is None:
             return self._hello_failed(node, frame, HELLO_BAD_MAC)
         self.confirmed.add(node)
+        if node not in self.hellos:     # the first HELLO fixes them (roster.py)
+            self.hellos[node] = tuple(self._hello_struct().unpack(payload))
         floor = min(FV_MAX, ((block + 1) << BLOCK) - 1)
         if floor > self.fv[node]:
             if block > (self.fv[node] >> BLOCK) + 1:
@@ -432,12 +516,124 @@ class Sealer:
             ident = msg.can_id(kind, n)
             payload = bytes(frame.data)
             fv = self._next_fv(n)
+            if n not in self.report_floor:
+                self.report_floor[n] = fv
             k = fv_bytes(len(payload))
             data = payload + (fv & ((1 << (8 * k)) - 1)).to_bytes(k, "big") + \
                 _mac(key, ident, payload, fv)
             out.append(can.Message(arbitration_id=ident, is_extended_id=False, data=data,
                                    dlc=len(data), timestamp=frame.timestamp))
         return out
+
+
+    # -- robot reports ----------------------------------------------------------
+
+    def _hello_struct(self):
+        from bridge.links.codec import struct_for
+        return struct_for(msg.spec(msg.HELLO))
+
+    def layout(self, kind: int) -> ReportLayout:
+        if self._rows is None or msg.ACTIVE != self._rows:
+            self._layouts, self._rows = report_layouts(), list(msg.ACTIVE)
+        return self._layouts[kind]
+
+    def hello_of(self, node: int) -> tuple | None:
+        """The node's HELLO fields: from the resumed journal (`nodes`, the
+        coordinator's record), else its first verified HELLO."""
+        if self.nodes is not None:
+            got = self.nodes.get(node)
+            if got is not None:
+                return tuple(got)
+        return self.hellos.get(node)
+
+    def open_report(self, frame: can.Message, node: int) -> tuple | None:
+        """A sealed report's plain fields, verified and fresh, or None
+        (counted). H is found among the counters this host sealed for the
+        node, r from its low byte as the smallest above the last one taken
+        under that H (so a replayed or reordered report reads as a later one
+        and fails its MAC, as a replayed TRANSPORT does at a robot): the
+        last accepted H first (the robot took nothing since), then
+        the newest REPORT_WINDOW; a resumed host, once per node, also the
+        2 x RESERVE below its first counter (its predecessor's last ones)."""
+        c = self._cmacs.get(node)
+        if c is None:
+            key = self.keys.get(node)
+            if key is None:
+                self._count(REPORT_UNKEYED, frame)
+                return None
+            c = self._cmacs[node] = cmac1(key)
+        data = frame.data
+        if len(data) != 8:
+            self._count(REPORT_PLAIN, frame)
+            return None
+        whole = int.from_bytes(data, "big")
+        low = (whole >> 24) & 0xFF
+        tag = data[REPORT_BYTES + 1:]
+        ident = frame.arbitration_id
+        head = ident << 32 | whole >> 32
+        at = self.report_at.get(node)
+        found = None
+        if at is not None:
+            h, r = at
+            r = (r & ~0xFF) | low
+            if r <= at[1]:
+                r += 256
+            # c.report, inlined: this is every keyed report's cost
+            block = (head << 80 | h << 48 | (r & 0xFFFFFFFF) << 16 | 0x8000) ^ c.k2
+            if secrets.compare_digest(c.enc.update(block.to_bytes(16, "big"))[:MAC_BYTES],
+                                      tag):
+                found = (h, r)
+        if found is None:
+            top = self.fv[node]
+            bottom = self.report_floor.get(node, top + 1)
+            if at is not None:
+                bottom = max(bottom, at[0] + 1)
+            if self.resumed and node not in self.report_searched:
+                self.report_searched.add(node)
+                bottom = min(bottom, max(0, self.store.start(node) - 2 * RESERVE))
+            else:
+                bottom = max(bottom, top - REPORT_WINDOW + 1)
+            found = self._find_h(c, head, low or 256, bytes(tag), top, bottom)
+        if found is None:
+            if data == self.report_last.get(node):
+                # the last report again (a bus or link duplicate, or a
+                # replay of it): dropped, not held against the node
+                self._count(REPORT_DUPLICATE, frame)
+                return None
+            return self._report_failed(node, frame, REPORT_BAD_MAC)
+        if self._rows is None or msg.ACTIVE != self._rows:
+            self._layouts, self._rows = report_layouts(), list(msg.ACTIVE)
+        hello = self.hellos.get(node) if self.nodes is None else self.hello_of(node)
+        fields = self._layouts[ident >> 7].open(data, hello)
+        if fields is None:
+            return self._report_failed(node, frame, REPORT_BAD_MAC)
+        self.report_at[node] = found
+        self.report_last[node] = bytes(data)
+        return fields
+
+    @staticmethod
+    def _find_h(c: Cmac1, head: int, r: int, tag: bytes, top: int,
+                bottom: int) -> tuple[int, int] | None:
+        """(H, r) for the newest H in bottom..top whose MAC matches, in one AES call."""
+        if bottom > top:
+            return None
+        hs = range(top, bottom - 1, -1)
+        macs = c.many([c.report_block(head, h, r) for h in hs])
+        for h, m in zip(hs, macs):
+            if secrets.compare_digest(m, tag):
+                return h, r
+        return None
+
+    def _report_failed(self, node: int, frame: can.Message, fault: str) -> None:
+        self._count(fault, frame)
+        if node in self.report_at:       # only once the node's reports verified
+            k = self.report_failed[node] = self.report_failed.get(node, 0) + 1
+            if k >= LOCKOUT and node not in self.locked:
+                self.locked.add(node)
+                log.warning("robot %d: %d reports failed authentication (forgery "
+                            "or brute force on its identifier): node locked out, its "
+                            "frames are dropped from now on", node, k)
+        return None
 
 
 class Opener:
@@ -463,6 +659,38 @@ class Opener:
         # its counters (restarted without its freshness file), so the robot
         # says HELLO again, which names its floor (Gateway, every RESYNC ticks)
         self.stale: set[int] = set()
+        # reports: H, the last host counter each robot took in this run (-1:
+        # none yet, its reports are held back), and r, its reports since
+        self.h = {n: -1 for n in keys}
+        self.r = {n: 0 for n in keys}
+        self.held_back = 0           # reports not sent: no host command taken yet
+        self._layouts: dict[int, ReportLayout] = {}
+        self._rows: tuple = ()
+
+    def seal_report(self, node: int, kind: int, fields: tuple) -> can.Message | None:
+        """A robot's report (not HELLO) sealed: the sealed payload (4) | r's
+        low byte | MAC (3) over (identifier, payload, H, r). None before the
+        robot took a host command in this run (held back: without H the host
+        could not tell the report from a replay of an earlier run)."""
+        key = self.keys.get(node)
+        if key is None:
+            return None
+        h = self.h[node]
+        if h < 0:
+            self.held_back += 1
+            return None
+        layout = self._layout(kind)
+        r = self.r[node] = self.r[node] + 1
+        payload = layout.seal(fields)
+        ident = msg.can_id(kind, node)
+        data = payload + bytes([r & 0xFF]) + cmac1(key).mac(_report_message(ident, payload, h, r))
+        return can.Message(arbitration_id=ident, is_extended_id=False, data=data, dlc=8)
+
+    def _layout(self, kind: int) -> "ReportLayout":
+        rows = tuple(msg.ACTIVE)
+        if rows != self._rows:
+            self._layouts, self._rows = report_layouts(), rows
+        return self._layouts[kind]
 
     def hello(self, frame: can.Message) -> can.Message:
         """A robot's HELLO sealed (seal_hello) with its key and its floor."""
@@ -513,8 +741,113 @@ class Opener:
             self.stale.add(node)
             return None
         self.last[node] = fv
+        self.h[node] = fv
+        self.r[node] = 0
         if fv > self.limit[node]:
             self.limit[node] = min(FV_MAX, fv + RESERVE)
             self.store.reserve(node, self.limit[node])
         return can.Message(arbitration_id=frame.arbitration_id, is_extended_id=False,
                            data=payload, dlc=n, timestamp=frame.timestamp)
+
+
+# -- robot reports (docs/protocol.md, "Authenticated robot reports") -----------
+
+class ReportLayout:
+    """How one report kind is sealed: its plain row (messages.rows()) and its
+    4-byte sealed fields (messages.SEALED, or derived: each Q8 field in whole
+    units). `seal` maps plain fields to the sealed payload (robot side),
+    `open` the payload back to plain fields (host side), taking a field the
+    sealed form lacks from the node's HELLO (by name) or 0."""
+
+    def __init__(self, row: tuple, sealed: tuple | None, hello: tuple) -> None:
+        import struct
+        plain = [f[0] for f in row[4]]
+        if sealed is None:
+            sealed = tuple((f[0], 1 if f[3] == 256 else f[1], f[2], 1) + tuple(f[4:])
+                           for f in row[4])
+        self.name = row[1]
+        self.sealed = sealed
+        size = sum(f[1] for f in sealed)
+        if size > REPORT_BYTES:
+            raise SecocError(f"message {row[1]}: its sealed form takes {size} bytes; a sealed "
+                             f"report carries {REPORT_BYTES} beside its freshness byte and MAC")
+        codes = {(1, 0): "B", (1, 1): "b", (2, 0): "H", (2, 1): "h"}
+        self.st = struct.Struct("<" + "".join(codes[(f[1], f[2])] for f in sealed)
+                                + "x" * (REPORT_BYTES - size))
+        names = [f[0] for f in sealed]
+        self.near = names.index("near") if "near" in names else -1
+        self.take: list[tuple] = []       # per sealed field: (plain index, divisor ratio)
+        for f in sealed:
+            if f[0] == "near":
+                self.take.append((-1, 1))
+                continue
+            i = plain.index(f[0])
+            self.take.append((i, row[4][i][3] // f[3]))
+        hello_names = [f[0] for f in hello]
+        self.give: list[tuple] = []       # per plain field: (how, index, ratio)
+        for i, name in enumerate(plain):
+            if name in names:
+                j = names.index(name)
+                self.give.append(("s", j, self.take[j][1]))
+            elif self.near >= 0 and name in ("rx", "ry"):
+                self.give.append(("n", names.index("s" + name[1]), 0 if name == "rx" else 1))
+            elif name in hello_names:
+                self.give.append(("h", hello_names.index(name), 1))
+            else:
+                self.give.append(("z", 0, 0))
+        self.plain = plain
+        self._compile()
+
+    def seal(self, f: tuple) -> bytes:
+        vals = []
+        for i, ratio in self.take:
+            if i < 0:
+                d = (f[self.plain.index("rx")] - f[self.plain.index("sx")],
+                     f[self.plain.index("ry")] - f[self.plain.index("sy")])
+                vals.append(msg.NEAR.index(d) if d in msg.NEAR else 255)
+            else:
+                vals.append((f[i] + ratio // 2) // ratio if ratio > 1 else f[i])
+        return self.st.pack(*vals)
+
+    def _compile(self) -> None:
+        """`open(data, hello)`: the plain fields of a sealed report (its first
+        4 bytes in `data`), or None: a `near` out of range, or a field from a
+        HELLO the host does not know. Generated once per layout from `give`
+        (a frame then costs one unpack and one tuple, no loop)."""
+        parts = []
+        for how, j, k in self.give:
+            if how == "s":
+                parts.append(f"g[{j}] * {k}" if k != 1 else f"g[{j}]")
+            elif how == "n":
+                parts.append(f"g[{j}] + N[g[{self.near}]][{k}]")
+            elif how == "h":
+                parts.append(f"h[{j}]")
+            else:
+                parts.append("0")
+        checks = []
+        if self.near >= 0:
+            checks.append(f"    if g[{self.near}] >= {len(msg.NEAR)}:\n        return None\n")
+        if any(how == "h" for how, _, _ in self.give):
+            checks.append("    if h is None:\n        return None\n")
+        src = ("def open(data, h):\n    g = unpack(data)\n" + "".join(checks)
+               + f"    return ({', '.join(parts)},)\n")
+        space = {"N": msg.NEAR, "unpack": self.st.unpack_from}
+        exec(compile(src, f"<sealed {self.name}>", "exec"), space)
+        self.open = space["open"]
+
+
+def report_layouts() -> dict[int, ReportLayout]:
+    """The sealed layout of every report kind in use but HELLO (which has its
+    own, seal_hello); SecocError when one does not fit."""
+    hello = msg.spec(msg.HELLO)[4]
+    explicit = {k: fields for k, fields in msg.SEALED}
+    return {row[0]: ReportLayout(row, explicit.get(row[0]), hello)
+            for row in msg.rows() if row[2] == msg.UP and row[0] != msg.HELLO}
+
+
+def _report_message(ident: int, payload: bytes, h: int, r: int) -> bytes:
+    """What a report's MAC covers: identifier, sealed payload, the robot's
+    last host counter H and its report count r under H (4 bytes each): 14
+    bytes, one CMAC block."""
+    return ident.to_bytes(2, "big") + payload + h.to_bytes(4, "big") + \
+        (r & 0xFFFFFFFF).to_bytes(4, "big")

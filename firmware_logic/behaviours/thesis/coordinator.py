@@ -42,6 +42,8 @@ NOT_OBJECT = "segment not on the object"
 AT_HOME = "segment at home"
 WRONG_POWER = "power differs from HELLO"
 SECOND_TOUCH = "second touch from node"
+CLAIMED = "segment held by another robot"
+LEADER_JUMP = "leader pose does not follow the step"
 # the movement model codes a HELLO may announce: the spec's
 MODELS = ()
 for _code, _name in spec.MODELS:
@@ -259,6 +261,14 @@ class Coordinator(Recognising, Roster):
                 y = (f[2] + 128) >> 8
                 if (x, y, f[4]) == (self.leader_x, self.leader_y, self.leader_done):
                     return
+                # the leader moves with the object, at most one patch per
+                # step commanded since its last pose here (and the step it
+                # had reported may have moved it since): a jump is not it
+                k = (self.step - self.leader_done) % 255 + 1
+                if x - self.leader_x > k or self.leader_x - x > k or \
+                        y - self.leader_y > k or self.leader_y - y > k:
+                    self._reject(LEADER_JUMP, node, f)
+                    return
                 # the object moved (or a step is done): a later touch is
                 # stored in the frame this sets, so a resumed host needs it
                 self._record(node, kind, f, tick)
@@ -314,6 +324,11 @@ class Coordinator(Recognising, Roster):
             return NOT_ADJACENT
         if self.cells is not None and (sx - mx, sy - my) not in self.cells:
             return NOT_OBJECT
+        for t in self.touches:
+            # one robot holds a segment (the world's claim has one owner); a
+            # lost holder let go of its own
+            if t.sx == sx - mx and t.sy == sy - my and t.node not in self.lost:
+                return CLAIMED
         hx = sx - self.home_x
         hy = sy - self.home_y
         if hx * hx + hy * hy < self.home_r2:
