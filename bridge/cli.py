@@ -175,9 +175,9 @@ def _main(argv: list[str]) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return EXIT_USAGE
-    from firmware_logic.registry import BehaviourError
+    from sim_backend.registry import BehaviourError
     from sim_backend.errors import SimError
-    from firmware_logic import registry
+    from sim_backend import registry
     registry.untrust_all()     # only this command line's folders are trusted
     try:
         return args.func(args)

@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from bridge.cli import main
-from firmware_logic import registry
+from sim_backend import registry
 from tests.test_behaviour_folder import spread_behaviour
 
 

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Protocol
 
 from firmware_logic import perception
-from firmware_logic import registry
+from sim_backend import registry
 from sim_backend import kernel
 from sim_backend.body import SimBody
 from sim_backend.errors import EngineError

@@ -280,8 +280,8 @@ def _object_name(value: Any) -> str:
 
 
 def _behaviour(value: Any) -> Any:
-    """The behaviour (firmware_logic.registry.Behaviour) a scenario names."""
-    from firmware_logic import registry
+    """The behaviour (sim_backend.registry.Behaviour) a scenario names."""
+    from sim_backend import registry
 
     from sim_backend import words
     try:
@@ -495,7 +495,7 @@ def load(spec: str | Path | None = None) -> Scenario:
         raise ScenarioError(f"{source}: not valid TOML: {err}") from err
     if "behaviour" in raw:
         # a file names, never imports: a folder only when the user trusted it
-        from firmware_logic import registry
+        from sim_backend import registry
         try:
             registry.named_by_data(raw["behaviour"], f"scenario file {source!r}")
         except registry.BehaviourError as err:

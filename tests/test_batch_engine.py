@@ -11,7 +11,7 @@ change, identically: there is no second copy of any rule to forget.
 
 import pytest
 
-from firmware_logic import registry
+from sim_backend import registry
 from sim_backend import objects
 from sim_backend.batch.soa import SoaEngine, run_batch
 from sim_backend.errors import EngineError

@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from bridge.cli import main
-from firmware_logic import registry
+from sim_backend import registry
 from sim_backend import scenario
 
 

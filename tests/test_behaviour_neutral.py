@@ -14,7 +14,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from firmware_logic import registry
+from sim_backend import registry
 from sim_backend import scenario
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -8,7 +8,7 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
-from firmware_logic import registry
+from sim_backend import registry
 from sim_backend import engine, scenario, sweep, trace
 
 THESIS_WORDS = {"power", "shape_iou", "segments", "leader", "converged_moves"}

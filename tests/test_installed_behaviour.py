@@ -13,7 +13,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from firmware_logic import registry
+from sim_backend import registry
 
 ROOT = Path(__file__).resolve().parents[1]
 EXE = [sys.executable, "-m", "bridge.cli"]

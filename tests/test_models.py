@@ -123,7 +123,7 @@ def test_levy_flight_lengths_follow_the_truncated_power_law():
     assert 0.2 < share4 < 0.3
     steep = lengths(round(1000 * 2 ** (1 - 3.0)))          # mu = 3
     assert sum(steep) < sum(two)
-    from firmware_logic import registry
+    from sim_backend import registry
     sc = validate({"levyMu": 3.0, "movementModel": "levy"})
     assert registry.load("thesis").robot_args(1, 1, sc)[8] == 250   # the FSM's levy_q
 

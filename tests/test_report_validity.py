@@ -12,7 +12,7 @@ import pytest
 from bridge.host.journal import Journal
 from bridge.host.process import HostProcess
 from firmware_logic import messages as msg
-from firmware_logic import registry
+from sim_backend import registry
 from firmware_logic.behaviours.thesis import coordinator as co
 from firmware_logic.behaviours.thesis.coordinator import Coordinator, Touch
 from sim_backend.engine import Engine

@@ -11,7 +11,7 @@ import shutil
 
 from bridge.cli import main
 from bridge.host.journal import Journal
-from firmware_logic import registry
+from sim_backend import registry
 
 RUN = ["--robots", "6", "--set", "maxTicks=30", "--seed", "1"]
 

@@ -14,7 +14,7 @@ import pytest
 from PIL import Image
 
 from bridge import cli
-from firmware_logic import registry
+from sim_backend import registry
 from sim_backend import animate, observe, scenario
 from sim_backend.engine import Engine, InprocLink
 from sim_backend.trace import Trace, columns

@@ -16,7 +16,7 @@ import pytest
 matplotlib.use("Agg")
 
 from bridge.cli import main  # noqa: E402
-from firmware_logic import registry  # noqa: E402
+from sim_backend import registry  # noqa: E402
 from sim_backend import plots, scenario, sweep, words  # noqa: E402
 
 # words only the thesis may say (its spec.py HEADER, SUMMARY, RESULT, SHAPE, LOAD, PLOTS)

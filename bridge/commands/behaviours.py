@@ -65,7 +65,7 @@ def register(sub) -> None:
 
 
 def cmd_list(args: argparse.Namespace) -> int:
-    from firmware_logic import registry
+    from sim_backend import registry
     from sim_backend import studies
 
     for name, module in sorted(registry.names().items()):
@@ -90,7 +90,7 @@ def cmd_list(args: argparse.Namespace) -> int:
 
 
 def cmd_new(args: argparse.Namespace) -> int:
-    from firmware_logic import registry
+    from sim_backend import registry
 
     name = args.name
     if not name.isidentifier() or keyword.iskeyword(name) or name != name.lower():
@@ -125,7 +125,7 @@ def cmd_new(args: argparse.Namespace) -> int:
 
 def cmd_check(args: argparse.Namespace) -> int:
     from bridge import behaviour_check as bc
-    from firmware_logic import registry
+    from sim_backend import registry
 
     folder = args.folder
     if not folder.exists():

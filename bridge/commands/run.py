@@ -39,8 +39,8 @@ def add_trust_arg(p: argparse.ArgumentParser) -> None:
 
 def trust_from_args(args: argparse.Namespace) -> None:
     """The folders the command line names are trusted; a data file may name
-    no other (firmware_logic/registry.py named_by_data)."""
-    from firmware_logic import registry
+    no other (sim_backend/registry.py named_by_data)."""
+    from sim_backend import registry
     for ref in getattr(args, "trust_behaviour", None) or ():
         if not Path(ref).is_dir():
             raise UsageError(f"--trust-behaviour {ref}: not a folder")
@@ -92,7 +92,7 @@ def scenario_from_args(args: argparse.Namespace):
     changes = parse_overrides(args.set)
     trust_from_args(args)
     if "behaviour" in changes:
-        from firmware_logic import registry
+        from sim_backend import registry
         registry.trust(str(changes["behaviour"]))
     sc = scenario.load(args.scenario)
     if args.robots is not None:
@@ -348,7 +348,7 @@ def format_summary(s: dict, behaviour=None, coordinator=None) -> str:
     """The text summary in the behaviour's own words (sim_backend/words.py):
     its header and measure lines, the new estimate and recognition when
     measured, the result line."""
-    from firmware_logic import registry
+    from sim_backend import registry
     from sim_backend import words
     b = registry.load(behaviour) if behaviour is None or isinstance(behaviour, str) \
         else behaviour

@@ -26,7 +26,8 @@ from bridge.links.codec import BadFrames, Decoder, Message
 from bridge.record.formats import meta_path, record_format
 from bridge.record.recorder import HOST, Q_RECV, Q_RECV_FIELD, Q_X, Q_Y, join_parts
 from firmware_logic import messages as msg
-from firmware_logic import hal, registry
+from firmware_logic import hal
+from sim_backend import registry
 from firmware_logic.hal import Hal
 from sim_backend.scenario import check_seed
 from sim_backend.world import World

@@ -202,7 +202,7 @@ class Deployer:
                  firmware_dir: Path = FIRMWARE_DIR, timeout: float = TIMEOUT_S,
                  behaviour: str = "thesis") -> None:
         """behaviour: a name (`touchswarm behaviours`) or a folder."""
-        from firmware_logic import registry
+        from sim_backend import registry
         self.port = port
         try:
             self.behaviour = registry.load(behaviour)
@@ -218,7 +218,7 @@ class Deployer:
         """robot_config.py's keys: NODE and SEED (default 1), the loop keys
         given, BEHAVIOUR, and ARGS = the behaviour's robot_args(NODE, SEED,
         sc) (sc: the behaviour's default scenario when None)."""
-        from firmware_logic import registry
+        from sim_backend import registry
         config = dict(config or {})
         bad = [k for k in config if k not in CONFIG_KEYS]
         if bad:

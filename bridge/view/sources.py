@@ -277,7 +277,7 @@ class SimSource:
         value is refused in the command line's own words."""
         from bridge.commands.run import parse_overrides
         from bridge.errors import UsageError
-        from firmware_logic.registry import BehaviourError
+        from sim_backend.registry import BehaviourError
         from sim_backend import scenario
         from sim_backend.errors import SimError
         items = body.get("set", [])
@@ -409,7 +409,7 @@ class JournalSource:
         except JournalError as err:
             raise UsageError(f"--journal {err}") from None
         # the journal names, never imports: a folder only when trusted
-        from firmware_logic import registry
+        from sim_backend import registry
         try:
             registry.named_by_data(behaviour, f"--journal {path}: its meta")
         except registry.BehaviourError as err:
@@ -419,7 +419,7 @@ class JournalSource:
         self.sc = sc.replace(behaviour=behaviour) if behaviour != sc.behaviour else sc
         self.lock = threading.Lock()
         self.cached: tuple[Any, dict[str, Any]] | None = None
-        from firmware_logic import registry
+        from sim_backend import registry
         self.behaviour = registry.load(self.sc.behaviour)
         names = tuple(self.behaviour.spec.STATES)
         # the host does not know the object: no shape score to plot
@@ -436,7 +436,7 @@ class JournalSource:
                          "pause, step or speed")
 
     def info(self) -> dict[str, Any]:
-        from firmware_logic import registry
+        from sim_backend import registry
         names = tuple(registry.load(self.sc.behaviour).spec.STATES)
         return {"source": self.kind, "title": f"host journal {self.path}",
                 "world": self.sc.worldSize, "home": [self.sc.homeX, self.sc.homeY],
@@ -463,7 +463,7 @@ class JournalSource:
         return out
 
     def _read(self, j: Any, entries: list[Any], live: dict[str, Any] | None) -> dict[str, Any]:
-        from firmware_logic import registry
+        from sim_backend import registry
         from bridge.host.journal import Report
         from bridge.host.process import HostProcess
         host = HostProcess(None, self.sc.weight_centi, self.sc.homeX, self.sc.homeY,  # type: ignore[arg-type]

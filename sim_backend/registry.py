@@ -1,6 +1,6 @@
 """Behaviours by name or by folder: the one seam every engine, link and tool
-goes through (host side only; never deployed, see HOST_ONLY in
-bridge/firmware/subset_check.py).
+goes through: host code, CPython only, so it lives beside the engine and not
+in firmware_logic/ (which holds only what may run on a robot).
 
 A behaviour is a package of firmware-subset modules:
 
@@ -27,17 +27,21 @@ by path to a folder holding such a package.
 from __future__ import annotations
 
 import functools
+import hashlib
 import importlib
 import importlib.metadata
 import importlib.util
+import re
 import sys
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
 from typing import Any
 
+import firmware_logic.behaviours
+
 GROUP = "touchswarm.behaviours"
-BEHAVIOURS_DIR = Path(__file__).resolve().parent / "behaviours"
+BEHAVIOURS_DIR = Path(firmware_logic.behaviours.__file__).resolve().parent
 SPEC_KEYS = ("NAME", "TITLE", "STATES", "MODELS", "PARAMS", "MEASURES")
 
 
@@ -225,25 +229,33 @@ def _check(mod: ModuleType, spec: ModuleType, where: str) -> None:
             raise BehaviourError(f"behaviour {where}: __init__.py lacks {attr}")
 
 
+def folder_module_name(path: Path) -> str:
+    """The module name a behaviour folder is imported under: its folder's name
+    plus a digest of its full path, so that it never shadows an installed
+    behaviour (or another folder) of the same name in one process, and a
+    worker process that loads the same folder gets the same name."""
+    digest = hashlib.sha1(str(path).encode()).hexdigest()[:12]
+    return "_touchswarm_folder_%s_%s" % (re.sub(r"\W", "_", path.name), digest)
+
+
 def _import_folder(path: Path) -> ModuleType:
     init = path / "__init__.py"
     if not init.is_file():
         raise BehaviourError(f"behaviour folder {str(path)!r} has no __init__.py")
-    name = path.name
-    if name in sys.modules and Path(getattr(sys.modules[name], "__file__", "")) \
-            .resolve() == init.resolve():
+    name = folder_module_name(path)
+    if name in sys.modules:
         return sys.modules[name]
-    # another folder of the same name was imported before: its modules
-    # (name.spec, name.robot, ...) must not stand in for this one's
-    for key in [k for k in sys.modules if k.startswith(name + ".")]:
-        del sys.modules[key]
     spec = importlib.util.spec_from_file_location(name, init,
                                                   submodule_search_locations=[str(path)])
     if spec is None or spec.loader is None:
         raise BehaviourError(f"behaviour folder {str(path)!r} cannot be imported")
     mod = importlib.util.module_from_spec(spec)
     sys.modules[name] = mod
-    spec.loader.exec_module(mod)
+    try:
+        spec.loader.exec_module(mod)
+    except BaseException:
+        del sys.modules[name]       # a fixed file loads afresh on the next try
+        raise
     return mod
 
 
