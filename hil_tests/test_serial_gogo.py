@@ -14,8 +14,6 @@ compared tightly. No test sleeps and then asserts.
 
 from __future__ import annotations
 
-import math
-import time
 
 import pytest
 

@@ -143,10 +143,10 @@ class Evidence:
                 frontier = nxt
             if hit is None:             # walled off by free cells: take the touches as they are
                 return shape | rest
-            c: Cell | None = hit
-            while c is not None and c not in shape:
-                shape.add(c)
-                c = prev[c]
+            back: Cell | None = hit
+            while back is not None and back not in shape:
+                shape.add(back)
+                back = prev[back]
             shape |= {t for t in rest if t in shape}
             rest -= shape
         return shape

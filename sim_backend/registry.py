@@ -98,7 +98,8 @@ class Behaviour:
         (after self); most is infinite with *args."""
         import inspect
         try:
-            sig = inspect.signature(self.robot_class.__init__)
+            cls: Any = self.robot_class
+            sig = inspect.signature(cls.__init__)
         except (TypeError, ValueError):
             return 0, float("inf")
         params = list(sig.parameters.values())[1:]

@@ -6,7 +6,6 @@ in the summary, the journal and the CLI output."""
 
 from __future__ import annotations
 
-import json
 
 from bridge.cli import main
 from bridge.host.journal import Journal

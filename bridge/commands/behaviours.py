@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import argparse
 import keyword
-from pathlib import Path
 
 from bridge.behaviour_check import STEPS
 from bridge.commands.numbers import count

@@ -6,7 +6,7 @@ import argparse
 import json
 import sys
 from pathlib import Path
-from typing import Callable
+from typing import Any, Callable
 
 from bridge.commands.paths import path_arg
 from bridge.errors import UsageError
@@ -71,7 +71,7 @@ def check_link_limits(sc, link: str) -> None:
 
 def parse_overrides(items: list[str]) -> dict:
     """--set KEY=VALUE items as scenario changes (values read as TOML)."""
-    changes = {}
+    changes: dict[str, Any] = {}
     for item in items:
         key, eq, value = item.partition("=")
         key = key.strip()

@@ -349,7 +349,7 @@ def replay(path: Path, realtime: bool = False, limit: int = 50,
     nodes = sorted(set(rec.sensors) | set(rec.actions))
     beh = behaviour(rec.meta, Path(path), folder)
     robots = {n: beh.make_robot(n, seed, sc) for n in nodes}
-    inbox = {n: deque() for n in nodes}
+    inbox: dict[int, deque] = {n: deque() for n in nodes}
     hals = {n: ReplayHal(n, inbox[n], rec.recv_fields) for n in nodes}
     stopped: set[int] = set()
     # the recorded run was a simulation: the host may check touches against

@@ -130,7 +130,7 @@ def watched_link(nodes: list[int], tick_of: Any) -> Any:
     class WatchedLink(InprocLink):
         def __init__(self) -> None:
             super().__init__(nodes)
-            self.last = {n: deque(maxlen=LAST_MESSAGES) for n in nodes}
+            self.last: dict[int, deque] = {n: deque(maxlen=LAST_MESSAGES) for n in nodes}
 
         def robot_send(self, node: int, kind: int, fields: tuple) -> None:
             super().robot_send(node, kind, fields)
@@ -177,7 +177,7 @@ class SimSource:
         from sim_backend.engine import Engine
         self.sc = sc
         nodes = list(range(1, sc.agents + 1))
-        self.engine = Engine(sc, seed, link=watched_link(nodes, lambda: self.engine.tick))
+        self.engine: Engine = Engine(sc, seed, link=watched_link(nodes, lambda: self.engine.tick))
         from perception.tracker import attach
         attach(self.engine)     # the shape estimate and recognition, as `touchswarm run` has them
         self.bad_frames = 0
@@ -463,7 +463,6 @@ class JournalSource:
         return out
 
     def _read(self, j: Any, entries: list[Any], live: dict[str, Any] | None) -> dict[str, Any]:
-        from sim_backend import registry
         from bridge.host.journal import Report
         from bridge.host.process import HostProcess
         host = HostProcess(None, self.sc.weight_centi, self.sc.homeX, self.sc.homeY,  # type: ignore[arg-type]
