@@ -58,7 +58,7 @@ CHOICES: dict[str, tuple[str, ...]] = {
     # patch's centre from the robot's position (kernel.TOWARDS)
     "uphillHeading": ("octant", "netlogo"),
 }
-# issue 10 section 2: how robots take turns. sync: every robot decides on the
+# how robots take turns. sync: every robot decides on the
 # tick-start world, conflicts resolved at the tick's end (real robots act in
 # parallel); netlogo: go's `ask robots`, one robot after another in a random
 # order drawn every go iteration, each seeing the moves before it, a robot in

@@ -1,4 +1,4 @@
-"""The layers read top-down (issue 27 item 3): the world (sim_backend/) and
+"""The layers read top-down: the world (sim_backend/) and
 host perception (perception/) import nothing from bridge/ (links, serial,
 CLI), and the firmware (firmware_logic/) imports none of the host packages.
 Every import statement counts, also one inside a function."""

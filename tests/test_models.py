@@ -1,4 +1,4 @@
-"""Issue 12 §1-§2: ants that stay ants (antBlocked) and the Levy, moth and
+"""Ants that stay ants (antBlocked) and the Levy, moth and
 frog movement models of the thesis behaviour (docs/movement-models.md).
 
 Each model is deterministic per seed, differs from the others, runs over
@@ -171,7 +171,7 @@ def test_the_frog_sits_then_jumps_several_patches():
     assert "sJJJJJss" in text and "JJJJJJ" not in text, text
 
 
-# -- several breeds (issue 12 §3) ------------------------------------------------
+# -- several breeds ------------------------------------------------
 
 BREEDS = [{"name": "fireflies", "count": 6, "movementModel": "firefly"},
           {"name": "ants", "count": 8, "movementModel": "ant", "rPower": 2.0,

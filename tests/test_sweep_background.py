@@ -1,6 +1,6 @@
 """engine auto on a cold soa cache: the runs start at once in the reference
 engine while the soa step compiles in another process, and the chunks
-started after the compile ends run in soa (issue 28 item 1).
+started after the compile ends run in soa.
 
 No timing anywhere: the background compile is a fake the test ends when
 it chooses (after the first chunk returned), or a real process the test

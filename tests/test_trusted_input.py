@@ -1,4 +1,4 @@
-"""Data files name, never import (issue 29 item 6): a scenario TOML, a
+"""Data files name, never import: a scenario TOML, a
 recording's sidecar and a journal's meta may name only installed
 behaviours; a folder they name is refused in one line, before its code
 runs, unless the user names the same folder on the command line

@@ -1,5 +1,5 @@
-"""Watching a run: the per-tick observer seam, `run --trace` and `run --animate`
-(issue 14 §1-2). Runs in-process through bridge.cli.main; no timing."""
+"""Watching a run: the per-tick observer seam, `run --trace` and `run --animate`.
+Runs in-process through bridge.cli.main; no timing."""
 
 from __future__ import annotations
 

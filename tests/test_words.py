@@ -1,5 +1,5 @@
-"""A run's outputs speak its behaviour's words (issue 26 item 6,
-sim_backend/words.py): the text summary, world.png, the GIF's titles and
+"""A run's outputs speak its behaviour's words
+(sim_backend/words.py): the text summary, world.png, the GIF's titles and
 the sweep plots show the behaviour's MEASURES and REPORTERS with their
 titles; the thesis's words (power, weight, shape IoU, touches that hold
 the object) appear only for the thesis, which declares them in its spec.py.

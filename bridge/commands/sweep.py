@@ -56,7 +56,7 @@ def register(sub) -> None:
                    help="sizes: 20-300 robots in the default arena, 1,000 and 10,000 in "
                         "arenas of the same density; obstacles: the wall scenario with and "
                         "without its wall; field: static and dynamic field at 20-300 robots "
-                        "(the world's presets, issue 11; 10 seeds, until delivered, maxTicks "
+                        "(the world's presets; 10 seeds, until delivered, maxTicks "
                         "6000; <preset>.png: delivery rate, time, IoU). Any other NAME is "
                         "--study NAME (the thesis's faults: each fault alone and a mix, "
                         "faults.png; breeds: the share of ants, breeds.png)")
