@@ -21,6 +21,7 @@ from typing import Any, Callable, Protocol
 
 from firmware_logic import perception
 from sim_backend import registry
+from sim_backend.coordinator import measures_of
 from sim_backend import kernel
 from sim_backend.body import SimBody
 from sim_backend.errors import EngineError
@@ -153,7 +154,7 @@ class RunResult:
             # measures may say it in its own words (the thesis: no path home,
             # transporting, ...); `delivered` is true only with a delivered tick
             "outcome": run_outcome(c),
-            **(c.measures() if hasattr(c, "measures") else {}),
+            **measures_of(c),
             # [[breeds]] (issue 12 §3): each touch's breed, in touch order
             **({"touch_breeds": [self.scenario.breed_name(t.node)
                                   for t in getattr(c, "touches", ())]}

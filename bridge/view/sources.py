@@ -65,13 +65,14 @@ def coordinator_view(coord: Any, behaviour: Any, values: dict[str, Any] | None =
     its load (spec.LOAD: e.g. power of weight, coordinator attributes in
     hundredths)."""
     from sim_backend import words
+    from sim_backend.coordinator import Segmenting, measures_of
     w = words.of(behaviour)
     mx, my = getattr(coord, "moved_x", 0), getattr(coord, "moved_y", 0)
     touches = [{"n": i + 1, "node": t.node, "tick": t.tick,
                 "rx": t.rx + mx, "ry": t.ry + my,
                 "sx": getattr(t, "sx", t.rx) + mx, "sy": getattr(t, "sy", t.ry) + my}
                for i, t in enumerate(coord.touches)]
-    values = {**(values or {}), **(coord.measures() if hasattr(coord, "measures") else {}),
+    values = {**(values or {}), **measures_of(coord),
               **behaviour.report(coord)}
     out = {"touches": touches, "status": coord.status(),
            "measures": words.shown_values(w, values),
@@ -79,7 +80,7 @@ def coordinator_view(coord: Any, behaviour: Any, values: dict[str, Any] | None =
            "converged_tick": _tick_or_none(getattr(coord, "converged_tick", -1)),
            "home_tick": _tick_or_none(getattr(coord, "delivered_tick", -1)),
            "delivered": coord.delivered_tick >= 0}
-    if w.shape is not None and hasattr(coord, "segments_now"):
+    if w.shape is not None and isinstance(coord, Segmenting):
         out["perceived"] = [list(c) for c in
                             sorted(perception.outline_cells(coord.segments_now()))]
     if w.load is not None:
