@@ -39,13 +39,14 @@ from types import ModuleType
 from typing import Any
 
 import firmware_logic.behaviours
+from sim_backend.errors import SimError
 
 GROUP = "touchswarm.behaviours"
 BEHAVIOURS_DIR = Path(firmware_logic.behaviours.__file__).resolve().parent
 SPEC_KEYS = ("NAME", "TITLE", "STATES", "MODELS", "PARAMS", "MEASURES")
 
 
-class BehaviourError(ValueError):
+class BehaviourError(SimError, ValueError):
     """A behaviour that cannot be found or does not declare what it must."""
 
 

@@ -278,7 +278,6 @@ class SimSource:
         value is refused in the command line's own words."""
         from bridge.commands.run import parse_overrides
         from bridge.errors import UsageError
-        from sim_backend.registry import BehaviourError
         from sim_backend import scenario
         from sim_backend.errors import SimError
         items = body.get("set", [])
@@ -291,7 +290,7 @@ class SimSource:
                 raise UsageError("--set behaviour: the view's behaviour is fixed; restart "
                                  "`touchswarm view --behaviour NAME`")
             return (self.sc.replace(**changes) if changes else self.sc), seed
-        except (UsageError, SimError, BehaviourError) as err:
+        except (UsageError, SimError) as err:      # SimError: BehaviourError too
             raise BadRequest(str(err)) from None
 
     def robot(self, node: int) -> dict[str, Any]:
