@@ -17,11 +17,12 @@ from __future__ import annotations
 import logging
 from collections import deque
 from dataclasses import dataclass, field
-from typing import Any, Callable, Protocol
+from typing import Any, Callable
 
 from firmware_logic import perception
 from sim_backend import registry
 from sim_backend.coordinator import measures_of
+from sim_backend.link import Link
 from sim_backend import kernel
 from sim_backend.body import SimBody
 from sim_backend.errors import EngineError
@@ -30,15 +31,6 @@ from sim_backend.scenario import Scenario
 from sim_backend.world import World
 
 log = logging.getLogger(__name__)
-
-
-class Link(Protocol):
-    """How messages travel between the robots and the host coordinator."""
-
-    def robot_send(self, node: int, kind: int, fields: tuple) -> None: ...
-    def robot_recv(self, node: int) -> tuple[int, tuple] | None: ...
-    def host_recv(self) -> list[tuple[int, int, tuple]]: ...
-    def host_send(self, node: int, kind: int, fields: tuple) -> None: ...
 
 
 class InprocLink:
