@@ -156,11 +156,6 @@ def behaviour(meta: dict, path: Path, folder: Path | None = None) -> registry.Be
         raise UsageError(f"{where}: {err}") from None
 
 
-def behaviour_ref(b: registry.Behaviour) -> str:
-    """How the replayed scenario names `b`: its name when installed, else its folder."""
-    return b.name if registry.names().get(b.name) == b.module_name else str(b.folder)
-
-
 def load(path: Path, folder: Path | None = None) -> Recording:
     """Read a recording and its sidecar. UsageError (bad input: the CLI exits 2)
     for a missing, unreadable, corrupt, truncated or mismatched recording."""
@@ -176,7 +171,7 @@ def load(path: Path, folder: Path | None = None) -> Recording:
                          "`touchswarm run --record`")
     rec = Recording(meta=_sidecar(path))
     b = behaviour(rec.meta, path, folder)   # its own message kinds, before any frame is read
-    rec.meta["scenario"]["behaviour"] = behaviour_ref(b)
+    rec.meta["scenario"]["behaviour"] = b.ref     # its name when installed, else its folder
     dec = Decoder("host", BadFrames("replay"), behaviour=b)
     tick = 0
     host_left = 0        # frames still to come of those the host received
