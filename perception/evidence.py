@@ -82,9 +82,6 @@ class Evidence:
         self.version += 1
         return True
 
-    def free_many(self, cells: Iterable[Cell]) -> int:
-        return sum(1 for c in cells if self.free(*c))
-
     def heartbeat(self, fields: tuple, moved: Cell = (0, 0)) -> bool:
         """A HEARTBEAT's pose (fields: state, x, y in Q8 patches, heading,
         step) as free evidence, shifted into the object's frame."""

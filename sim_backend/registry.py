@@ -178,9 +178,6 @@ class Behaviour:
                                  "lacks STUDIES")
         return mod.STUDIES
 
-    def model_names(self) -> dict[int, str]:
-        return dict(self.spec.MODELS)
-
     def modules(self) -> list[Path]:
         """The behaviour's firmware files (what deploy copies to a board)."""
         return sorted(p for p in self.folder.glob("*.py"))

@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import hashlib
 import logging
-import os
 import re
 import shutil
 import subprocess
@@ -444,9 +443,3 @@ for m in list(sys.modules):
         print('module', m, getattr(sys.modules[m], '__file__', '?'))
 print('built', s.NAME, type(r).__name__, len(c['ARGS']), s.STATES[r.state])
 """
-
-
-def env_for_tools() -> dict[str, str]:
-    env = dict(os.environ)
-    env.setdefault("PYTHONUNBUFFERED", "1")
-    return env
