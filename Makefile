@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test venv bench clean chromium
+.PHONY: demo test lint venv bench clean chromium
 
 # the venv: this tree installed editable with everything the tests need
 # (the dev extra); no browser, no root
@@ -34,8 +34,14 @@ chromium:
 
 # two workers: the suite is CPU-bound (numba compiles, MicroPython, runs) and
 # each test waits on conditions, never on time, so it holds beside other work
-test: $(STAMP) chromium
+test: $(STAMP) chromium lint
 	$(BIN)/python -m pytest -n 2 --dist worksteal
+
+# pyflakes-level lint and mypy's default checks (rules in pyproject.toml:
+# [tool.ruff], [tool.mypy]); run by `make test`
+lint: $(STAMP)
+	$(BIN)/ruff check .
+	$(BIN)/mypy
 
 # Mesa is bench-only (bench/mesa_baseline.py's per-agent baseline): not a
 # runtime or test dependency
@@ -44,4 +50,4 @@ bench: $(STAMP)
 	for b in bench/*.py; do $(BIN)/python $$b; done
 
 clean:
-	rm -rf $(VENV) demo-out .pytest_cache
+	rm -rf $(VENV) demo-out .pytest_cache .mypy_cache .ruff_cache

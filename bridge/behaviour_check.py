@@ -87,7 +87,7 @@ class Checker:
         self.sc = ["--behaviour", str(folder), "--set", f"maxTicks={ticks}"]
 
     def load(self) -> str:
-        from firmware_logic import registry
+        from sim_backend import registry
         from sim_backend import scenario
         from sim_backend.errors import ScenarioError
         try:
@@ -139,7 +139,7 @@ class Checker:
         path = self.work / "behaviour.dbc"
         cli("dbc", "--behaviour", str(self.folder), "--out", str(path))
         db = cantools.database.load_file(str(path))
-        from firmware_logic import registry
+        from sim_backend import registry
         own = [row[1] for row in getattr(registry.load(str(self.folder)).spec, "MESSAGES", ())]
         names = {m.name for m in db.messages}
         missing = [n for n in own if not any(n in x for x in names)]

@@ -175,15 +175,14 @@ def _main(argv: list[str]) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return EXIT_USAGE
-    from firmware_logic.registry import BehaviourError
     from sim_backend.errors import SimError
-    from firmware_logic import registry
+    from sim_backend import registry
     registry.untrust_all()     # only this command line's folders are trusted
     try:
         return args.func(args)
-    except (UsageError, SimError, BehaviourError) as err:
-        # BehaviourError: a behaviour that loads but does not hold together
-        # (e.g. robot_args that do not fit its constructor), found when used
+    except (UsageError, SimError) as err:
+        # SimError includes BehaviourError: a behaviour that loads but does not
+        # hold together (e.g. robot_args that do not fit its constructor)
         print(f"touchswarm: error: {err}", file=sys.stderr)
         return EXIT_USAGE
     except BridgeError as err:

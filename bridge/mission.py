@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
-from typing import Any, Callable
+from typing import Any, Callable, Protocol, runtime_checkable
 
 from bridge.bodies import BodyContext, BodySpec, BodyURLError, OpenedBody, open_body
 from bridge.errors import BridgeError
@@ -193,6 +193,13 @@ class TetherNode:
         pass
 
 
+@runtime_checkable
+class HeldBack(Protocol):
+    """A body whose intents wait for its board's tick end (tether_seat's)."""
+
+    def activate(self) -> None: ...
+
+
 def tether_seat(world: Any, index: int, node: int, link: Any) -> Any:
     """A SimBody whose intents come from a board over the tether. They are
     held back until the board ends its tick (ACTION END), then applied by the
@@ -248,7 +255,7 @@ class MixedLink:
         for b in eng.bodies:
             b.reset_intents()           # what the engine's tick already applied
         for b in eng.bodies:
-            if hasattr(b, "activate"):
+            if isinstance(b, HeldBack):
                 b.activate()
         eng._apply()
 

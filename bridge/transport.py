@@ -9,29 +9,14 @@ kind, logs each kind once, and drops them.
 from __future__ import annotations
 
 import logging
-from typing import Protocol
 
 from bridge.errors import BridgeError
+from sim_backend.link import HostEnd, Message
 
 log = logging.getLogger(__name__)
 
-Message = tuple[int, int, tuple]   # (node, kind, fields) as in firmware_logic.messages
-
-
-class RobotTransport(Protocol):
-    def poll(self, timeout: float) -> list[Message]:
-        """Messages received within `timeout` seconds (may be empty); returns by
-        then even when more keep coming (the rest wait for the next poll)."""
-
-    def send(self, node: int, kind: int, fields: tuple) -> None:
-        """Send one message to `node` (0: every robot on this transport)."""
-
-    def bad_frames(self) -> dict[str, int]:
-        """Dropped frames so far, by kind of fault."""
-
-    def close(self) -> None:
-        """Release the port or bus; safe to call twice; never raises (a lost
-        link fails to close as well, and must not mask why it was lost)."""
+# the host's end of a link, declared once with the engine's (sim_backend/link.py)
+RobotTransport = HostEnd
 
 
 class FanIn:

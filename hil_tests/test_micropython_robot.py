@@ -25,7 +25,7 @@ from bridge.serial.transport import SerialTransport
 from firmware_logic import fixedpoint as fx
 from firmware_logic import messages as msg
 from firmware_logic.behaviours.thesis.coordinator import Coordinator, Touch
-from firmware_logic import registry
+from sim_backend import registry
 from sim_backend import scenario
 from sim_backend.emulators.tether import TetherTransport
 from sim_backend.engine import Engine

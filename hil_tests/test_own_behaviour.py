@@ -1,4 +1,4 @@
-"""Issue 26, done when: a third behaviour, made by the scaffold in a folder
+"""A behaviour of the user's own, end to end: a third behaviour, made by the scaffold in a folder
 outside the repository and edited there, with its own parameter, a state only
 its own down message leads to and its own measure, passes every step from that
 folder: run, sweep (both engines, identical), firmware check, CAN record +
@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from bridge.cli import main
-from firmware_logic import registry
+from sim_backend import registry
 from tests.test_behaviour_folder import spread_behaviour
 
 

@@ -14,14 +14,11 @@ compared tightly. No test sleeps and then asserts.
 
 from __future__ import annotations
 
-import math
-import time
 
 import pytest
 
-from bridge.serial.errors import SerialPortLost
-from bridge.serial.gogo import (GoGoBoard, GoGoBody, GoGoEchoError, GoGoError, GoGoPortLost,
-                                GoGoTimeout)
+from bridge.serial.errors import ProtocolError, SerialLinkError, SerialPortLost, SerialTimeout
+from bridge.serial.gogo import GoGoBoard, GoGoBody
 from firmware_logic import fixedpoint as fx
 from firmware_logic import messages as msg
 from firmware_logic.hal import NOTHING, OBJECT, WALL
@@ -134,7 +131,7 @@ def test_wrong_baud_is_a_clear_error_and_leaves_the_board_usable(gogo_port) -> N
     port, emu = gogo_port
     with GoGoBoard(port, 19200, timeout=0.3, quiet=0.05) as b:
         # a real UART may drop the garbled bytes instead of echoing garbage
-        err = GoGoEchoError if emu is not None else (GoGoEchoError, GoGoTimeout)
+        err = ProtocolError if emu is not None else (ProtocolError, SerialTimeout)
         with pytest.raises(err, match="9600 baud"):
             b.ping()
     with GoGoBoard(port, BAUD, timeout=0.5) as b:
@@ -341,15 +338,15 @@ def test_body_rides_out_garbage_and_truncation_and_fails_clearly_on_a_lost_port(
         body.forward(90, fx.ONE)
         assert body.busy() and emu.motor_on[1]
         emu.vanish()
-        with pytest.raises(GoGoPortLost):         # when the tick that stops it comes
+        with pytest.raises(SerialPortLost):         # when the tick that stops it comes
             for _ in range(10):
                 next_tick(body)
         for _ in range(2):                        # and every tick while it is gone
-            with pytest.raises(GoGoPortLost) as err:
+            with pytest.raises(SerialPortLost) as err:
                 next_tick(body)
             assert isinstance(err.value, SerialPortLost) and "\n" not in str(err.value)
         assert not body.busy()                    # the move is lost with the port
-        with pytest.raises(GoGoError):
+        with pytest.raises(SerialLinkError):
             body.forward(90, fx.ONE)
         assert body.x_mm == pytest.approx(-50.0)  # a failed move is not counted
         emu.come_back()

@@ -109,12 +109,15 @@ def test_sensors_read_eight_ten_bit_values(khepera) -> None:
         assert len(values) == 8 and all(0 <= v <= 1023 for v in values)
 
 
-def test_leds(khepera) -> None:
-    k, _ = khepera
-    k.led(1, 1)
-    k.led(1, 0)
-    k.led(1, 2)
-    k.led(1, 2)
+def test_leds_on_off_and_toggle(khepera) -> None:
+    """L,n,act: on, off, then toggle (2) twice. Each command waits for the
+    robot's acknowledgement; on the emulator the LED's state is checked too
+    (a real robot's LED cannot be read back over the serial protocol)."""
+    k, emu = khepera
+    for act, lit in ((1, 1), (0, 0), (2, 1), (2, 0)):
+        k.led(1, act)
+        if emu is not None:
+            assert emu.leds[1] == lit, (act, emu.leds)
 
 
 # -- emulator only: the world, and faults --------------------------------------------------

@@ -1,4 +1,4 @@
-"""The host's decider for a recognising coordinator (issue 13 §2): is a
+"""The host's decider for a recognising coordinator: is a
 cluster of touches the target, and how sure is the host?
 
 The thesis coordinator (firmware_logic/behaviours/thesis/recognising.py) is
@@ -71,7 +71,7 @@ class Decider:
 
     Every call is kept (`answers`, by the cluster's cells), so the run's
     perception reports the very verdict the decision used (one verdict per
-    run, issue 30 §2: `verdict(cells)`)."""
+    run: `verdict(cells)`)."""
 
     def __init__(self, sc: Any) -> None:
         self.w = sc.worldSize

@@ -82,9 +82,6 @@ class Evidence:
         self.version += 1
         return True
 
-    def free_many(self, cells: Iterable[Cell]) -> int:
-        return sum(1 for c in cells if self.free(*c))
-
     def heartbeat(self, fields: tuple, moved: Cell = (0, 0)) -> bool:
         """A HEARTBEAT's pose (fields: state, x, y in Q8 patches, heading,
         step) as free evidence, shifted into the object's frame."""
@@ -143,10 +140,10 @@ class Evidence:
                 frontier = nxt
             if hit is None:             # walled off by free cells: take the touches as they are
                 return shape | rest
-            c: Cell | None = hit
-            while c is not None and c not in shape:
-                shape.add(c)
-                c = prev[c]
+            back: Cell | None = hit
+            while back is not None and back not in shape:
+                shape.add(back)
+                back = prev[back]
             shape |= {t for t in rest if t in shape}
             rest -= shape
         return shape

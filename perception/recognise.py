@@ -15,7 +15,7 @@ The model (docs/perception.md, "Recognition", says why this one):
     normalised over the shapes. Placements that overlap no touched cell's
     bounding box explain no touch; they are summed in closed form (each has
     every touch false), so nothing is dropped from the normalisation.
-  - open set (issue 30): one more hypothesis, UNKNOWN, "a shape not in the
+  - open set: one more hypothesis, UNKNOWN, "a shape not in the
     library", with prior P_OPEN. Its shape is the evidence's own outline E
     (the touches' hull minus known-free cells, `Evidence.hull_estimate`),
     priced by a prior over all polyominoes of |E| cells (about 4.06^n / n

@@ -1,6 +1,6 @@
 """Perception as a run's measure: the evidence, estimate and recognition
-updated every tick of a simulated run (issue 13, step 3: a measure, not yet
-a decision; nothing here commands a robot).
+updated every tick of a simulated run (a measure, not a decision: nothing
+here commands a robot).
 
 `Perceiver(engine)` watches an Engine through its observer seam
 (sim_backend/observe.py): after every tick it adds the host's new touches
@@ -63,7 +63,7 @@ class Perceiver:
         self.engine = engine
         # with recognise = true the host's decider judges the touches: its
         # verdict is the run's, one posterior for the decision and for what
-        # the run reports (issue 30 §2)
+        # the run reports
         self.decider = getattr(engine.coordinator, "decider", None)
         if library is None:
             library = self.decider.library if self.decider is not None else Library.of(engine.sc)
@@ -235,7 +235,8 @@ def decision_verdict(c: Any) -> Verdict:
 def perceives(c: Any) -> bool:
     """Whether a coordinator keeps touched segments of an object it tracks
     as it moves (`touches` with sx, sy; `moved_x`), as the thesis's does."""
-    return hasattr(c, "touches") and hasattr(c, "moved_x")
+    from sim_backend.coordinator import Tracking
+    return isinstance(c, Tracking)
 
 
 END_FIELDS = ("estimate_iou", "recognised", "p")

@@ -34,7 +34,7 @@ MAX_FRAMES = 120
 FPS = 10
 TRAIL_TICKS = 30          # how far back a frame draws each robot's trail
 FIGSIZE = (8.0, 7.6)      # inches; at DPI this gives 800 x 760 pixels: every label
-DPI = 100                 # is 8 pt or more, legible at 100 % (issue 32)
+DPI = 100                 # is 8 pt or more, legible at 100 %
 
 
 def animation_format(path: Path) -> str:

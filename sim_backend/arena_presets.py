@@ -1,4 +1,4 @@
-"""Issue 11's sweeps (`touchswarm sweep --preset sizes|obstacles|field`) and
+"""The world's preset sweeps (`touchswarm sweep --preset sizes|obstacles|field`) and
 their figures: per point the delivery rate, the median tick of delivery and
 the mean IoU of the perceived shape (docs/extensions.md).
 

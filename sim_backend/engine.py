@@ -17,10 +17,12 @@ from __future__ import annotations
 import logging
 from collections import deque
 from dataclasses import dataclass, field
-from typing import Any, Callable, Protocol
+from typing import Any, Callable
 
 from firmware_logic import perception
-from firmware_logic import registry
+from sim_backend import registry
+from sim_backend.coordinator import measures_of
+from sim_backend.link import Link
 from sim_backend import kernel
 from sim_backend.body import SimBody
 from sim_backend.errors import EngineError
@@ -29,15 +31,6 @@ from sim_backend.scenario import Scenario
 from sim_backend.world import World
 
 log = logging.getLogger(__name__)
-
-
-class Link(Protocol):
-    """How messages travel between the robots and the host coordinator."""
-
-    def robot_send(self, node: int, kind: int, fields: tuple) -> None: ...
-    def robot_recv(self, node: int) -> tuple[int, tuple] | None: ...
-    def host_recv(self) -> list[tuple[int, int, tuple]]: ...
-    def host_send(self, node: int, kind: int, fields: tuple) -> None: ...
 
 
 class InprocLink:
@@ -154,7 +147,7 @@ class RunResult:
             # measures may say it in its own words (the thesis: no path home,
             # transporting, ...); `delivered` is true only with a delivered tick
             "outcome": run_outcome(c),
-            **(c.measures() if hasattr(c, "measures") else {}),
+            **measures_of(c),
             # [[breeds]] (issue 12 §3): each touch's breed, in touch order
             **({"touch_breeds": [self.scenario.breed_name(t.node)
                                   for t in getattr(c, "touches", ())]}

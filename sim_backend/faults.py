@@ -1,4 +1,4 @@
-"""Faults injected on the body/world side (issue 12 §5), seeded and reproducible.
+"""Faults injected on the body/world side, seeded and reproducible.
 
 Which robots are faulty is planned once per run (`plan`) from a random stream
 of its own (Python's `random.Random` seeded from the run seed and a fixed

@@ -22,7 +22,8 @@ def shape_iou(coordinator: Any, world: Any) -> float:
     displacement (moved_x, moved_y), i.e. as the host stored them, the true cells as the world
     placed them (world.start_cells). So the measure does not jump while the
     object moves: the host learns the displacement a tick after the world
-    (issue 30: default seed 2 alternated 0.35 / 0.69 during the carry)."""
+    (measured against the moved world, default seed 2 alternated 0.35 /
+    0.69 during the carry)."""
     mx, my = getattr(coordinator, "moved_x", 0), getattr(coordinator, "moved_y", 0)
     perceived = perception.outline_cells([(x - mx, y - my)
                                           for x, y in coordinator.segments_now()])

@@ -18,10 +18,11 @@ import numpy as np
 
 from firmware_logic import fixedpoint as fx
 from firmware_logic import perception
+from sim_backend.errors import SimError
 from sim_backend.measures import polygon_iou, power_held, shape_iou
 
 
-class OutputFormatError(ValueError):
+class OutputFormatError(SimError, ValueError):
     """An output path (trace, animation) whose suffix names no format we write."""
 
 

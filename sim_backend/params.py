@@ -113,7 +113,7 @@ def _param(row: tuple, models: tuple, where: str) -> Param:
 
 @functools.lru_cache(maxsize=None)
 def _declared(behaviour: str) -> tuple[Param, ...]:
-    from firmware_logic import registry
+    from sim_backend import registry
     try:
         b = registry.load(behaviour)
     except registry.BehaviourError as err:

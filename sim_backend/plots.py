@@ -530,7 +530,7 @@ def shape_table(rows: Sequence[dict], fig: dict, col: str = "") -> dict:
 
 def estimate_table(rows: Sequence[dict], fig: dict) -> dict:
     """{category value: [(N, mean estimate IoU, sem, n)]} over the rows that
-    carry the host's estimate (sweep.csv's estimate_iou; issue 30)."""
+    carry the host's estimate (sweep.csv's estimate_iou)."""
     cat = fig.get("category", "object")
     groups: dict[tuple, list] = defaultdict(list)
     for r in _of(rows, fig):

@@ -21,7 +21,7 @@ from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.patches import Circle, Patch  # noqa: E402
 
 from firmware_logic import fixedpoint as fx  # noqa: E402
-from firmware_logic import registry  # noqa: E402
+from sim_backend import registry  # noqa: E402
 from sim_backend.engine import RunResult  # noqa: E402
 from sim_backend.world import BLUE, OBSTACLE, YELLOW  # noqa: E402
 

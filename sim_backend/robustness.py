@@ -1,4 +1,4 @@
-"""Issue 12's fault runs, world-level: which runs could deliver at all
+"""Fault runs, world-level: which runs could deliver at all
 (with_feasible), the table of a fault study's rates (fault_table, drawn by
 sim_backend/plots.rates_plot; the thesis's faults study is in its
 studies.py), why a run did not deliver (diagnose, why_table) and the

@@ -58,7 +58,7 @@ CHOICES: dict[str, tuple[str, ...]] = {
     # patch's centre from the robot's position (kernel.TOWARDS)
     "uphillHeading": ("octant", "netlogo"),
 }
-# issue 10 section 2: how robots take turns. sync: every robot decides on the
+# how robots take turns. sync: every robot decides on the
 # tick-start world, conflicts resolved at the tick's end (real robots act in
 # parallel); netlogo: go's `ask robots`, one robot after another in a random
 # order drawn every go iteration, each seeing the moves before it, a robot in
@@ -280,8 +280,8 @@ def _object_name(value: Any) -> str:
 
 
 def _behaviour(value: Any) -> Any:
-    """The behaviour (firmware_logic.registry.Behaviour) a scenario names."""
-    from firmware_logic import registry
+    """The behaviour (sim_backend.registry.Behaviour) a scenario names."""
+    from sim_backend import registry
 
     from sim_backend import words
     try:
@@ -495,7 +495,7 @@ def load(spec: str | Path | None = None) -> Scenario:
         raise ScenarioError(f"{source}: not valid TOML: {err}") from err
     if "behaviour" in raw:
         # a file names, never imports: a folder only when the user trusted it
-        from firmware_logic import registry
+        from sim_backend import registry
         try:
             registry.named_by_data(raw["behaviour"], f"scenario file {source!r}")
         except registry.BehaviourError as err:

@@ -197,7 +197,7 @@ def _study(behaviour: str, raw: Any, kinds: dict[str, str]) -> Study:
 @functools.lru_cache(maxsize=None)
 def of(behaviour: str) -> dict[str, Study]:
     """The behaviour's studies by name, checked (none without a studies.py)."""
-    from firmware_logic import registry
+    from sim_backend import registry
     try:
         raw = registry.load(behaviour).studies
     except registry.BehaviourError as err:

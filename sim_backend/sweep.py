@@ -720,7 +720,7 @@ def check_done(done: Sequence[dict], points: Sequence[Point], seeds: Sequence[in
 def columns(behaviours: Iterable[str]) -> list[str]:
     """sweep.csv's columns, in order, for rows of these behaviours: the
     fixed ones, then each behaviour's declared measures not already there."""
-    from firmware_logic import registry
+    from sim_backend import registry
     names = ["experiment", "point", *SCENARIO_KEYS, "pieces", "breeds", "required", "seed",
              "until", "engine",
              *MEASURES]
@@ -776,7 +776,7 @@ def make_row(pt: Point, sc: Scenario, seed: int, s: dict, until: str,
         row[name] = s.get(name)
     # the measures the behaviour declares (spec.MEASURES), and only those:
     # a dispersion sweep has no power or shape_iou column
-    from firmware_logic import registry
+    from sim_backend import registry
     for name, _ in registry.load(sc.behaviour).spec.MEASURES:
         if name not in row:
             v = s.get(name)

@@ -9,10 +9,12 @@ import os
 import stat
 from pathlib import Path
 
+from sim_backend.errors import SimError
+
 MAX_BYTES = 1 << 20       # 1 MiB: a scenario with a drawn arena is a few kB
 
 
-class TextFileError(ValueError):
+class TextFileError(SimError, ValueError):
     """Why a file cannot be read as a small text file (no path in the text:
     the caller names the file and its role)."""
 

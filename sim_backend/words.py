@@ -64,7 +64,7 @@ class Words:
 def of(behaviour: Any) -> Words:
     """The words of a behaviour (a registry.Behaviour, or its name or folder)."""
     if isinstance(behaviour, str) or not hasattr(behaviour, "spec"):
-        from firmware_logic import registry
+        from sim_backend import registry
         behaviour = registry.load(behaviour)
     spec = behaviour.spec
     measures = tuple(spec.MEASURES)
@@ -83,7 +83,7 @@ def of(behaviour: Any) -> Words:
 
 
 def _bad(name: str, what: str, why: str) -> Exception:
-    from firmware_logic.registry import BehaviourError
+    from sim_backend.registry import BehaviourError
     return BehaviourError(f"behaviour {name!r}: spec.py {what}: {why}")
 
 

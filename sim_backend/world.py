@@ -37,7 +37,7 @@ def multi_step(sc: Scenario) -> tuple[int, int]:
     turn starts in that state of the behaviour takes 1 + extra FSM steps per
     go iteration, as the behaviour declares in its __init__.MULTI_STEP
     ((state name, parameter name)); (-1, 0) when it declares none."""
-    from firmware_logic import registry
+    from sim_backend import registry
     b = registry.load(sc.behaviour)
     decl = getattr(b.package, "MULTI_STEP", None)
     if decl is None:

@@ -68,7 +68,7 @@ def mixed_scenarios(n=24, seed=11):
 
 
 def arena_scenarios():
-    """Drawn objects, decoys, obstacles and the dynamic field (issue 11), in
+    """Drawn objects, decoys, obstacles and the dynamic field, in
     both movement models and both fields, and the aggregate behaviour among
     obstacles: each with two seeds."""
     from sim_backend.scenario import load
@@ -87,7 +87,7 @@ def arena_scenarios():
 
 
 def wrap_scenarios():
-    """wrap = true (issue 10): both movement models, both activations, the
+    """wrap = true: both movement models, both activations, the
     NetLogo Signal and tie rules, and a yielding crowd with the dynamic field
     in a small arena, so robots and fields cross the edges often; each with
     two seeds."""

@@ -27,7 +27,7 @@ def test_run_gives_the_engines_summary_ticks_and_world():
     attach(e)                      # `touchswarm run` watches with a Perceiver too
     ref = e.run()
     assert r.summary == ref.summary()
-    # the shape estimate and the verdict, as summary.json has them (issue 30)
+    # the shape estimate and the verdict, as summary.json has them
     for k in ("estimate_iou", "recognised", "p"):
         assert k in r.summary and r.ticks.iloc[-1][k] in (r.summary[k], r.summary[k] or "")
     assert r.scenario == sc and r.seed == 5

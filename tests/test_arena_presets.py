@@ -1,4 +1,4 @@
-"""Issue 11's sweep presets (`touchswarm sweep --preset sizes|obstacles|field`)."""
+"""The world's sweep presets (`touchswarm sweep --preset sizes|obstacles|field`)."""
 
 import pytest
 

@@ -1,6 +1,6 @@
 """Every command refuses bad input the same way: exit 2, no traceback, and
 one line on stderr naming what was wrong, before any port opens or any run
-starts. One row per bad input a user has been seen to type (issue 8 §5).
+starts. One row per bad input a user has been seen to type.
 
 Runs in-process through `bridge.cli.main`, so a row costs milliseconds; the
 argv's "{T}" is a folder of bad files made once for the module.

@@ -11,7 +11,7 @@ change, identically: there is no second copy of any rule to forget.
 
 import pytest
 
-from firmware_logic import registry
+from sim_backend import registry
 from sim_backend import objects
 from sim_backend.batch.soa import SoaEngine, run_batch
 from sim_backend.errors import EngineError
@@ -46,7 +46,7 @@ def test_every_behaviour_model_and_object_identical(behaviour, model, activation
                 {"count": 6, "movementModel": "moth", "mothNoise": 60}]},
 ], ids=lambda d: ",".join(f"{k}={v}" for k, v in d.items()))
 def test_the_issue12_models_and_options_identical(extra):
-    """The thesis behaviour's extra movement models and antBlocked (issue 12)."""
+    """The thesis behaviour's extra movement models and antBlocked."""
     scs, seeds = [], []
     for obj in ("bar", "L"):
         for seed in (1, 2):

@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from bridge.cli import main
-from firmware_logic import registry
+from sim_backend import registry
 from sim_backend import scenario
 
 
@@ -111,7 +111,7 @@ def with_parameter_and_measure(folder: Path) -> None:
 
 
 def spread_behaviour(tmp_path: Path) -> Path:
-    """The third behaviour of issue 26: aggregate's scaffold as "spread",
+    """A third behaviour: aggregate's scaffold as "spread",
     outside the repository, with a state only its own NUDGE leads to, its own
     parameter and its own measure. The same source each time, so its soa
     step compiles once per machine (tests/test_batch_engine.py runs it too)."""

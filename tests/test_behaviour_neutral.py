@@ -1,4 +1,4 @@
-"""A user's behaviour is as good as ours (issue 26): nothing under sim_backend/
+"""A user's behaviour is as good as ours: nothing under sim_backend/
 or bridge/ names a shipped behaviour's parameter or state; those live in the
 behaviour's folder. The names are read from the behaviours' own spec.py, so a
 parameter added to the thesis is checked without touching this test.
@@ -14,7 +14,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from firmware_logic import registry
+from sim_backend import registry
 from sim_backend import scenario
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import shutil
+import sys
 from pathlib import Path
 
 import pytest
 
 from bridge.cli import main
 from bridge.firmware.conformance import RunParams, run_conformance
-from firmware_logic import registry
+from sim_backend import registry
 from sim_backend.engine import Engine
 from sim_backend.scenario import load
 
@@ -58,13 +60,30 @@ def test_scaffold_runs_like_its_template(tmp_path: Path,
                                          capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["behaviour", "new", "chain", "--into", str(tmp_path)]) == 0
     chain = registry.load(tmp_path / "chain")
-    assert chain.name == "chain" and chain.robot_class.__module__ == "chain.robot"
+    assert chain.name == "chain"
+    assert chain.robot_class.__module__ == registry.folder_module_name((tmp_path / "chain").resolve()) + ".robot"
     _, a = mission(registry.load("aggregate"), 4, maxTicks=500)
     _, c = mission(chain, 4, maxTicks=500)
     assert c.summary()["found_tick"] == a.summary()["found_tick"]
     assert list(c.world.xs) == list(a.world.xs)
     assert main(["behaviour", "new", "Bad-Name"]) == 2
     assert "lower-case Python identifier" in capsys.readouterr().err
+
+
+def test_a_folder_does_not_shadow_an_installed_behaviour_of_its_name(tmp_path: Path) -> None:
+    """A copy of aggregate in a folder named "aggregate", loaded in the same
+    process as the installed one: each keeps its own modules."""
+    installed = registry.load("aggregate")
+    folder = tmp_path / "aggregate"
+    shutil.copytree(installed.folder, folder, ignore=shutil.ignore_patterns("__pycache__"))
+    (folder / "spec.py").write_text((folder / "spec.py").read_text()
+                                    .replace('TITLE = ', 'TITLE = "copy " + '))
+    copy = registry.load(folder)
+    assert copy.module_name != installed.module_name
+    assert copy.ref == str(folder.resolve()) and installed.ref == "aggregate"
+    assert copy.spec.TITLE == "copy " + installed.spec.TITLE
+    assert registry.load("aggregate").spec is installed.spec
+    assert "aggregate" not in sys.modules       # nor under its bare folder name
 
 
 def test_aggregation_on_micropython_matches_cpython_with_zero_heap() -> None:

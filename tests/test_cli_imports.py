@@ -1,5 +1,5 @@
-"""The command line imports only what the chosen command uses (issue 28
-item 4): `--version` and `--help` build no command's parser, and `run`
+"""The command line imports only what the chosen command uses:
+`--version` and `--help` build no command's parser, and `run`
 never loads the CAN, compiler, serial or columnar packages. Checked by
 what is in sys.modules after the command, in a fresh interpreter: no
 timing."""

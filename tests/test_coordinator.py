@@ -111,7 +111,7 @@ def test_replay_readopts_journalled_reports_without_double_counting_or_acks():
 
 
 def test_a_touch_at_home_never_crashes_or_delivers() -> None:
-    """Issue 8: a TOUCH at (-15,-15) raised ZeroDivisionError in step planning,
+    """A TOUCH at (-15,-15) raised ZeroDivisionError in step planning,
     and since the touch was journalled first, every resume crashed again. It
     is now rejected before the journal, and a journal that holds one (an
     older host's) is rejected on replay."""

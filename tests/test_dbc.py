@@ -95,7 +95,7 @@ def test_physical_values_units_and_names() -> None:
 def test_a_behaviours_own_message_is_in_its_dbc_with_units():
     """aggregate declares LEAVE (kind 7) in its spec.py: its DBC decodes it
     with physical values; the thesis's DBC does not carry it."""
-    from firmware_logic import registry
+    from sim_backend import registry
     agg = registry.load("aggregate").activate()     # its kinds in use: pack knows LEAVE
     leave = agg.spec.LEAVE
     db = dbc.build(max_node=8, behaviour=agg)

@@ -1,5 +1,5 @@
 """A run reports the world's measures only when its behaviour declares them
-(issue 26 item 6): power, shape_iou, segments, leader... are thesis words, so
+power, shape_iou, segments, leader... are thesis words, so
 an aggregation run's summary.json, sweep.csv and trace have none of them,
 while the thesis's have each one it declares in spec.MEASURES."""
 
@@ -8,7 +8,7 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
-from firmware_logic import registry
+from sim_backend import registry
 from sim_backend import engine, scenario, sweep, trace
 
 THESIS_WORDS = {"power", "shape_iou", "polygon_iou", "segments", "leader", "converged_moves"}

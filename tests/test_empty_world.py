@@ -1,4 +1,4 @@
-"""`object = "none"` (issue 26 item 1): whether the world has an object is the
+"""`object = "none"`: whether the world has an object is the
 scenario's choice. A behaviour that carries nothing runs in an empty arena,
 the same in both engines; one that carries an object by its weight is
 refused in one line."""

@@ -1,4 +1,4 @@
-"""Issue 12 §5: faults injected on the body side (sim_backend/faults.py).
+"""Faults injected on the body side (sim_backend/faults.py).
 
 Faults off is bit-identical to a run that never heard of them; every fault
 is seeded (same seed, same run) and equal in the reference and batch

@@ -22,7 +22,7 @@ from bridge.firmware.conformance import (
 from firmware_logic.behaviours.thesis.spec import ANT, FIREFLY
 from firmware_logic.behaviours.thesis.spec import STATES as STATE_NAMES
 from bridge.firmware.subset_check import firmware_files, package_dir
-from firmware_logic import registry
+from sim_backend import registry
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""Fresh bad input (issue 29 item 9) gets a one-line error, exit 2, before any
+"""Fresh bad input gets a one-line error, exit 2, before any
 work: a device or a FIFO named as a scenario (a size limit and a
 regular-file check on every small text file read), a seed range that would
 not fit in memory, output paths that take an open but fail every write
@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import os
 
-import pytest
 
 from bridge.cli import main
 

@@ -14,12 +14,10 @@ import time
 import pytest
 import serial
 
-from bridge.errors import BridgeError
+from bridge.errors import BridgeError, UsageError
 from bridge.serial.errors import (PortClosedError, ProtocolError, SerialLinkError,
-                                  SerialPortLost, SerialTimeout)
-from bridge.serial.gogo import (GoGoBoard, GoGoEchoError, GoGoError, GoGoOpenError,
-                                GoGoPortClosed, GoGoPortLost, GoGoReplyError, GoGoTimeout,
-                                GoGoUsageError)
+                                  SerialOpenError, SerialPortLost, SerialTimeout)
+from bridge.serial.gogo import GoGoBoard
 from sim_backend.emulators.gogo import GoGoEmulator
 
 BAUD = 9600
@@ -113,7 +111,7 @@ def test_silent_board_is_a_timeout_not_a_hang() -> None:
     with GoGoEmulator(baud=BAUD) as emu, GoGoBoard(emu.path, BAUD, timeout=0.15) as b:
         emu.mute_next = 100
         # three tries, each ended by its 0.15 s deadline: bounded, not a hang
-        with pytest.raises(GoGoTimeout, match=r"did not answer ping \(54 fe 00\) within "
+        with pytest.raises(SerialTimeout, match=r"did not answer ping \(54 fe 00\) within "
                                               r"0\.15 s \(3 tries\)"):
             b.ping()
         emu.mute_next = 0
@@ -124,10 +122,10 @@ def test_a_reply_that_stays_bad_names_what_was_expected() -> None:
     with GoGoEmulator(baud=BAUD) as emu, GoGoBoard(emu.path, BAUD, timeout=0.2, retries=0,
                                                     quiet=0.05) as b:
         emu.truncate_next = 2
-        with pytest.raises(GoGoReplyError, match="expected 55 ff then ACK aa, got 55 ff"):
+        with pytest.raises(ProtocolError, match="expected 55 ff then ACK aa, got 55 ff"):
             b.ping()
         emu.truncate_next = 3
-        with pytest.raises(GoGoReplyError, match="two data bytes.*truncated"):
+        with pytest.raises(ProtocolError, match="two data bytes.*truncated"):
             b.sensor(2)
         b.ping()
 
@@ -138,7 +136,7 @@ def test_reverse_is_not_retried_once_the_board_heard_it() -> None:
         b.select("A")
         b.thisway()
         emu.truncate_next = 2
-        with pytest.raises(GoGoReplyError, match="not idempotent"):
+        with pytest.raises(ProtocolError, match="not idempotent"):
             b.reverse()
         assert emu.motor_dir[1] == -1                   # reversed exactly once
         emu.mute_next = 1                               # unheard: safe to retry
@@ -149,7 +147,7 @@ def test_reverse_is_not_retried_once_the_board_heard_it() -> None:
 def test_wrong_baud_is_a_clear_error() -> None:
     with GoGoEmulator(baud=BAUD) as emu:
         with GoGoBoard(emu.path, 19200, timeout=0.2, quiet=0.05) as b:
-            with pytest.raises(GoGoEchoError, match="9600 baud.*19200 baud") as err:
+            with pytest.raises(ProtocolError, match="9600 baud.*19200 baud") as err:
                 b.ping()
             assert isinstance(err.value, ProtocolError)
             assert emu.commands == 0                     # nothing garbled was obeyed
@@ -161,12 +159,12 @@ def test_port_that_disappears_raises_and_reopens_when_it_comes_back() -> None:
     with GoGoEmulator(baud=BAUD) as emu, GoGoBoard(emu.path, BAUD, timeout=0.2) as b:
         b.ping()
         emu.vanish()
-        with pytest.raises(GoGoPortLost, match="port failed during"):
+        with pytest.raises(SerialPortLost, match="port failed during"):
             b.sensor(1)
         calls = (b.ping, lambda: b.sensor(2), lambda: b.select("AB"), b.on, b.off,
                  lambda: b.power(3), lambda: b.led(True), b.beep)
         for call in calls:                      # every call while it is gone
-            with pytest.raises(GoGoPortLost, match="is gone") as err:
+            with pytest.raises(SerialPortLost, match="is gone") as err:
                 call()
             # the serial package's promise: a SerialTimeout, one line, naming the port
             assert isinstance(err.value, SerialPortLost)
@@ -184,28 +182,28 @@ def test_close_is_idempotent_and_never_raises_even_on_a_dead_port() -> None:
         emu.vanish()
         b.close()
         b.close()
-        with pytest.raises(GoGoPortClosed, match="closed") as err:
+        with pytest.raises(PortClosedError, match="closed") as err:
             b.ping()
         assert isinstance(err.value, PortClosedError)
 
 
 def test_errors_share_one_root_and_bad_arguments_are_refused() -> None:
-    for cls in (GoGoTimeout, GoGoEchoError, GoGoReplyError, GoGoPortLost, GoGoOpenError,
-                GoGoUsageError, GoGoPortClosed):
-        assert issubclass(cls, GoGoError) and issubclass(cls, SerialLinkError)
-        assert issubclass(cls, BridgeError)
-    assert issubclass(GoGoTimeout, SerialTimeout)
-    assert issubclass(GoGoPortLost, SerialPortLost) and issubclass(GoGoPortLost, SerialTimeout)
-    with pytest.raises(GoGoOpenError, match="cannot open"):
+    """The board raises the serial package's errors, as the Khepera driver
+    does (one tree, bridge/serial/errors.py); a bad argument is a UsageError."""
+    for cls in (SerialTimeout, ProtocolError, SerialPortLost, SerialOpenError, PortClosedError):
+        assert issubclass(cls, SerialLinkError) and issubclass(cls, BridgeError)
+    assert issubclass(SerialPortLost, SerialTimeout)
+    assert issubclass(UsageError, BridgeError) and issubclass(UsageError, ValueError)
+    with pytest.raises(SerialOpenError, match="cannot open"):
         GoGoBoard("/nonexistent/ttyGOGO")
-    with pytest.raises(GoGoOpenError, match="unknown option"):
+    with pytest.raises(SerialOpenError, match="unknown option"):
         GoGoBoard("gogo:///dev/ttyUSB0?speed=9600")
     with GoGoEmulator(baud=BAUD) as emu, GoGoBoard("gogo://%s?baud=9600" % emu.path) as b:
         b.ping()
         for bad in (lambda: b.sensor(0), lambda: b.sensor(9), lambda: b.sensor(1, 3),
                     lambda: b.power(8), lambda: b.select("E"), lambda: b.select(16)):
-            with pytest.raises(GoGoUsageError):
+            with pytest.raises(UsageError):
                 bad()
         assert emu.commands == 1
-    with pytest.raises(GoGoPortClosed, match="closed"):
+    with pytest.raises(PortClosedError, match="closed"):
         b.ping()

@@ -18,7 +18,6 @@ from contextlib import ExitStack
 from numbers import Integral
 from typing import Callable
 
-import pytest
 
 from firmware_logic import fixedpoint as fx
 from firmware_logic import hal as H

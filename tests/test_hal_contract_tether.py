@@ -194,7 +194,7 @@ def test_the_board_ends_a_run_with_stop_and_the_tether_records_it() -> None:
         served.append(tether.applied_ticks)
 
     port.serve = serve
-    from firmware_logic import registry
+    from sim_backend import registry
     thesis = registry.load("thesis")
     robot = thesis.make_robot(NODE, 1, validate({"behaviour": "thesis"}))
     hal = board.run(port, NODE, robot, thesis.spec, 5, 2)

@@ -19,7 +19,7 @@ from bridge.host.transport import CanTransport
 from bridge.links import open_bus
 from bridge.links.canlink import private_channel
 from firmware_logic import messages as msg
-from firmware_logic import registry
+from sim_backend import registry
 from firmware_logic.behaviours.aggregate.spec import LEAVE
 from hil_tests.test_can_mission import TICK, Lockstep, SimClock
 from sim_backend import scenario

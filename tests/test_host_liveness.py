@@ -1,4 +1,4 @@
-"""Liveness of the host (issue 29 item 3): every port write has a timeout
+"""Liveness of the host: every port write has a timeout
 (an SLCAN adapter that stops reading gives a typed LinkTimeoutError instead of
 blocking for ever), the host goes on after one so its limits and a signal
 still end the run, SIGTERM ends `touchswarm host` with its journal
@@ -30,7 +30,7 @@ from tests.test_journal import FakeTransport
 
 def test_frames_from_unknown_nodes_do_not_keep_a_mission_alive() -> None:
     """A node that never said HELLO (noise, a forger) sends every tick: the
-    bus limit fires anyway (before issue 29 it never did)."""
+    bus limit fires anyway (it once never did)."""
     class Noise(FakeTransport):
         def poll(self, timeout):
             return [(99, msg.HEARTBEAT, (1, 0, 0, 0, 0))]

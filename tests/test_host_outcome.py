@@ -1,4 +1,4 @@
-"""The host's word can be trusted (issue 29 item 1): `delivered` means the
+"""The host's word can be trusted: `delivered` means the
 host's own model has the object home (a delivered tick); a mission the
 coordinator stopped (stalled, no path home), one the robots abandoned, or one
 stopped from outside is not delivered: a distinct `outcome`, exit status 1,
@@ -55,7 +55,7 @@ def test_a_stalled_mission_is_not_delivered(tmp_path) -> None:
 
 def test_the_cli_says_stalled_and_exits_1_for_a_resumed_stalled_mission(tmp_path, capsys) -> None:
     """`touchswarm host --resume` of a mission the coordinator stopped: it
-    repeats the HALT and ends; before issue 29 it printed DELIVERED, exit 0."""
+    repeats the HALT and ends; it once printed DELIVERED, exit 0."""
     jp = tmp_path / "j.sqlite"
     stalled_journal(jp)
     capsys.readouterr()

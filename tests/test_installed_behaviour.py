@@ -1,5 +1,5 @@
-"""A behaviour can be an installed package found by its entry point (issue 26
-item 2): a distribution on the path, with the `touchswarm.behaviours` entry
+"""A behaviour can be an installed package found by its entry point: a
+distribution on the path, with the `touchswarm.behaviours` entry
 point pip writes, is found by name, runs, sweeps, passes `firmware check`
 (MicroPython), gives its DBC and records + replays over CAN, in processes
 that know it only by that name."""
@@ -13,7 +13,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from firmware_logic import registry
+from sim_backend import registry
 
 ROOT = Path(__file__).resolve().parents[1]
 EXE = [sys.executable, "-m", "bridge.cli"]

@@ -1,5 +1,5 @@
 """One writer per journal, one mission per journal, and nothing in a journal
-crashes the host (issue 29 item 2): a second host on the same journal, a
+crashes the host: a second host on the same journal, a
 finished mission appended to without --resume, a newer layout, an empty
 file and every malformed snapshot or report are refused in one line (exit 2)
 before any port opens."""

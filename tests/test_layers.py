@@ -1,4 +1,4 @@
-"""The layers read top-down (issue 27 item 3): the world (sim_backend/) and
+"""The layers read top-down: the world (sim_backend/) and
 host perception (perception/) import nothing from bridge/ (links, serial,
 CLI), and the firmware (firmware_logic/) imports none of the host packages.
 Every import statement counts, also one inside a function."""
@@ -103,3 +103,53 @@ def test_no_import_cycle_at_module_level() -> None:
 
 def test_the_cycle_check_finds_a_cycle() -> None:
     assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == [["a", "b", "c", "a"]]
+
+
+# -- docs/architecture.md's picture is the import graph ------------------------------
+
+ARCHITECTURE = ROOT / "docs" / "architecture.md"
+PACKAGES = ("bridge", "sim_backend", "perception", "firmware_logic")
+
+
+def _block(info: str) -> list[str]:
+    """The lines of the fenced block ```info in docs/architecture.md."""
+    text = ARCHITECTURE.read_text(encoding="utf-8")
+    start = text.index(f"```{info}\n") + len(f"```{info}\n")
+    return [ln for ln in text[start:text.index("```", start)].splitlines() if ln.strip()]
+
+
+def package_graph(root: Path = ROOT) -> dict[str, set[str]]:
+    """Which package imports which (every import statement counts)."""
+    graph: dict[str, set[str]] = {p: set() for p in PACKAGES}
+    for package in PACKAGES:
+        for path in (root / package).rglob("*.py"):
+            for node in ast.walk(ast.parse(path.read_text(), str(path))):
+                if isinstance(node, ast.Import):
+                    names = [a.name for a in node.names]
+                elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                    names = [node.module]
+                else:
+                    continue
+                graph[package] |= {n.split(".")[0] for n in names} & set(PACKAGES) - {package}
+    return graph
+
+
+def test_the_architecture_picture_is_the_import_graph() -> None:
+    drawn = {}
+    for line in _block("imports"):
+        src, _, dst = line.partition("->")
+        drawn[src.strip()] = {d.strip() for d in dst.split(",") if d.strip()}
+    assert drawn == package_graph()
+
+
+def test_the_graph_sees_a_new_arrow(tmp_path: Path) -> None:
+    for p in PACKAGES:
+        (tmp_path / p).mkdir()
+    (tmp_path / "firmware_logic" / "x.py").write_text("def f():\n    import bridge.cli\n")
+    assert package_graph(tmp_path)["firmware_logic"] == {"bridge"}
+
+
+def test_one_tick_is_followed_through_at_most_eight_files() -> None:
+    files = [line.split()[0] for line in _block("tick")]
+    assert len(files) <= 8
+    assert [f for f in files if not (ROOT / f).is_file()] == []

@@ -1,4 +1,4 @@
-"""Issue 12 §5: what the host does when a holder dies (lostAfter > 0).
+"""What the host does when a holder dies (lostAfter > 0).
 
 The coordinator counts each holder's silence in its own ticks: a holder not
 heard for more than lost_after ticks is lost (its power leaves the total, a

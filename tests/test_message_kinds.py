@@ -13,7 +13,7 @@ import pytest
 from bridge.cli import main
 from bridge.links import codec, dbc
 from firmware_logic import messages as msg
-from firmware_logic import registry
+from sim_backend import registry
 
 
 def scaffold(tmp_path: Path, name: str, spec_edit) -> Path:
@@ -75,11 +75,6 @@ def test_two_behaviours_may_give_one_kind_their_own_messages(tmp_path, monkeypat
     has LEAVE at 7, the thesis RELEASE at 8): `touchswarm behaviours` marks
     none BROKEN, and each behaviour's codec, DBC and recordings use its own."""
     folder = scaffold(tmp_path, "other", own_kinds)
-    # a module "other" another test of this process imported from its own
-    # folder must not stand in for this one (one command, one process, in use)
-    import sys
-    for key in [k for k in sys.modules if k == "other" or k.startswith("other.")]:
-        monkeypatch.delitem(sys.modules, key)
     monkeypatch.syspath_prepend(str(tmp_path))
     monkeypatch.setattr(registry, "_entry_points", lambda: (("other", "other"),))
     assert main(["behaviours"]) == 0

@@ -1,4 +1,4 @@
-"""Issue 12 §1-§2: ants that stay ants (antBlocked) and the Levy, moth and
+"""Ants that stay ants (antBlocked) and the Levy, moth and
 frog movement models of the thesis behaviour (docs/movement-models.md).
 
 Each model is deterministic per seed, differs from the others, runs over
@@ -123,7 +123,7 @@ def test_levy_flight_lengths_follow_the_truncated_power_law():
     assert 0.2 < share4 < 0.3
     steep = lengths(round(1000 * 2 ** (1 - 3.0)))          # mu = 3
     assert sum(steep) < sum(two)
-    from firmware_logic import registry
+    from sim_backend import registry
     sc = validate({"levyMu": 3.0, "movementModel": "levy"})
     assert registry.load("thesis").robot_args(1, 1, sc)[8] == 250   # the FSM's levy_q
 
@@ -171,7 +171,7 @@ def test_the_frog_sits_then_jumps_several_patches():
     assert "sJJJJJss" in text and "JJJJJJ" not in text, text
 
 
-# -- several breeds (issue 12 §3) ------------------------------------------------
+# -- several breeds ------------------------------------------------
 
 BREEDS = [{"name": "fireflies", "count": 6, "movementModel": "firefly"},
           {"name": "ants", "count": 8, "movementModel": "ant", "rPower": 2.0,

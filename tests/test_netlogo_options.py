@@ -12,7 +12,7 @@ from firmware_logic import fixedpoint as fx
 from firmware_logic.behaviours.thesis import robot as R
 from firmware_logic.behaviours.thesis.robot import Robot
 from firmware_logic.rng import Rng
-from firmware_logic import registry
+from sim_backend import registry
 from sim_backend import kernel
 from sim_backend.engine import Engine
 from sim_backend.scenario import CHOICES, Scenario, validate

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from firmware_logic import registry
+from sim_backend import registry
 from sim_backend import params, sweep, trace
 from sim_backend.engine import Engine
 from sim_backend.records import write_records

@@ -1,4 +1,4 @@
-"""Open-set recognition (issue 30): a shape not in the library is called
+"""Open-set recognition: a shape not in the library is called
 "unknown" with its own outline, not the nearest template; a shape a
 scenario adds ([[library]]) is recognised like a built-in; the seeded
 polyomino set the bench measures (bench/open_set.py) is what it says.

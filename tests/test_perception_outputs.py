@@ -1,4 +1,4 @@
-"""The host's shape estimate drawn where the run is shown (issue 30 §3):
+"""The host's shape estimate drawn where the run is shown:
 world.png's shape panel and the animation draw the estimate (filled green
 cells) beside the hull and the truth, with its verdict. Small runs in the
 reference engine."""
@@ -66,7 +66,7 @@ def test_the_animation_draws_the_estimate_where_the_object_is(tmp_path):
 
 def test_the_shapes_figure_plots_the_estimate_beside_the_hull(tmp_path, monkeypatch):
     """Figures 22-24 (the studies' `shapes` kind): the IoU panel has the
-    host's estimate (sweep.csv's estimate_iou) beside the hull (issue 30)."""
+    host's estimate (sweep.csv's estimate_iou) beside the hull."""
     import touchswarm
     from sim_backend import plots
     rows = touchswarm.sweep({"objectWeight": [4.0]}, seeds=2, engine="reference",
@@ -84,7 +84,7 @@ def test_the_shapes_figure_plots_the_estimate_beside_the_hull(tmp_path, monkeypa
 
 def test_the_sweep_plots_have_an_estimate_panel_when_rows_carry_it():
     """The sweep plots draw the host's estimate IoU beside the behaviour's
-    own panels (issue 30 item 3); rows without it get no such panel."""
+    own panels; rows without it get no such panel."""
     from sim_backend import plots
     rows = [{"behaviour": "thesis", "seed": s, "maxTicks": 100, "shape_iou": 0.5,
              "estimate_iou": 0.9, "converged_tick": 50, "delivered": True} for s in (1, 2)]

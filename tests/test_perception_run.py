@@ -105,7 +105,7 @@ def test_bad_perceiver_parameters_are_refused():
 
 
 def test_one_verdict_per_run_the_decision_is_the_summary():
-    """issue 30 §2: with recognise = true the perception fields are the
+    """With recognise = true the perception fields are the
     decision's own call (decoy seed 8 once said "target, p 0.978" beside
     `recognised_as: L, p 0.9996`)."""
     sc = scenario.load("decoy").replace(recognise=True, maxTicks=400)
@@ -122,7 +122,7 @@ def test_one_verdict_per_run_the_decision_is_the_summary():
 
 
 def test_shape_iou_does_not_jump_during_the_transport():
-    """issue 30 §3: default seed 2 alternated 0.35 / 0.6875 every tick from
+    """Default seed 2 alternated 0.35 / 0.6875 every tick from
     119 to 156 (the hull against a moving object); in the object's own
     frame it only changes when a touch arrives."""
     from sim_backend.api import run

@@ -1,4 +1,4 @@
-"""Issue 13 §2: the host transports only what it recognises as the target
+"""The host transports only what it recognises as the target
 and releases the holders of decoys (scenario recognise = true)."""
 
 import pytest

@@ -1,4 +1,4 @@
-"""A recording of a faulty run replays to what happened (issue 29 item 8):
+"""A recording of a faulty run replays to what happened:
 `run --record` under every fault kind, then `replay`, gives 0 divergences.
 
 The link's faults act between the robots and the host (`--link can`), the

@@ -9,7 +9,6 @@ declare delivery, or count forged touches, on the code before."""
 
 from __future__ import annotations
 
-import can
 import pytest
 
 from bridge.host.process import HostProcess
@@ -221,7 +220,7 @@ def test_the_one_block_cmac_is_the_cmac():
 def test_a_behaviours_own_report_is_sealed_in_whole_patches():
     """aggregate's LEAVE (seq, x, y in Q8: 5 bytes) is sealed with x and y in
     whole patches (3 bytes)."""
-    from firmware_logic import registry
+    from sim_backend import registry
     b = registry.load("aggregate").activate()
     try:
         from firmware_logic.behaviours.aggregate.spec import LEAVE

@@ -1,4 +1,4 @@
-"""Issue 8 §1: the host is never fooled by what a robot (or anything on the
+"""The host is never fooled by what a robot (or anything on the
 bus) reports. A report is checked before it is journalled; one that fails is
 counted by reason, logged once per reason, not journalled and not ACKed."""
 
@@ -12,7 +12,7 @@ import pytest
 from bridge.host.journal import Journal
 from bridge.host.process import HostProcess
 from firmware_logic import messages as msg
-from firmware_logic import registry
+from sim_backend import registry
 from firmware_logic.behaviours.thesis import coordinator as co
 from firmware_logic.behaviours.thesis.coordinator import Coordinator, Touch
 from sim_backend.engine import Engine
@@ -46,12 +46,12 @@ def coordinator(**kw) -> tuple[Coordinator, list[Touch]]:
 
 
 @pytest.mark.parametrize("seg,robot,power,reason", [
-    ((120, 120), (120, 119), 100, co.OUTSIDE),        # issue 8: accepted before
+    ((120, 120), (120, 119), 100, co.OUTSIDE),        # accepted before
     ((19, 0), (18, 0), 100, co.OUTSIDE),              # just outside a 18-patch arena
     ((5, 5), (5, 5), 100, co.NOT_ADJACENT),           # robot on its segment
     ((5, 5), (5, 3), 100, co.NOT_ADJACENT),
-    ((-14, -14), (-13, -14), 100, co.AT_HOME),         # issue 8: "delivered" at once
-    ((5, 5), None, 65535, co.WRONG_POWER),            # issue 8: converged at once
+    ((-14, -14), (-13, -14), 100, co.AT_HOME),         # "delivered" at once
+    ((5, 5), None, 65535, co.WRONG_POWER),            # converged at once
     ((5, 5), None, 99, co.WRONG_POWER),
 ])
 def test_an_invalid_touch_is_rejected_before_the_journal(seg, robot, power, reason):
@@ -99,7 +99,7 @@ def test_the_object_cells_move_with_the_transport():
 def test_a_second_touch_from_a_node_is_rejected_not_counted_twice():
     c, journalled = coordinator()
     touch(c, 1, 1, (5, 5))
-    touch(c, 1, 2, (6, 5))                        # issue 8: counted twice before
+    touch(c, 1, 2, (6, 5))                        # counted twice before
     touch(c, 1, 7, (5, 5))                        # a new seq for the same segment
     assert c.power == 100 and len(journalled) == 1 and c.duplicates == 0
     assert c.rejected == {co.SECOND_TOUCH: 2}
@@ -107,7 +107,7 @@ def test_a_second_touch_from_a_node_is_rejected_not_counted_twice():
 
 
 def test_a_forged_seq_never_turns_the_real_touch_into_a_duplicate():
-    """Issue 8: a forged seq-1 TOUCH for every node before their real ones made
+    """A forged seq-1 TOUCH for every node before their real ones made
     the real ones 'duplicates'. A forgery that is not on the object is
     rejected; the real touches then count."""
     c, journalled = coordinator(cells=BAR)
@@ -142,7 +142,7 @@ def test_memory_journal_and_a_resumed_host_agree_on_a_changed_hello(tmp_path: Pa
         h = HostProcess(FakeTransport(), weight=500, journal=j)
         h.handle([(4, msg.HELLO, (1, 100, 1))])
         h.step()
-        h.handle([(4, msg.HELLO, (2, 600, 1))])   # issue 8: memory took it, journal not
+        h.handle([(4, msg.HELLO, (2, 600, 1))])   # memory took it, journal not
         h.step()
         assert h.coord.nodes == j.nodes() == {4: (1, 100)}
         assert h.summary()["rejected"] == {co.CHANGED_HELLO: 1}
@@ -173,7 +173,7 @@ def test_rejections_are_logged_once_per_reason_and_never_journalled(tmp_path: Pa
 
 
 def test_ten_thousand_fold_hellos_make_one_ack():
-    """Issue 8: 10^5 HELLOs made 10^5 ACKs in one tick. At most one ACK per
+    """10^5 HELLOs made 10^5 ACKs in one tick. At most one ACK per
     node per tick, whatever arrives."""
     tr = FakeTransport()
     h = HostProcess(tr, weight=500)
@@ -203,7 +203,7 @@ def test_real_missions_pass_the_checks_with_the_object_known(scenario: str, seed
 
 
 def test_a_poisoned_journal_never_crashes_or_fools_a_resumed_host(tmp_path: Path):
-    """Issue 8: the home touch was journalled first, so every --resume crashed
+    """The home touch was journalled first, so every --resume crashed
     again. A journal an older host wrote with such touches in it (at home, off
     the arena, with a forged power) is resumed without them."""
     p = tmp_path / "old.sqlite"

@@ -133,7 +133,7 @@ def test_report_is_retransmitted_with_backoff_until_acknowledged():
 
 
 def test_first_retransmission_is_retx_first_ticks_after_the_send():
-    """Issue 8 §6: the timer was set and decremented in the same tick, so the
+    """The timer was set and decremented in the same tick, so the
     first retry came after 3 ticks, not the documented RETX_FIRST (4)."""
     r, hal = make(), FakeHal()
     hal.probes = {0: R.OBJECT}
@@ -150,7 +150,7 @@ def test_first_retransmission_is_retx_first_ticks_after_the_send():
 
 
 def test_transport_before_the_touch_is_acknowledged_is_ignored():
-    """Issue 8 §1: the host ACKs a touch before it commands the carrier, so a
+    """The host ACKs a touch before it commands the carrier, so a
     TRANSPORT before that ACK is not the host's (or not yet converged)."""
     r, hal = make(), FakeHal()
     hal.probes = {0: R.OBJECT}

@@ -142,7 +142,7 @@ def private(p, data):
     ("[keys]\nx = \"" + K1 + "\"\n", "key 'x': expected a node id"),
     ("[keys]\n1 = 5\n", "node 1: expected 32 hex digits"),
     ("[keys\n", "not valid TOML"),
-    # issue 29: each of these was a traceback or silently accepted
+    # each of these was a traceback or silently accepted
     ("[keys]\n\"\u00b2\" = \"" + K1 + "\"\n", "key '\u00b2': expected a node id"),
     ("[keys]\n1 = \"\u00b2" + "1" * 31 + "\"\n", "node 1: expected 32 hex digits"),
     ("[keys]\n1 = \"" + "0" * 32 + "\"\n", "node 1: an all-zero key is no secret"),
@@ -224,7 +224,7 @@ def test_keys_new_writes_owner_only_keys_that_load(tmp_path):
     assert secoc.load_keys(out) == keys
 
 
-# -- HELLO: key confirmation and the robots' freshness floor (issue 29 §3) ----
+# -- HELLO: key confirmation and the robots' freshness floor ----
 
 def hello(node, opener):
     return opener.hello(encode(node, msg.HELLO, (1, 100, 1)))
@@ -326,7 +326,7 @@ def test_the_host_drops_forged_hellos_and_locks_out_a_node_forged_past_the_thres
 def test_a_key_mismatch_ends_the_host_in_one_line_within_a_few_ticks(host_keys, robot_keys,
                                                                      needle):
     """Host keyed and robots not, robots keyed and host not, or two key files:
-    the robots would drop every host command (issue 29: the host said
+    the robots would drop every host command (the host once said
     DELIVERED, exit 0). The host stops with KeyMismatch, a BridgeError: the
     CLI prints its one line and exits 1."""
     from bridge.host.process import HostProcess

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from firmware_logic import registry
+from sim_backend import registry
 from sim_backend.batch.soa import SoaEngine
 from sim_backend.errors import CompileError
 from sim_backend.scenario import validate

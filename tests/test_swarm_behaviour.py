@@ -13,7 +13,7 @@ from bridge.host.transport import CanTransport
 from bridge.links import open_bus
 from bridge.links.canlink import private_channel
 from firmware_logic import messages as msg
-from firmware_logic import registry
+from sim_backend import registry
 from sim_backend import scenario
 
 

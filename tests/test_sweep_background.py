@@ -1,6 +1,6 @@
 """engine auto on a cold soa cache: the runs start at once in the reference
 engine while the soa step compiles in another process, and the chunks
-started after the compile ends run in soa (issue 28 item 1).
+started after the compile ends run in soa.
 
 No timing anywhere: the background compile is a fake the test ends when
 it chooses (after the first chunk returned), or a real process the test
@@ -157,7 +157,7 @@ def test_the_background_process_loads_a_step_the_cache_holds(tmp_path, monkeypat
 
 def test_the_background_process_reports_its_failure_in_one_line(tmp_path):
     folder = tmp_path / "gone"
-    from firmware_logic import registry
+    from sim_backend import registry
     shutil.copytree(registry.load("aggregate").folder, folder,
                     ignore=shutil.ignore_patterns("__pycache__"))
     sc = Scenario(behaviour=str(folder))

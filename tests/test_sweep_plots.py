@@ -113,7 +113,7 @@ def test_cli_two_factor_sweep_and_categorical_sweep_plot(tmp_path):
     assert (tmp_path / "b" / "by_object.png").exists()
 
 
-# -- issue 32: rate intervals inside [0, 1], units on every axis -------------------
+# -- rate intervals inside [0, 1], units on every axis -------------------
 
 
 @pytest.mark.parametrize("k, n", [(0, 5), (5, 5), (3, 5), (1, 1), (50, 50), (1, 100)])

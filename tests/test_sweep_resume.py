@@ -2,10 +2,7 @@
 sweep resumes with --resume and ends with every run exactly once, and a
 sweep saved as an experiment file runs again from it."""
 
-import csv
-import io
 import json
-import os
 import signal
 import subprocess
 import sys

@@ -1,4 +1,4 @@
-"""Data files name, never import (issue 29 item 6): a scenario TOML, a
+"""Data files name, never import: a scenario TOML, a
 recording's sidecar and a journal's meta may name only installed
 behaviours; a folder they name is refused in one line, before its code
 runs, unless the user names the same folder on the command line
@@ -11,7 +11,7 @@ import shutil
 
 from bridge.cli import main
 from bridge.host.journal import Journal
-from firmware_logic import registry
+from sim_backend import registry
 
 RUN = ["--robots", "6", "--set", "maxTicks=30", "--seed", "1"]
 

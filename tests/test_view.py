@@ -305,7 +305,7 @@ def test_screenshot_option_saves_the_page_at_the_tick(capsys, tmp_path):
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
-# -- the behaviour's own words (issue 26 item 6) ---------------------------------------
+# -- the behaviour's own words ---------------------------------------
 
 THESIS_WORDS = ("power", "weight", "IoU", "perceived", "hold the object", "delivered",
                 "converged")
@@ -361,7 +361,7 @@ def test_page_of_aggregation_lists_its_measures_and_hides_the_load_bar(browser):
         server.stop()
 
 
-# -- issue 32: plots over time, parameters and reset, inspection, axes ----------------
+# -- plots over time, parameters and reset, inspection, axes ----------------
 
 FIGURES = Path(__file__).resolve().parents[1] / "docs" / "figures"
 
@@ -462,7 +462,7 @@ def test_journal_plots_halts_and_one_line_per_decision(journal_server):
 
 
 def test_page_sets_a_parameter_runs_to_delivery_and_inspects(sim, browser, capsys):
-    """The done-when of issue 32 in one page: a bad value shows the CLI's
+    """The view's whole promise in one page: a bad value shows the CLI's
     line, a good one resets the run, the run is played to delivery, the
     plots' last values are the run's summary, a clicked robot shows its
     state; each panel is saved under docs/figures for docs/view.md."""
@@ -548,7 +548,7 @@ def test_page_sets_a_parameter_runs_to_delivery_and_inspects(sim, browser, capsy
 
 
 def test_the_live_view_draws_the_hosts_estimate_as_world_png_does(sim):
-    """issue 30: the estimate where the object is now, with its verdict, the
+    """The estimate where the object is now, with its verdict, the
     same cells world.png and the animation draw (sim_backend/render.py)."""
     from sim_backend import render
     assert "estimate" not in get(sim, "/state.json")          # nothing touched yet

@@ -1,5 +1,5 @@
-"""Watching a run: the per-tick observer seam, `run --trace` and `run --animate`
-(issue 14 §1-2). Runs in-process through bridge.cli.main; no timing."""
+"""Watching a run: the per-tick observer seam, `run --trace` and `run --animate`.
+Runs in-process through bridge.cli.main; no timing."""
 
 from __future__ import annotations
 
@@ -10,16 +10,14 @@ import json
 import sys
 from pathlib import Path
 
-import pytest
 from PIL import Image
 
 from bridge import cli
-from firmware_logic import registry
+from sim_backend import registry
 from sim_backend import animate, observe, scenario
 from sim_backend.engine import Engine, InprocLink
 from sim_backend.trace import Trace, columns
 
-DOCS = Path(__file__).resolve().parents[1] / "docs" / "outputs.md"
 THESIS_COLUMNS = ["tick", "n_search", "n_field", "n_grasp", "n_hold", "n_carry", "n_halt",
                   "power", "shape_iou", "polygon_iou", "touches", "msgs_up", "msgs_down",
                   "bad_frames", "holders", "home_d2",
@@ -68,14 +66,6 @@ def test_thesis_trace_has_one_row_per_tick_and_ends_at_the_summary(tmp_path):
     assert int(rows[-1]["n_carry"]) > 0 and int(rows[0]["n_search"]) == summary["robots"]
     assert sum(int(r["msgs_up"]) for r in rows) >= len(summary["touches"])
     assert f"({summary['ticks']} rows)" in out
-
-
-def test_every_trace_column_is_documented():
-    text = DOCS.read_text()
-    for ref in ("thesis", "aggregate"):
-        for name, _ in columns(registry.load(ref)):
-            doc = name if not name.startswith("n_") else "n_<state>"
-            assert f"`{doc}`" in text, f"docs/outputs.md does not describe {doc}"
 
 
 def test_aggregate_trace_as_parquet_carries_its_reporters(tmp_path):

@@ -1,5 +1,5 @@
-"""A run's outputs speak its behaviour's words (issue 26 item 6,
-sim_backend/words.py): the text summary, world.png, the GIF's titles and
+"""A run's outputs speak its behaviour's words
+(sim_backend/words.py): the text summary, world.png, the GIF's titles and
 the sweep plots show the behaviour's MEASURES and REPORTERS with their
 titles; the thesis's words (power, weight, shape IoU, touches that hold
 the object) appear only for the thesis, which declares them in its spec.py.
@@ -16,7 +16,7 @@ import pytest
 matplotlib.use("Agg")
 
 from bridge.cli import main  # noqa: E402
-from firmware_logic import registry  # noqa: E402
+from sim_backend import registry  # noqa: E402
 from sim_backend import plots, scenario, sweep, words  # noqa: E402
 
 # words only the thesis may say (its spec.py HEADER, SUMMARY, RESULT, SHAPE, LOAD, PLOTS)
@@ -215,8 +215,7 @@ def test_the_documented_commands_run(doc, heading, tmp_path, capsys):
     ('MEASURES = (("stopped", "robots", "extra"),)', "MEASURES: ('stopped', 'robots', 'extra')"),
 ])
 def test_a_wrong_words_declaration_is_one_line_naming_it(line, words_, tmp_path, capsys):
-    # a name of its own per case: the registry keeps a folder's modules by name
-    name = "odd" + re.sub(r"\W", "", line.split("=")[0]).lower()
+    name = "odd"        # one name in every case: each folder is its own module
     assert main(["behaviour", "new", name, "--into", str(tmp_path)]) == 0
     spec = tmp_path / name / "spec.py"
     spec.write_text(spec.read_text() + "\n" + line + "\n")

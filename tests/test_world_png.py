@@ -1,4 +1,4 @@
-"""world.png names what it draws (issue 32): a decoy is outlined and in the
+"""world.png names what it draws: a decoy is outlined and in the
 legend apart from the target, and the shape panel's y label sits on its right,
 clear of the world panel's colour bar."""
 

@@ -1,4 +1,4 @@
-"""The scenario key `wrap` (issue 10, World edges): a toroidal search phase as
+"""The scenario key `wrap`: a toroidal search phase as
 NetLogo's default world, a bounded transport phase (docs/tick-semantics.md)."""
 
 import subprocess

@@ -97,7 +97,7 @@ class BodyContext:
     arena: int                      # the world's half size in patches
     tick_s: float
     clock: Any = None               # bridge.serial.hostbody.Clock; None: wall clock
-    link: Any = None                # robot_send / robot_recv (sim_backend.engine.Link)
+    link: Any = None                # robot_send / robot_recv (sim_backend.link.Link)
 
 
 class OpenedBody(Protocol):

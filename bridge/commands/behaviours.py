@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import argparse
 import keyword
-from pathlib import Path
 
 from bridge.behaviour_check import STEPS
 from bridge.commands.numbers import count
@@ -65,7 +64,7 @@ def register(sub) -> None:
 
 
 def cmd_list(args: argparse.Namespace) -> int:
-    from firmware_logic import registry
+    from sim_backend import registry
     from sim_backend import studies
 
     for name, module in sorted(registry.names().items()):
@@ -90,7 +89,7 @@ def cmd_list(args: argparse.Namespace) -> int:
 
 
 def cmd_new(args: argparse.Namespace) -> int:
-    from firmware_logic import registry
+    from sim_backend import registry
 
     name = args.name
     if not name.isidentifier() or keyword.iskeyword(name) or name != name.lower():
@@ -125,7 +124,7 @@ def cmd_new(args: argparse.Namespace) -> int:
 
 def cmd_check(args: argparse.Namespace) -> int:
     from bridge import behaviour_check as bc
-    from firmware_logic import registry
+    from sim_backend import registry
 
     folder = args.folder
     if not folder.exists():

@@ -28,7 +28,7 @@ def register(sub) -> None:
 def cmd_dbc(args: argparse.Namespace) -> int:
     from bridge.commands.paths import check_out_file
     from bridge.links import dbc
-    from firmware_logic import registry
+    from sim_backend import registry
     check_out_file(args.out, "--out", "touchswarm.dbc")
     try:
         b = registry.load(args.behaviour)

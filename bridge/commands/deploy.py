@@ -118,7 +118,7 @@ def cmd_deploy(args: argparse.Namespace) -> int:
     config = parse_config(args.config)
     _check_tool("--mpy-cross", args.mpy_cross)
     _check_tool("--mpremote", args.mpremote)
-    from firmware_logic import registry
+    from sim_backend import registry
     if args.behaviour is not None:
         try:
             registry.load(args.behaviour)

@@ -8,6 +8,7 @@ import signal
 import sys
 import threading
 from pathlib import Path
+from typing import Any
 
 from bridge.commands import numbers as N
 from bridge.commands.keys import add_keys_arg, freshness_file, keys_from_args
@@ -67,17 +68,64 @@ def register(sub) -> None:
 
 
 def cmd_host(args: argparse.Namespace) -> int:
-    from bridge.errors import UsageError
-    from bridge.host.journal import Journal, JournalError
-    from bridge.host.process import HostProcess, host_behaviour
-    from bridge.host.transport import CanTransport
-    from bridge import devices
-    from bridge.links import LinkError, check_device, open_bus, parse_url, refuse_in_process
-    from bridge.transport import FanIn
+    from bridge.host.process import host_behaviour
+    from bridge.links import LinkError
 
     sc = scenario_from_args(args)
     # a behaviour the host process cannot run is refused before any port opens
     host_behaviour(sc.behaviour, sc)
+    _check_ports(args)
+    sealer = _sealer(args, sc)
+    if args.resume is not None:
+        check_resumable(args.resume)
+    out = sys.stderr if args.json else sys.stdout
+
+    def event(text: str) -> None:
+        print(text, file=out, flush=True)
+
+    stopping: list[int] = []
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, lambda *a: stopping.append(1))
+    # the journal first: a wrong path is found before any port is touched
+    journal = _open_journal(args, sc)
+    try:
+        host = _make_host(args, sc, journal, event)
+        if sealer is not None:
+            # a sealed TOUCH's power is its node's HELLO's (from the journal too),
+            # and a resumed host looks for its predecessor's counters once per node
+            sealer.nodes = host.coord.nodes
+            sealer.resumed = args.resume is not None
+        transport = _open_transport(args, sealer)
+    except BaseException:
+        if journal is not None:
+            journal.close()
+        raise
+    where = " + ".join(([args.bus] if args.bus else []) + args.serial)
+    with transport:
+        try:
+            host.transport = transport
+            event(f"host on {where}: object weight {sc.weight_centi}, home "
+                  f"({sc.homeX},{sc.homeY}), journal {args.journal or args.resume or 'none'}")
+            try:
+                summary = host.run(stop=lambda: bool(stopping), max_ticks=args.max_ticks,
+                                   node_timeout=args.node_timeout or None,
+                                   bus_timeout=args.bus_timeout or None)
+            except LinkError as err:
+                if not host.coord.done():
+                    raise
+                event(f"bus closed after the mission ended ({err})")
+                summary = host.finish()
+        finally:
+            if journal is not None:
+                journal.close()
+    return _result(args, host, summary)
+
+
+def _check_ports(args: argparse.Namespace) -> None:
+    """--bus and --serial name ports that can be opened (nothing is opened)."""
+    from bridge import devices
+    from bridge.errors import UsageError
+    from bridge.links import check_device, parse_url, refuse_in_process
     if not args.bus and not args.serial:
         raise UsageError("host: give --bus URL and/or --serial PORT (where the robots are)")
     if args.bus:
@@ -88,29 +136,31 @@ def cmd_host(args: argparse.Namespace) -> int:
         why = devices.missing(port)
         if why:
             raise UsageError(f"--serial {port}: {why}")
+
+
+def _sealer(args: argparse.Namespace, sc: Any) -> Any:
+    """The sealer of authenticated host commands (--keys), else None."""
+    from bridge.errors import UsageError
     keys = keys_from_args(args, sc.agents)
-    sealer = None
-    if keys is not None:
-        from bridge.links.secoc import FreshnessStore, SecocError, Sealer
-        fv_path = freshness_file(args.keys)
-        check_out_file(fv_path, "--keys (freshness file)", fv_path.name)
-        try:
-            sealer = Sealer(keys, FreshnessStore(fv_path))
-        except SecocError as err:
-            raise UsageError(f"--keys: {err}") from None
-    if args.resume is not None:
-        check_resumable(args.resume)
-    out = sys.stderr if args.json else sys.stdout
+    if keys is None:
+        return None
+    from bridge.links.secoc import FreshnessStore, SecocError, Sealer
+    fv_path = freshness_file(args.keys)
+    check_out_file(fv_path, "--keys (freshness file)", fv_path.name)
+    try:
+        return Sealer(keys, FreshnessStore(fv_path))
+    except SecocError as err:
+        raise UsageError(f"--keys: {err}") from None
 
-    def event(text: str) -> None:
-        print(text, file=out, flush=True)
 
-    stopping = []
-    if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGTERM, lambda *a: stopping.append(1))
+def _open_journal(args: argparse.Namespace, sc: Any) -> Any:
+    """The mission's journal (--journal, else the --resume one; None without
+    either), bound to the behaviour; a resumed journal given another
+    --journal is carried over to it first."""
+    from bridge.errors import UsageError
+    from bridge.host.journal import Journal, JournalError
     journal_path = args.journal or args.resume
     journal = None
-    # the journal first: a wrong path is found before any port is touched
     try:
         if journal_path:
             journal = Journal(journal_path)
@@ -126,8 +176,15 @@ def cmd_host(args: argparse.Namespace) -> int:
         if journal is not None:
             journal.close()
         raise UsageError(str(err)) from err
-    # the host and its resumed state before any port opens: a journal it
-    # cannot resume is one line, and no robot has been told anything
+    return journal
+
+
+def _make_host(args: argparse.Namespace, sc: Any, journal: Any, event: Any) -> Any:
+    """The host and its resumed state before any port opens: a journal it
+    cannot resume is one line, and no robot has been told anything."""
+    from bridge.errors import UsageError
+    from bridge.host.journal import JournalError
+    from bridge.host.process import HostProcess
     try:
         # the host knows the arena, not the object: the robots may be real
         host = HostProcess(None, sc.weight_centi, sc.homeX, sc.homeY, journal=journal,
@@ -138,18 +195,16 @@ def cmd_host(args: argparse.Namespace) -> int:
             assert journal is not None      # journal_path defaults to the resumed one
             host.resume(journal)
     except JournalError as err:
-        if journal is not None:
-            journal.close()
         raise UsageError(f"--resume {args.resume}: {err}") from None
-    except BaseException:
-        if journal is not None:
-            journal.close()
-        raise
-    if sealer is not None:
-        # a sealed TOUCH's power is its node's HELLO's (from the journal too),
-        # and a resumed host looks for its predecessor's counters once per node
-        sealer.nodes = host.coord.nodes
-        sealer.resumed = args.resume is not None
+    return host
+
+
+def _open_transport(args: argparse.Namespace, sealer: Any) -> Any:
+    """One transport over every --bus and --serial port (closed again if
+    one of them fails to open)."""
+    from bridge.host.transport import CanTransport
+    from bridge.links import open_bus
+    from bridge.transport import FanIn
     parts: list = []
     try:
         if args.bus:
@@ -160,27 +215,13 @@ def cmd_host(args: argparse.Namespace) -> int:
     except BaseException:
         for part in parts:
             part.close()
-        if journal is not None:
-            journal.close()
         raise
-    where = " + ".join(([args.bus] if args.bus else []) + args.serial)
-    with (parts[0] if len(parts) == 1 else FanIn(parts)) as transport:
-        try:
-            host.transport = transport
-            event(f"host on {where}: object weight {sc.weight_centi}, home "
-                  f"({sc.homeX},{sc.homeY}), journal {journal_path or 'none'}")
-            try:
-                summary = host.run(stop=lambda: bool(stopping), max_ticks=args.max_ticks,
-                                   node_timeout=args.node_timeout or None,
-                                   bus_timeout=args.bus_timeout or None)
-            except LinkError as err:
-                if not host.coord.done():
-                    raise
-                event(f"bus closed after the mission ended ({err})")
-                summary = host.finish()
-        finally:
-            if journal is not None:
-                journal.close()
+    return parts[0] if len(parts) == 1 else FanIn(parts)
+
+
+def _result(args: argparse.Namespace, host: Any, summary: dict) -> int:
+    """Print the summary (one JSON object with --json, else one line); the
+    exit code: 0 delivered, 1 not, EXIT_SILENT when the robots went silent."""
     if args.json:
         print(json.dumps(summary, sort_keys=True), flush=True)
     else:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from typing import Any
 
 from bridge.commands import numbers as N
 from bridge.commands.run import add_scenario_args, check_link_limits, scenario_from_args
@@ -57,7 +58,7 @@ def register(sub) -> None:
 
 def parse_bodies(items: list[str]) -> dict:
     from bridge.bodies import BodyURLError, parse_assignment
-    bodies = {}
+    bodies: dict[int, Any] = {}
     for item in items:
         node, spec = parse_assignment(item)
         if node in bodies:

@@ -7,7 +7,6 @@ import argparse
 from bridge.commands.run import add_trust_arg
 import json
 import sys
-from pathlib import Path
 
 from bridge.commands.paths import path_arg
 

@@ -6,7 +6,7 @@ import argparse
 import json
 import sys
 from pathlib import Path
-from typing import Callable
+from typing import Any, Callable
 
 from bridge.commands.paths import path_arg
 from bridge.errors import UsageError
@@ -39,8 +39,8 @@ def add_trust_arg(p: argparse.ArgumentParser) -> None:
 
 def trust_from_args(args: argparse.Namespace) -> None:
     """The folders the command line names are trusted; a data file may name
-    no other (firmware_logic/registry.py named_by_data)."""
-    from firmware_logic import registry
+    no other (sim_backend/registry.py named_by_data)."""
+    from sim_backend import registry
     for ref in getattr(args, "trust_behaviour", None) or ():
         if not Path(ref).is_dir():
             raise UsageError(f"--trust-behaviour {ref}: not a folder")
@@ -71,7 +71,7 @@ def check_link_limits(sc, link: str) -> None:
 
 def parse_overrides(items: list[str]) -> dict:
     """--set KEY=VALUE items as scenario changes (values read as TOML)."""
-    changes = {}
+    changes: dict[str, Any] = {}
     for item in items:
         key, eq, value = item.partition("=")
         key = key.strip()
@@ -92,7 +92,7 @@ def scenario_from_args(args: argparse.Namespace):
     changes = parse_overrides(args.set)
     trust_from_args(args)
     if "behaviour" in changes:
-        from firmware_logic import registry
+        from sim_backend import registry
         registry.trust(str(changes["behaviour"]))
     sc = scenario.load(args.scenario)
     if args.robots is not None:
@@ -348,7 +348,7 @@ def format_summary(s: dict, behaviour=None, coordinator=None) -> str:
     """The text summary in the behaviour's own words (sim_backend/words.py):
     its header and measure lines, the new estimate and recognition when
     measured, the result line."""
-    from firmware_logic import registry
+    from sim_backend import registry
     from sim_backend import words
     b = registry.load(behaviour) if behaviour is None or isinstance(behaviour, str) \
         else behaviour

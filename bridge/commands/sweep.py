@@ -6,7 +6,9 @@ import argparse
 import json
 import sys
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from bridge.commands.paths import path_arg
 from bridge.errors import UsageError
@@ -56,7 +58,7 @@ def register(sub) -> None:
                    help="sizes: 20-300 robots in the default arena, 1,000 and 10,000 in "
                         "arenas of the same density; obstacles: the wall scenario with and "
                         "without its wall; field: static and dynamic field at 20-300 robots "
-                        "(the world's presets, issue 11; 10 seeds, until delivered, maxTicks "
+                        "(the world's presets; 10 seeds, until delivered, maxTicks "
                         "6000; <preset>.png: delivery rate, time, IoU). Any other NAME is "
                         "--study NAME (the thesis's faults: each fault alone and a mix, "
                         "faults.png; breeds: the share of ants, breeds.png)")
@@ -230,12 +232,46 @@ def _compiling(behaviour: str, folder: Path) -> None:
           flush=True)
 
 
-def cmd_sweep(args: argparse.Namespace) -> int:
-    from sim_backend import scenario, sweep
+@dataclass
+class Plan:
+    """What one sweep runs: its base scenario and overrides, its points and
+    seeds, until when, and the study or grid it came from (for its figures)."""
+    base: Any
+    overrides: dict
+    points: list
+    seeds: list[int]
+    until: str
+    study: Any = None
+    grid: dict = field(default_factory=dict)
 
+
+def cmd_sweep(args: argparse.Namespace) -> int:
     from bridge.commands.run import trust_from_args
     trust_from_args(args)
     cfg = _settings(args)
+    plan = _plan(args, cfg)
+    chunk = cfg.get("chunk")      # None: the sweep sizes them (sweep.chunk_runs)
+    if chunk is not None and chunk < 1:
+        raise UsageError(f"--chunk {chunk}: expected at least 1 run per task")
+    out: Path = cfg["out"]
+    # every check that can refuse the sweep runs before the first run
+    done = _check_out(args, plan, out)
+    if args.save_experiment is not None:
+        _save_experiment(args, cfg, plan, out)
+    new, wall = _run(args, cfg, plan, out, done)
+    rows = _in_run_order(plan, done + new)
+    from sim_backend import sweep
+    csv_path = out / "sweep.csv"
+    sweep.write_csv(rows, csv_path, _columns(plan))
+    pngs = [] if args.no_plots else _draw(args, plan, csv_path, out)
+    _report(args, cfg, plan, rows, new, done, wall, csv_path, pngs)
+    return 0
+
+
+def _plan(args: argparse.Namespace, cfg: dict) -> Plan:
+    """The points and seeds the options name: a world preset, a behaviour's
+    study (or --thesis), else the --grid (one point without one)."""
+    from sim_backend import scenario
     base = scenario.load(cfg["scenario"])
     overrides = dict(cfg["set"])
     if args.activation is not None:
@@ -243,9 +279,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             raise UsageError("--activation and --set/--grid activation both given; give one")
         overrides["activation"] = args.activation
         cfg["set"] = dict(cfg["set"], activation=args.activation)   # saved with the experiment
-    grid: dict = {}
     flag = _study_flag(args)
-    study = None
     if sum(map(bool, (args.preset, args.study, args.thesis))) > 1:
         raise UsageError("--preset, --study and --thesis each run their own grid; give one")
     if flag and cfg.get("grid"):
@@ -254,85 +288,121 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         raise UsageError(f"--save-experiment saves a --grid sweep; {flag} is its own "
                          "experiment already")
     if args.preset in _world_presets():
-        from sim_backend import arena_presets
-        name, make = arena_presets.PRESETS[args.preset]
-        if args.scenario is None and args.experiment is None:
-            base = scenario.load(name)
-        points = make()
-        seeds = _seeds(cfg["seeds"]) if "seeds" in cfg else \
-            list(range(1, arena_presets.SEEDS + 1))
-        until = cfg.get("until") or "delivered"
-        overrides.setdefault("maxTicks", arena_presets.MAX_TICKS)
-    elif flag:
-        from sim_backend import studies
-        behaviour = str(sweep.base_dict(base, overrides)["behaviour"])
-        try:
-            study = studies.get(behaviour, args.study or args.preset or "thesis")
-        except studies.StudyError as err:
-            if args.preset:      # neither the world's preset nor the behaviour's study
-                raise UsageError(f"--preset {args.preset}: not a world preset "
-                                 f"({', '.join(_world_presets())}); {err}") from None
-            raise
-        points = list(study.points)
-        seeds = _seeds(cfg["seeds"]) if "seeds" in cfg else list(range(1, study.seeds + 1))
-        until = cfg.get("until") or study.until
-        for key, value in study.overrides:
-            overrides.setdefault(key, value)
-        studies.check(study, base, overrides)     # errors name the study
-    else:
-        # no --grid: one point, the scenario with --set, over the seeds
-        grid = cfg.get("grid") or {}
-        both = sorted(set(grid) & set(overrides))
-        if both:
-            raise UsageError(f"--set {both[0]} and --grid {both[0]} both given; the grid "
-                             "would override --set: give the key in one of them")
-        points = sweep.grid_points(grid)
-        seeds = _seeds(cfg["seeds"]) if "seeds" in cfg else list(range(1, 21))
-        until = cfg.get("until") or "delivered"
-    chunk_arg = cfg.get("chunk")
-    if chunk_arg is not None and chunk_arg < 1:
-        raise UsageError(f"--chunk {chunk_arg}: expected at least 1 run per task")
-    out: Path = cfg["out"]
-    # every check that can refuse the sweep runs before the first run
-    if study is None:
-        sweep.validate_points(points, base, overrides)
-    from bridge.commands.paths import check_out_dir, check_out_file
+        return _preset_plan(args, cfg, base, overrides)
+    if flag:
+        return _study_plan(args, cfg, base, overrides)
+    return _grid_plan(cfg, base, overrides)
+
+
+def _preset_plan(args: argparse.Namespace, cfg: dict, base: Any, overrides: dict) -> Plan:
+    from sim_backend import arena_presets, scenario
+    name, make = arena_presets.PRESETS[args.preset]
+    if args.scenario is None and args.experiment is None:
+        base = scenario.load(name)
+    seeds = _seeds(cfg["seeds"]) if "seeds" in cfg else list(range(1, arena_presets.SEEDS + 1))
+    overrides.setdefault("maxTicks", arena_presets.MAX_TICKS)
+    plan = Plan(base, overrides, make(), seeds, cfg.get("until") or "delivered")
+    _validate(plan)
+    return plan
+
+
+def _study_plan(args: argparse.Namespace, cfg: dict, base: Any, overrides: dict) -> Plan:
+    from sim_backend import studies, sweep
+    behaviour = str(sweep.base_dict(base, overrides)["behaviour"])
+    try:
+        study = studies.get(behaviour, args.study or args.preset or "thesis")
+    except studies.StudyError as err:
+        if args.preset:      # neither the world's preset nor the behaviour's study
+            raise UsageError(f"--preset {args.preset}: not a world preset "
+                             f"({', '.join(_world_presets())}); {err}") from None
+        raise
+    seeds = _seeds(cfg["seeds"]) if "seeds" in cfg else list(range(1, study.seeds + 1))
+    for key, value in study.overrides:
+        overrides.setdefault(key, value)
+    studies.check(study, base, overrides)     # errors name the study
+    return Plan(base, overrides, list(study.points), seeds, cfg.get("until") or study.until,
+                study=study)
+
+
+def _grid_plan(cfg: dict, base: Any, overrides: dict) -> Plan:
+    """--grid's points (no --grid: one point, the scenario with --set)."""
+    from sim_backend import sweep
+    grid = cfg.get("grid") or {}
+    both = sorted(set(grid) & set(overrides))
+    if both:
+        raise UsageError(f"--set {both[0]} and --grid {both[0]} both given; the grid "
+                         "would override --set: give the key in one of them")
+    seeds = _seeds(cfg["seeds"]) if "seeds" in cfg else list(range(1, 21))
+    plan = Plan(base, overrides, sweep.grid_points(grid), seeds,
+                cfg.get("until") or "delivered", grid=grid)
+    _validate(plan)
+    return plan
+
+
+def _validate(plan: Plan) -> None:
+    from sim_backend import sweep
+    sweep.validate_points(plan.points, plan.base, plan.overrides)
+
+
+def _columns(plan: Plan) -> list[str]:
+    from sim_backend import sweep
+    return sweep.columns(sweep.point_behaviours(plan.points, plan.base, plan.overrides))
+
+
+def _check_out(args: argparse.Namespace, plan: Plan, out: Path) -> list[dict]:
+    """The runs --resume keeps from out/sweep.csv (none without it); a
+    UsageError when out/ holds a sweep that neither --resume nor
+    --overwrite was given for."""
+    from sim_backend import sweep
+
+    from bridge.commands.paths import check_out_dir
     check_out_dir(out, "--out")
     csv_path = out / "sweep.csv"
-    names = sweep.columns(sweep.point_behaviours(points, base, overrides))
-    done: list[dict] = []
     if args.resume:
         done = sweep.read_done(csv_path)
-        base_d = sweep.base_dict(base, overrides)
-        sweep.check_done(done, points, seeds, base_d, until)
-    elif csv_path.exists() and not args.overwrite and sweep.read_done(csv_path):
+        sweep.check_done(done, plan.points, plan.seeds,
+                         sweep.base_dict(plan.base, plan.overrides), plan.until)
+        return done
+    if csv_path.exists() and not args.overwrite and sweep.read_done(csv_path):
         raise UsageError(f"--out {out}: sweep.csv already holds {len(sweep.read_done(csv_path))}"
                          " runs; --resume finishes that sweep, --overwrite replaces it")
-    if args.save_experiment is not None:
-        check_out_file(args.save_experiment, "--save-experiment", "exp.toml")
-        if args.save_experiment.suffix != ".toml":
-            raise UsageError(f"--save-experiment {args.save_experiment}: expected a .toml file")
-        from bridge.commands import experiment
-        experiment.save(args.save_experiment, {
-            "scenario": cfg["scenario"], "grid": grid, "set": cfg["set"],
-            "seeds": _seeds_value(cfg.get("seeds", "20")), "engine": cfg["engine"],
-            "until": until, "out": str(out), "executor": cfg["executor"], "chunk": chunk_arg})
-        print(f"experiment saved to {args.save_experiment}")
+    return []
+
+
+def _save_experiment(args: argparse.Namespace, cfg: dict, plan: Plan, out: Path) -> None:
+    from bridge.commands import experiment
+    from bridge.commands.paths import check_out_file
+    check_out_file(args.save_experiment, "--save-experiment", "exp.toml")
+    if args.save_experiment.suffix != ".toml":
+        raise UsageError(f"--save-experiment {args.save_experiment}: expected a .toml file")
+    experiment.save(args.save_experiment, {
+        "scenario": cfg["scenario"], "grid": plan.grid, "set": cfg["set"],
+        "seeds": _seeds_value(cfg.get("seeds", "20")), "engine": cfg["engine"],
+        "until": plan.until, "out": str(out), "executor": cfg["executor"],
+        "chunk": cfg.get("chunk")})
+    print(f"experiment saved to {args.save_experiment}")
+
+
+def _run(args: argparse.Namespace, cfg: dict, plan: Plan, out: Path,
+         done: list[dict]) -> tuple[list[dict], float]:
+    """Run what is not done yet, each row appended to out/sweep.csv as it
+    comes, with progress on stderr: (the new rows, wall seconds)."""
+    from sim_backend import sweep
     try:
         executor, close = sweep.executor_from_spec(cfg["executor"])
     except ValueError as err:
         raise UsageError(str(err)) from None
-    total = len(points) * len(seeds)
-    todo = total - len(done)
-    chunk = chunk_arg          # None: the sweep sizes them (sweep.chunk_runs)
-    appender = sweep.CsvAppender(csv_path, names, resume=args.resume)
+    csv_path = out / "sweep.csv"
+    total = len(plan.points) * len(plan.seeds)
+    appender = sweep.CsvAppender(csv_path, _columns(plan), resume=args.resume)
     if done:
         print(f"resuming: {len(done)} of {total} runs already in {csv_path}", file=sys.stderr)
     # --engine soa: compile (or load) the engine first, so the progress rate
     # counts runs only; auto does not wait (a cold cache compiles in the
     # background while the runs start in the reference engine)
-    if todo and cfg["engine"] == "soa":
-        sweep.warm(sweep.point_scenarios(points, base, overrides), cfg["engine"], _compiling)
+    if total > len(done) and cfg["engine"] == "soa":
+        sweep.warm(sweep.point_scenarios(plan.points, plan.base, plan.overrides),
+                   cfg["engine"], _compiling)
     status = sweep.EngineStatus()
     bar, step = _progress(total, len(done), args.progress_every, status.note)
 
@@ -346,57 +416,68 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             print(line, file=sys.stderr, flush=True)
     t0 = time.perf_counter()
     try:
-        new = sweep.sweep(points, seeds, base=base, engine=cfg["engine"], executor=executor,
-                          until=until, chunk_size=chunk, overrides=overrides, progress=step,
-                          on_rows=appender.append, done=done,
-                          compile_first=cfg["engine"] != "soa", on_event=on_event)
+        new = sweep.sweep(plan.points, plan.seeds, base=plan.base, engine=cfg["engine"],
+                          executor=executor, until=plan.until, chunk_size=cfg.get("chunk"),
+                          overrides=plan.overrides, progress=step, on_rows=appender.append,
+                          done=done, compile_first=cfg["engine"] != "soa", on_event=on_event)
     finally:
         appender.close()
         if bar is not None:
             bar.close()
         close()
-    wall = time.perf_counter() - t0
-    # the journal holds rows in the order runs finished: rewrite it in point,
-    # seed order, so the same sweep gives the same file whatever the executor
+    return new, time.perf_counter() - t0
+
+
+def _in_run_order(plan: Plan, rows: list[dict]) -> list[dict]:
+    """The rows in point, seed order (the journal holds them in the order runs
+    finished), so the same sweep gives the same file whatever the executor."""
+    from sim_backend import sweep
     order = {run: i for i, run in enumerate(
         (pt.experiment, ";".join(f"{k}={v}" for k, v in pt.params), str(s))
-        for pt in points for s in seeds)}
-    rows = sorted(done + new, key=lambda r: order[sweep.run_key(r)])
-    sweep.write_csv(rows, csv_path, names)
-    pngs = []
-    if not args.no_plots:
-        from sim_backend import plots
-        saved = sweep.read_csv(csv_path)
-        if study is not None:
-            from sim_backend import studies
-            pngs = studies.draw(study, saved, out)
-        elif args.preset:
-            from sim_backend import arena_presets
-            pngs = arena_presets.plots(saved, out, args.preset)
-        else:
-            pngs = plots.grid_plots(saved, list(grid), out)
+        for pt in plan.points for s in plan.seeds)}
+    return sorted(rows, key=lambda r: order[sweep.run_key(r)])
+
+
+def _draw(args: argparse.Namespace, plan: Plan, csv_path: Path, out: Path) -> list[Path]:
+    """The sweep's figures: its study's, its world preset's, or one per grid key."""
+    from sim_backend import sweep
+    saved = sweep.read_csv(csv_path)
+    if plan.study is not None:
+        from sim_backend import studies
+        return studies.draw(plan.study, saved, out)
+    if args.preset:
+        from sim_backend import arena_presets
+        return arena_presets.plots(saved, out, args.preset)
+    from sim_backend import plots
+    return plots.grid_plots(saved, list(plan.grid), out)
+
+
+def _report(args: argparse.Namespace, cfg: dict, plan: Plan, rows: list[dict],
+            new: list[dict], done: list[dict], wall: float, csv_path: Path,
+            pngs: list[Path]) -> None:
+    """What ran, printed as one JSON object (--json) or a few lines."""
+    from sim_backend import sweep
     engines: dict[str, int] = {}
     for r in new:
         engines[r["engine"]] = engines.get(r["engine"], 0) + 1
-    info = {"runs": len(rows), "new_runs": len(new), "resumed_runs": len(done),
-            "points": len(points), "seeds": len(seeds), "engine": cfg["engine"],
-            "engines": engines,
-            "executor": cfg["executor"], "until": until, "wall_s": round(wall, 3),
-            "csv": str(csv_path), "plots": [str(p) for p in pngs]}
     if args.json:
-        print(json.dumps(info, sort_keys=True))
-    else:
-        again = f", {len(done)} kept from before" if done else ""
-        # the engines that ran the new runs: one, or "12 reference + 8 soa"
-        used = " + ".join(f"{n} {e}" for e, n in engines.items()) if len(engines) > 1 else \
-            next(iter(engines), sweep.pick_engine(cfg["engine"]))
-        engine = used if used == cfg["engine"] else f"{used} ({cfg['engine']})"
-        print(f"{len(rows)} runs ({len(points)} points x {len(seeds)} seeds, {engine} "
-              f"engine, until {until}{again}) in {wall:.1f} s")
-        print(f"  {csv_path}")
-        for p in pngs:
-            print(f"  {p}")
-    return 0
+        print(json.dumps({
+            "runs": len(rows), "new_runs": len(new), "resumed_runs": len(done),
+            "points": len(plan.points), "seeds": len(plan.seeds), "engine": cfg["engine"],
+            "engines": engines, "executor": cfg["executor"], "until": plan.until,
+            "wall_s": round(wall, 3), "csv": str(csv_path), "plots": [str(p) for p in pngs]},
+            sort_keys=True))
+        return
+    again = f", {len(done)} kept from before" if done else ""
+    # the engines that ran the new runs: one, or "12 reference + 8 soa"
+    used = " + ".join(f"{n} {e}" for e, n in engines.items()) if len(engines) > 1 else \
+        next(iter(engines), sweep.pick_engine(cfg["engine"]))
+    engine = used if used == cfg["engine"] else f"{used} ({cfg['engine']})"
+    print(f"{len(rows)} runs ({len(plan.points)} points x {len(plan.seeds)} seeds, {engine} "
+          f"engine, until {plan.until}{again}) in {wall:.1f} s")
+    print(f"  {csv_path}")
+    for p in pngs:
+        print(f"  {p}")
 
 
 def _seeds_value(text: str) -> int | str | list[int]:

@@ -78,7 +78,7 @@ def cmd_check(args: argparse.Namespace) -> int:
     from bridge.firmware.conformance import RunParams, run_conformance
     from bridge.firmware.subset_check import check_package, check_paths, package_dir
 
-    from firmware_logic import registry
+    from sim_backend import registry
 
     sc = check_scenario(args)
     b = registry.load(str(sc.behaviour)).activate()   # its message kinds in use

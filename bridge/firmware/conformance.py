@@ -392,7 +392,7 @@ def run_conformance(src: Path | None = None, params: RunParams | None = None,
     same place in it). CPython always runs the installed one, so a modified
     copy shows up as a divergence.
     """
-    from firmware_logic import registry
+    from sim_backend import registry
     from sim_backend import scenario
 
     base = params or RunParams()

@@ -489,19 +489,19 @@ def check_paths(paths: Iterable[str | os.PathLike[str]]) -> list[Violation]:
     return sorted(out)
 
 
-# modules inside firmware_logic/ outside the subset's rules: registry.py is
-# host-side and never goes to a board; board_main.py is the board's main.py,
+# the one module inside firmware_logic/ outside the subset's rules (every
+# other one may run on a robot; host code lives in sim_backend/, e.g. the
+# behaviour registry): board_main.py is the board's main.py,
 # the MicroPython shell round the firmware (it opens the port, reads
 # robot_config and imports the behaviour: sys, select, __import__), checked by
 # mpy-cross at deploy and run on the unix port by the HIL tests
-HOST_ONLY = ("registry.py",)
 BOARD_SHELL = ("board_main.py",)
 
 
 def firmware_files(root: Path) -> list[Path]:
     """Every firmware module under root, behaviour packages included."""
     return sorted(p for p in root.rglob("*.py")
-                  if p.name not in HOST_ONLY + BOARD_SHELL and "__pycache__" not in p.parts)
+                  if p.name not in BOARD_SHELL and "__pycache__" not in p.parts)
 
 
 def package_dir() -> Path:

@@ -314,10 +314,6 @@ class Journal:
         return [self._decision(r) for r in
                 self._sql("SELECT tick, kind, state FROM decisions ORDER BY id")]
 
-    def last_decision(self) -> Decision | None:
-        rows = self._sql("SELECT tick, kind, state FROM decisions ORDER BY id DESC LIMIT 1")
-        return self._decision(rows[0]) if rows else None
-
     def _decision(self, row: tuple) -> Decision:
         try:
             state = json.loads(row[2])

@@ -40,7 +40,8 @@ from bridge.links.errors import LinkTimeoutError
 from bridge.host.journal import REJECTED_KEPT, Journal, JournalError, Report
 from bridge.transport import RobotTransport
 from firmware_logic import messages as msg
-from firmware_logic import registry, roster
+from firmware_logic import roster
+from sim_backend import registry
 from sim_backend.scenario import CHOICES
 
 # A coordinator is any behaviour's that meets the host contract

@@ -11,7 +11,7 @@ from bridge.links.canbus import converted, shutdown_quietly
 from bridge.links.codec import OUT_OF_RANGE, BadFrames, Decoder, Message, encode
 from bridge.links.errors import KeyMismatch, LinkOperationError
 from firmware_logic import messages as msg
-from firmware_logic import registry
+from sim_backend import registry
 
 if TYPE_CHECKING:
     from bridge.links.secoc import Sealer

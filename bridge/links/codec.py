@@ -15,7 +15,8 @@ from typing import Any, Callable
 
 import can
 
-from firmware_logic import hal, registry
+from firmware_logic import hal
+from sim_backend import registry
 from firmware_logic import messages as msg
 
 log = logging.getLogger(__name__)

@@ -25,7 +25,7 @@ def build(max_node: int = msg.MAX_NODE, behaviour: Any = None):
     from cantools.database.can import Database, Message, Node, Signal
     from cantools.database.conversion import BaseConversion
 
-    from firmware_logic import registry
+    from sim_backend import registry
     b = behaviour if behaviour is not None else registry.load()
     tables = value_tables(b)
     s = schema(b)                 # the link's messages and this behaviour's own

@@ -149,7 +149,7 @@ def portable_behaviour(ref: str, path: Path) -> tuple[str, str]:
     points at it otherwise), never an absolute path."""
     import os
 
-    from firmware_logic import registry
+    from sim_backend import registry
     b = registry.load(ref)
     if str(ref) in registry.names():
         return str(ref), b.name

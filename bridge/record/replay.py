@@ -18,6 +18,7 @@ from collections import defaultdict, deque
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import can
 
@@ -26,7 +27,8 @@ from bridge.links.codec import BadFrames, Decoder, Message
 from bridge.record.formats import meta_path, record_format
 from bridge.record.recorder import HOST, Q_RECV, Q_RECV_FIELD, Q_X, Q_Y, join_parts
 from firmware_logic import messages as msg
-from firmware_logic import hal, registry
+from firmware_logic import hal
+from sim_backend import registry
 from firmware_logic.hal import Hal
 from sim_backend.scenario import check_seed
 from sim_backend.world import World
@@ -154,11 +156,6 @@ def behaviour(meta: dict, path: Path, folder: Path | None = None) -> registry.Be
         raise UsageError(f"{where}: {err}") from None
 
 
-def behaviour_ref(b: registry.Behaviour) -> str:
-    """How the replayed scenario names `b`: its name when installed, else its folder."""
-    return b.name if registry.names().get(b.name) == b.module_name else str(b.folder)
-
-
 def load(path: Path, folder: Path | None = None) -> Recording:
     """Read a recording and its sidecar. UsageError (bad input: the CLI exits 2)
     for a missing, unreadable, corrupt, truncated or mismatched recording."""
@@ -174,7 +171,7 @@ def load(path: Path, folder: Path | None = None) -> Recording:
                          "`touchswarm run --record`")
     rec = Recording(meta=_sidecar(path))
     b = behaviour(rec.meta, path, folder)   # its own message kinds, before any frame is read
-    rec.meta["scenario"]["behaviour"] = behaviour_ref(b)
+    rec.meta["scenario"]["behaviour"] = b.ref     # its name when installed, else its folder
     dec = Decoder("host", BadFrames("replay"), behaviour=b)
     tick = 0
     host_left = 0        # frames still to come of those the host received
@@ -336,6 +333,103 @@ def _fmt(m: Message) -> str:
     return "%s_%d%s" % (msg.SCHEMA[kind][0], node, tuple(f))
 
 
+class _Replayer:
+    """One recording replayed tick by tick: the firmware of every robot fed
+    its recorded readings, the host fed the recorded reports; whatever they
+    do that the recording does not hold is a divergence."""
+
+    def __init__(self, rec: Recording, beh: registry.Behaviour, sc: Any, seed: int) -> None:
+        self.rec = rec
+        self.nodes = sorted(set(rec.sensors) | set(rec.actions))
+        self.robots = {n: beh.make_robot(n, seed, sc) for n in self.nodes}
+        self.inbox: dict[int, deque] = {n: deque() for n in self.nodes}
+        self.hals = {n: ReplayHal(n, self.inbox[n], rec.recv_fields) for n in self.nodes}
+        self.stopped: set[int] = set()
+        # the recorded run was a simulation: the host may check touches against
+        # the object's true cells
+        from perception import host_coordinator
+        self.coord = host_coordinator(beh, sc, cells=World(sc, seed).object_cells)
+        self.divergences: list[str] = []
+        self.counts = {"sensor_readings": 0, "actions": 0, "robot_messages": 0,
+                       "host_commands": 0}
+
+    def diverge(self, text: str) -> None:
+        self.divergences.append(text)
+
+    def tick(self, t: int) -> None:
+        sent_up: dict[int, list[Message]] = defaultdict(list)
+        for m in self.rec.up.get(t, []):
+            sent_up[m[0]].append(m)
+        for n in self.nodes:
+            if n not in self.stopped:
+                self.robot(n, t, sent_up.get(n, []))
+        recorded_down = self.rec.down.get(t, [])
+        self.host(t, recorded_down)
+        # what the host sent reaches the robots' inboxes for the next tick
+        # (a recording without the robots' receptions in full)
+        for node, kind, f in ([] if self.rec.recv_fields else recorded_down):
+            for n in (self.nodes if node == 0 else [node]):
+                if n in self.inbox:
+                    self.inbox[n].append((kind, f))
+
+    def robot(self, n: int, t: int, want_sent: list[Message]) -> None:
+        """Robot n's step at tick t on its recorded readings: its actions and
+        messages against the recorded ones."""
+        hal = self.hals[n]
+        tape = self.rec.sensors[n].get(t, [])
+        self.counts["sensor_readings"] += len(tape)
+        hal.tape = deque(tape)
+        hal.acts = []
+        hal.sent = []
+        try:
+            self.robots[n].step(hal)
+            if hal.tape:
+                raise Diverged(f"firmware left {len(hal.tape)} recorded readings unused")
+        except Diverged as err:
+            self.diverge(f"tick {t} robot {n}: {err}; robot not replayed further")
+            self.stopped.add(n)
+            return
+        want_acts = self.rec.actions[n].get(t, [])
+        self.counts["actions"] += len(want_acts)
+        if hal.acts != want_acts:
+            self.diverge(f"tick {t} robot {n}: actions {hal.acts}, recorded {want_acts}")
+        self.counts["robot_messages"] += len(want_sent)
+        if hal.sent != want_sent:
+            self.diverge(f"tick {t} robot {n}: sent {[_fmt(m) for m in hal.sent]}, "
+                         f"recorded {[_fmt(m) for m in want_sent]}")
+
+    def host(self, t: int, recorded_down: list[Message]) -> None:
+        """The host at tick t: the recorded reports in, its commands compared."""
+        self.counts["host_commands"] += len(recorded_down)
+        rec = self.rec
+        host_in = rec.host_in[t] if t in rec.host_in else rec.up.get(t, [])
+        for node, kind, f in host_in:
+            self.coord.on_message(node, kind, f, t)
+        out = [(node, kind, tuple(f)) for node, kind, f in self.coord.tick(t)]
+        if out != recorded_down:
+            self.diverge(f"tick {t} host: sent {[_fmt(m) for m in out]}, "
+                         f"recorded {[_fmt(m) for m in recorded_down]}")
+
+    def check_summary(self) -> None:
+        """The replayed outcome against the sidecar's run summary: the frames
+        are all there, so a different outcome means the sidecar describes
+        another run, or the firmware decides differently now."""
+        recorded = self.rec.meta.get("summary")
+        if recorded is None:
+            return
+        coord = self.coord
+        replayed = {"robots": len(self.nodes), "ticks": len(self.rec.ticks),
+                    "touches": len(coord.touches),
+                    "home_tick": coord.delivered_tick if coord.delivered_tick >= 0 else None}
+        for key, got in replayed.items():
+            want = recorded[key]
+            if key == "touches":
+                want = len(want) if isinstance(want, list) else want
+            if got != want:
+                self.diverge(f"summary: {key} {got} replayed, {want} in the sidecar's run "
+                             "summary")
+
+
 def replay(path: Path, realtime: bool = False, limit: int = 50,
            folder: Path | None = None) -> dict:
     """Replay a recording; return a summary with a list of divergences.
@@ -345,23 +439,7 @@ def replay(path: Path, realtime: bool = False, limit: int = 50,
     rec = load(path, folder)
     sc = validate(dict(rec.meta["scenario"]), source=str(meta_path(Path(path))))
     seed = int(rec.meta["seed"])
-    nodes = sorted(set(rec.sensors) | set(rec.actions))
-    beh = behaviour(rec.meta, Path(path), folder)
-    robots = {n: beh.make_robot(n, seed, sc) for n in nodes}
-    inbox = {n: deque() for n in nodes}
-    hals = {n: ReplayHal(n, inbox[n], rec.recv_fields) for n in nodes}
-    stopped: set[int] = set()
-    # the recorded run was a simulation: the host may check touches against
-    # the object's true cells
-    from perception import host_coordinator
-    coord = host_coordinator(beh, sc, cells=World(sc, seed).object_cells)
-    coord_ok = True
-    divergences: list[str] = []
-    counts = {"sensor_readings": 0, "actions": 0, "robot_messages": 0, "host_commands": 0}
-
-    def diverge(text: str) -> None:
-        divergences.append(text)
-
+    r = _Replayer(rec, behaviour(rec.meta, Path(path), folder), sc, seed)
     start = time.monotonic()
     t0 = rec.stamps[rec.ticks[0]] if rec.ticks else 0.0
     for t in rec.ticks:
@@ -369,65 +447,9 @@ def replay(path: Path, realtime: bool = False, limit: int = 50,
             delay = (rec.stamps[t] - t0) - (time.monotonic() - start)
             if delay > 0:
                 time.sleep(delay)
-        sent_up: dict[int, list[Message]] = defaultdict(list)
-        for m in rec.up.get(t, []):
-            sent_up[m[0]].append(m)
-        for n in nodes:
-            if n in stopped:
-                continue
-            hal = hals[n]
-            tape = rec.sensors[n].get(t, [])
-            counts["sensor_readings"] += len(tape)
-            hal.tape = deque(tape)
-            hal.acts = []
-            hal.sent = []
-            try:
-                robots[n].step(hal)
-                if hal.tape:
-                    raise Diverged(f"firmware left {len(hal.tape)} recorded readings unused")
-            except Diverged as err:
-                diverge(f"tick {t} robot {n}: {err}; robot not replayed further")
-                stopped.add(n)
-                continue
-            want_acts = rec.actions[n].get(t, [])
-            counts["actions"] += len(want_acts)
-            if hal.acts != want_acts:
-                diverge(f"tick {t} robot {n}: actions {hal.acts}, recorded {want_acts}")
-            want_sent = sent_up.get(n, [])
-            counts["robot_messages"] += len(want_sent)
-            if hal.sent != want_sent:
-                diverge(f"tick {t} robot {n}: sent {[_fmt(m) for m in hal.sent]}, "
-                        f"recorded {[_fmt(m) for m in want_sent]}")
-        # the host: the recorded reports in, its commands compared
-        recorded_down = rec.down.get(t, [])
-        counts["host_commands"] += len(recorded_down)
-        if coord_ok:
-            host_in = rec.host_in[t] if t in rec.host_in else rec.up.get(t, [])
-            for node, kind, f in host_in:
-                coord.on_message(node, kind, f, t)
-            out = [(node, kind, tuple(f)) for node, kind, f in coord.tick(t)]
-            if out != recorded_down:
-                diverge(f"tick {t} host: sent {[_fmt(m) for m in out]}, "
-                        f"recorded {[_fmt(m) for m in recorded_down]}")
-        # what the host sent reaches the robots' inboxes for the next tick
-        # (a recording without the robots' receptions in full)
-        for node, kind, f in ([] if rec.recv_fields else recorded_down):
-            for n in (nodes if node == 0 else [node]):
-                if n in inbox:
-                    inbox[n].append((kind, f))
-    recorded = rec.meta.get("summary")
-    if recorded is not None:
-        # the frames are all there, so a different outcome means the sidecar
-        # describes another run, or the firmware decides differently now
-        replayed = {"robots": len(nodes), "ticks": len(rec.ticks),
-                    "touches": len(coord.touches),
-                    "home_tick": coord.delivered_tick if coord.delivered_tick >= 0 else None}
-        for key, got in replayed.items():
-            want = recorded[key]
-            if key == "touches":
-                want = len(want) if isinstance(want, list) else want
-            if got != want:
-                diverge(f"summary: {key} {got} replayed, {want} in the sidecar's run summary")
+        r.tick(t)
+    r.check_summary()
+    coord, divergences, counts, nodes = r.coord, r.divergences, r.counts, r.nodes
     return {
         "recording": str(path),
         "scenario": sc.name,

@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import hashlib
 import logging
-import os
 import re
 import shutil
 import subprocess
@@ -202,7 +201,7 @@ class Deployer:
                  firmware_dir: Path = FIRMWARE_DIR, timeout: float = TIMEOUT_S,
                  behaviour: str = "thesis") -> None:
         """behaviour: a name (`touchswarm behaviours`) or a folder."""
-        from firmware_logic import registry
+        from sim_backend import registry
         self.port = port
         try:
             self.behaviour = registry.load(behaviour)
@@ -218,7 +217,7 @@ class Deployer:
         """robot_config.py's keys: NODE and SEED (default 1), the loop keys
         given, BEHAVIOUR, and ARGS = the behaviour's robot_args(NODE, SEED,
         sc) (sc: the behaviour's default scenario when None)."""
-        from firmware_logic import registry
+        from sim_backend import registry
         config = dict(config or {})
         bad = [k for k in config if k not in CONFIG_KEYS]
         if bad:
@@ -444,9 +443,3 @@ for m in list(sys.modules):
         print('module', m, getattr(sys.modules[m], '__file__', '?'))
 print('built', s.NAME, type(r).__name__, len(c['ARGS']), s.STATES[r.state])
 """
-
-
-def env_for_tools() -> dict[str, str]:
-    env = dict(os.environ)
-    env.setdefault("PYTHONUNBUFFERED", "1")
-    return env

@@ -12,18 +12,19 @@ header is skipped (counted in `junk`). A missing, garbled or truncated
 reply is retried `retries` times (not for `reverse`, which is not
 idempotent, once the echo proved the board got it), then raises:
 
-- GoGoTimeout: nothing came back at all (board off, wrong port);
-- GoGoEchoError: bytes came back but never the echo: wrong baud rate (a
-  GoGo board runs at 9600 8N1 only) or not a GoGo board;
-- GoGoReplyError: the echo was right but the reply was not what the
-  command expects (the message names what was expected and what came);
-- GoGoPortLost (a SerialPortLost, so a SerialTimeout): the port failed
-  or vanished; the next command tries to reopen it, so a board that comes
-  back (USB replugged) works again. No raw termios.error / OSError ever
-  escapes: every port error is converted where the port is used.
+- SerialTimeout: nothing came back at all (board off, wrong port);
+- ProtocolError "no echo of ...": bytes came back but never the echo: wrong
+  baud rate (a GoGo board runs at 9600 8N1 only) or not a GoGo board;
+- ProtocolError "bad reply to ...": the echo was right but the reply was not
+  what the command expects (the message names what was expected and what came);
+- SerialPortLost (a SerialTimeout): the port failed or vanished; the next
+  command tries to reopen it, so a board that comes back (USB replugged)
+  works again. No raw termios.error / OSError ever escapes: every port error
+  is converted where the port is used.
 
-All of them are GoGoError, under the serial package's SerialLinkError and
-bridge.errors.BridgeError.
+They are the serial package's errors (bridge/serial/errors.py, under
+SerialLinkError and bridge.errors.BridgeError), as the Khepera driver's are;
+an argument out of the protocol's range is a UsageError.
 
 `GoGoBody` is the HAL of firmware_logic/hal.py for a differential-drive
 robot built on a GoGo board, its firmware running on the host per robot
@@ -49,6 +50,7 @@ from types import TracebackType
 
 import serial
 
+from bridge.errors import UsageError
 from bridge.serial.errors import (PORT_ERRORS, PortClosedError, ProtocolError,
                                   SerialLinkError, SerialOpenError, SerialPortLost,
                                   SerialTimeout)
@@ -91,52 +93,15 @@ NAMES = {PING: "ping", MOTOR_ON: "motor on", MOTOR_OFF: "motor off",
 MAX_JUNK = 32                           # junk bytes tolerated around the echo / reply
 
 
-class GoGoError(SerialLinkError):
-    """Root of the GoGo Board errors."""
-
-
-class GoGoOpenError(GoGoError, SerialOpenError):
-    """The port could not be opened (missing device, bad URL or option)."""
-
-
-class GoGoUsageError(GoGoError, ValueError):
-    """A command argument out of the protocol's range (sensor 1..8, power 0..7, ...)."""
-
-
-class GoGoTimeout(GoGoError, SerialTimeout):
-    """Nothing at all came back within the timeout, on every try."""
-
-
-class GoGoProtocolError(GoGoError, ProtocolError):
-    """Something came back that the protocol does not allow."""
-
-
-class GoGoEchoError(GoGoProtocolError):
-    """Bytes came back but never the echo of the request: wrong baud or not a GoGo."""
-
-
-class GoGoReplyError(GoGoProtocolError):
-    """The echo was right; the reply was garbled, truncated or missing."""
-
-
-class GoGoPortLost(GoGoError, SerialPortLost):
-    """The port failed or vanished (USB unplugged, pty closed); the next
-    command reopens it."""
-
-
-class GoGoPortClosed(GoGoError, PortClosedError):
-    """The board object was used after close()."""
-
-
 def hexs(data: bytes) -> str:
     return " ".join("%02x" % b for b in data) or "nothing"
 
 
 def sensor_command(n: int, mode: int = NORMAL) -> int:
     if not 1 <= n <= 8:
-        raise GoGoUsageError("sensor port %r: a GoGo board has ports 1..8" % (n,))
+        raise UsageError("sensor port %r: a GoGo board has ports 1..8" % (n,))
     if mode not in (NORMAL, MAX, MIN):
-        raise GoGoUsageError("sensor mode %r: 0 normal, 1 max, 2 min" % (mode,))
+        raise UsageError("sensor mode %r: 0 normal, 1 max, 2 min" % (mode,))
     return SENSOR | (n - 1) << 2 | mode
 
 
@@ -144,12 +109,12 @@ def output_mask(ports: str | int) -> int:
     """'AB' -> 3; an int mask 0..15 passes through."""
     if isinstance(ports, int):
         if not 0 <= ports <= 15:
-            raise GoGoUsageError("output mask %r: A=1 B=2 C=4 D=8, 0..15" % (ports,))
+            raise UsageError("output mask %r: A=1 B=2 C=4 D=8, 0..15" % (ports,))
         return ports
     mask = 0
     for p in ports.upper():
         if p not in OUTPUTS:
-            raise GoGoUsageError("output %r: a GoGo board has outputs A, B, C, D" % (p,))
+            raise UsageError("output %r: a GoGo board has outputs A, B, C, D" % (p,))
         mask |= OUTPUTS[p]
     return mask
 
@@ -180,7 +145,7 @@ class GoGoBoard:
         try:
             port, opts = resolve_url(url, "gogo", BAUD)
         except SerialOpenError as err:
-            raise GoGoOpenError(str(err)) from err
+            raise SerialOpenError(str(err)) from err
         self.url = url
         self.port = port
         self.baud = int(opts.get("baud", baud))
@@ -213,7 +178,7 @@ class GoGoBoard:
         try:
             self.ser = open_serial(self.port, self.baud, 0.02)
         except SerialOpenError as err:
-            raise GoGoOpenError("GoGo board: %s" % err) from err
+            raise SerialOpenError("GoGo board: %s" % err) from err
 
     def _drop(self) -> None:
         ser, self.ser = self.ser, None
@@ -225,12 +190,12 @@ class GoGoBoard:
 
     def _ensure_open(self, what: str) -> serial.SerialBase:
         if self._closed:
-            raise GoGoPortClosed("GoGo board on %s: port is closed (%s)" % (self.port, what))
+            raise PortClosedError("GoGo board on %s: port is closed (%s)" % (self.port, what))
         if self.ser is None:
             try:
                 self._open()
-            except GoGoOpenError as err:
-                raise GoGoPortLost("GoGo board on %s is gone (%s): %s"
+            except SerialOpenError as err:
+                raise SerialPortLost("GoGo board on %s is gone (%s): %s"
                                    % (self.port, what, err)) from err
             self.reopened += 1
             log.info("GoGo board on %s: port reopened", self.port)
@@ -313,11 +278,11 @@ class GoGoBoard:
             try:
                 at = self._try(ser, req, data)
             except serial.SerialTimeoutException as err:
-                raise GoGoTimeout("GoGo board on %s: could not write %s within %.2f s: %s"
+                raise SerialTimeout("GoGo board on %s: could not write %s within %.2f s: %s"
                                   % (self.port, what, self.timeout, err)) from err
             except PORT_ERRORS as err:
                 self._drop()
-                raise GoGoPortLost("GoGo board on %s: port failed during %s: %s"
+                raise SerialPortLost("GoGo board on %s: port failed during %s: %s"
                                    % (self.port, what, err)) from err
             if at.done and not at.why:
                 return at.value
@@ -327,11 +292,11 @@ class GoGoBoard:
         heard = [a for a in seen if a.buf]
         tries = len(seen)
         if not heard:
-            raise GoGoTimeout("GoGo board on %s did not answer %s within %.2f s (%d tries); "
+            raise SerialTimeout("GoGo board on %s did not answer %s within %.2f s (%d tries); "
                               "is it powered and on this port at 9600 baud 8N1?"
                               % (self.port, what, self.timeout, tries))
         if not any(a.echo_ok for a in seen):
-            raise GoGoEchoError("GoGo board on %s: no echo of %s in %d tries (last got %s); "
+            raise ProtocolError("GoGo board on %s: no echo of %s in %d tries (last got %s); "
                                 "a GoGo board echoes every byte at 9600 baud 8N1, this port "
                                 "is at %d baud: check the baud rate and that it is a GoGo"
                                 % (self.port, what, tries, hexs(heard[-1].buf[:24]),
@@ -339,7 +304,7 @@ class GoGoBoard:
         last = [a for a in seen if a.echo_ok][-1]
         got = last.buf[last.buf.find(req) + len(req):]
         detail = {"header": "no 55 ff header", "short": "truncated"}.get(last.why, last.why)
-        raise GoGoReplyError("GoGo board on %s: bad reply to %s after its echo: expected %s, "
+        raise ProtocolError("GoGo board on %s: bad reply to %s after its echo: expected %s, "
                              "got %s (%s; %d %s%s)"
                              % (self.port, what, want, hexs(got[:24]), detail, tries,
                                 "try" if tries == 1 else "tries",
@@ -388,7 +353,7 @@ class GoGoBoard:
 
     def power(self, level: int) -> None:
         if not 0 <= level <= 7:
-            raise GoGoUsageError("power level %r: 0..7" % (level,))
+            raise UsageError("power level %r: 0..7" % (level,))
         self.transact(POWER | level << 2)
 
     def led(self, on: bool) -> None:
@@ -444,17 +409,17 @@ class GoGoBody(HostBody):
         for p in list(self.touch_ports.values()) + list(self.light_ports.values()):
             sensor_command(p)           # validates 1..8
         if not self.light_ports:
-            raise GoGoUsageError("GoGoBody needs at least one light sensor port for the field")
+            raise UsageError("GoGoBody needs at least one light sensor port for the field")
         self.touch_threshold = touch_threshold
         self.dark = dark
         self.light_step = light_step
         if left_forward not in (THISWAY, THATWAY) or right_forward not in (THISWAY, THATWAY):
-            raise GoGoUsageError("left_forward / right_forward: 'thisway' or 'thatway'")
+            raise UsageError("left_forward / right_forward: 'thisway' or 'thatway'")
         self.left, self.right = left.upper(), right.upper()
         self.fwd = {self.left: left_forward, self.right: right_forward}
         self.both = output_mask(self.left + self.right)
         if not 0 <= power <= 7:
-            raise GoGoUsageError("power level %r: 0..7" % (power,))
+            raise UsageError("power level %r: 0..7" % (power,))
         self.level = power
         self.mm_s = power * mm_s_per_level
         self.wheel_base_mm = wheel_base_mm
@@ -534,7 +499,7 @@ class GoGoBody(HostBody):
         self.b.select(self.both)
         try:
             self.b.on()
-        except GoGoError:
+        except SerialLinkError:
             self._stop_owed = True      # the board may have got it: stop on the next tick
             raise
         # `on` took effect when its last byte arrived, before its 3-byte reply
@@ -548,7 +513,7 @@ class GoGoBody(HostBody):
         sent = self.clock.now()
         try:
             self.b.off()
-        except GoGoError:
+        except SerialLinkError:
             self._stop_owed = True
             raise
         # `off` takes effect when its 3rd byte arrives
@@ -578,7 +543,7 @@ class GoGoBody(HostBody):
                 self.clock.sleep(left)  # the end falls within this tick: wait for it
                 self._motors_off(ph)
                 self.phases.pop(0)
-        except GoGoError:
+        except SerialLinkError:
             self.phases.clear()         # the motion is lost with the port; see _resume
             raise
 

@@ -1,6 +1,6 @@
 """What the host-side robot bodies (Khepera II, GoGo) share: a pose kept in
 millimetres and reported to the firmware in Q8 patches, messaging over an
-engine Link (sim_backend.engine.Link) or nowhere, and the tick.
+engine Link (sim_backend/link.py) or nowhere, and the tick.
 
 The tick. A body never blocks for long: `forward`, `claim` and `carry`
 start a motion (a queue of phases: turn, then drive) and return; the runner

@@ -65,13 +65,14 @@ def coordinator_view(coord: Any, behaviour: Any, values: dict[str, Any] | None =
     its load (spec.LOAD: e.g. power of weight, coordinator attributes in
     hundredths)."""
     from sim_backend import words
+    from sim_backend.coordinator import Segmenting, measures_of
     w = words.of(behaviour)
     mx, my = getattr(coord, "moved_x", 0), getattr(coord, "moved_y", 0)
     touches = [{"n": i + 1, "node": t.node, "tick": t.tick,
                 "rx": t.rx + mx, "ry": t.ry + my,
                 "sx": getattr(t, "sx", t.rx) + mx, "sy": getattr(t, "sy", t.ry) + my}
                for i, t in enumerate(coord.touches)]
-    values = {**(values or {}), **(coord.measures() if hasattr(coord, "measures") else {}),
+    values = {**(values or {}), **measures_of(coord),
               **behaviour.report(coord)}
     out = {"touches": touches, "status": coord.status(),
            "measures": words.shown_values(w, values),
@@ -79,7 +80,7 @@ def coordinator_view(coord: Any, behaviour: Any, values: dict[str, Any] | None =
            "converged_tick": _tick_or_none(getattr(coord, "converged_tick", -1)),
            "home_tick": _tick_or_none(getattr(coord, "delivered_tick", -1)),
            "delivered": coord.delivered_tick >= 0}
-    if w.shape is not None and hasattr(coord, "segments_now"):
+    if w.shape is not None and isinstance(coord, Segmenting):
         out["perceived"] = [list(c) for c in
                             sorted(perception.outline_cells(coord.segments_now()))]
     if w.load is not None:
@@ -130,7 +131,7 @@ def watched_link(nodes: list[int], tick_of: Any) -> Any:
     class WatchedLink(InprocLink):
         def __init__(self) -> None:
             super().__init__(nodes)
-            self.last = {n: deque(maxlen=LAST_MESSAGES) for n in nodes}
+            self.last: dict[int, deque] = {n: deque(maxlen=LAST_MESSAGES) for n in nodes}
 
         def robot_send(self, node: int, kind: int, fields: tuple) -> None:
             super().robot_send(node, kind, fields)
@@ -177,7 +178,7 @@ class SimSource:
         from sim_backend.engine import Engine
         self.sc = sc
         nodes = list(range(1, sc.agents + 1))
-        self.engine = Engine(sc, seed, link=watched_link(nodes, lambda: self.engine.tick))
+        self.engine: Engine = Engine(sc, seed, link=watched_link(nodes, lambda: self.engine.tick))
         from perception.tracker import attach
         attach(self.engine)     # the shape estimate and recognition, as `touchswarm run` has them
         self.bad_frames = 0
@@ -277,7 +278,6 @@ class SimSource:
         value is refused in the command line's own words."""
         from bridge.commands.run import parse_overrides
         from bridge.errors import UsageError
-        from firmware_logic.registry import BehaviourError
         from sim_backend import scenario
         from sim_backend.errors import SimError
         items = body.get("set", [])
@@ -290,7 +290,7 @@ class SimSource:
                 raise UsageError("--set behaviour: the view's behaviour is fixed; restart "
                                  "`touchswarm view --behaviour NAME`")
             return (self.sc.replace(**changes) if changes else self.sc), seed
-        except (UsageError, SimError, BehaviourError) as err:
+        except (UsageError, SimError) as err:      # SimError: BehaviourError too
             raise BadRequest(str(err)) from None
 
     def robot(self, node: int) -> dict[str, Any]:
@@ -409,7 +409,7 @@ class JournalSource:
         except JournalError as err:
             raise UsageError(f"--journal {err}") from None
         # the journal names, never imports: a folder only when trusted
-        from firmware_logic import registry
+        from sim_backend import registry
         try:
             registry.named_by_data(behaviour, f"--journal {path}: its meta")
         except registry.BehaviourError as err:
@@ -419,7 +419,7 @@ class JournalSource:
         self.sc = sc.replace(behaviour=behaviour) if behaviour != sc.behaviour else sc
         self.lock = threading.Lock()
         self.cached: tuple[Any, dict[str, Any]] | None = None
-        from firmware_logic import registry
+        from sim_backend import registry
         self.behaviour = registry.load(self.sc.behaviour)
         names = tuple(self.behaviour.spec.STATES)
         # the host does not know the object: no shape score to plot
@@ -436,7 +436,7 @@ class JournalSource:
                          "pause, step or speed")
 
     def info(self) -> dict[str, Any]:
-        from firmware_logic import registry
+        from sim_backend import registry
         names = tuple(registry.load(self.sc.behaviour).spec.STATES)
         return {"source": self.kind, "title": f"host journal {self.path}",
                 "world": self.sc.worldSize, "home": [self.sc.homeX, self.sc.homeY],
@@ -463,7 +463,6 @@ class JournalSource:
         return out
 
     def _read(self, j: Any, entries: list[Any], live: dict[str, Any] | None) -> dict[str, Any]:
-        from firmware_logic import registry
         from bridge.host.journal import Report
         from bridge.host.process import HostProcess
         host = HostProcess(None, self.sc.weight_centi, self.sc.homeX, self.sc.homeY,  # type: ignore[arg-type]

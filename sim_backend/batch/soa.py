@@ -45,7 +45,7 @@ from typing import Any, Callable, Iterable, Iterator, Sequence
 import numpy as np
 
 from firmware_logic import messages as msg
-from firmware_logic import registry
+from sim_backend import registry
 from sim_backend import faults
 from sim_backend.batch import body as B
 from sim_backend.batch import transform as T

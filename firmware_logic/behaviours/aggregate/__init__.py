@@ -1,6 +1,6 @@
 """Aggregation: the second behaviour, exercising the seam end to end."""
 
-# The wiring the registry reads (firmware_logic/registry.py); host side only.
+# The wiring the registry reads (sim_backend/registry.py); host side only.
 ROBOT = "robot:Robot"
 SUBSET_SETUP = ("robot_args", "make_coordinator")   # host side: may allocate
 

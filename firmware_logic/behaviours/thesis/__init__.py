@@ -1,6 +1,6 @@
 """The thesis's behaviour (Appendix A): search, touch, claim, field, transport."""
 
-# The wiring the registry reads (firmware_logic/registry.py); host side only.
+# The wiring the registry reads (sim_backend/registry.py); host side only.
 ROBOT = "robot:Robot"
 # host libraries that equip its coordinator, as "module:function(coordinator,
 # scenario)": the recogniser's decider (numpy; scenario recognise = true)

@@ -1,5 +1,5 @@
 """The host's decision to transport only what it recognises as the target
-(issue 13 §2; scenario `recognise = true`, docs/perception.md "The decision").
+(scenario `recognise = true`, docs/perception.md "The decision").
 
 A mixin of the thesis Coordinator, off unless `recognition()` is called.
 When on, the coordinator is not told the target's cells: it accepts every

@@ -90,7 +90,7 @@ class Robot:
         self.cdx = 0
         self.cdy = 0
         self.carry_due = 0
-        # RELEASE (a decoy, issue 13 §2): walk off the segment on the next
+        # RELEASE (the host recognised a decoy): walk off the segment on the next
         # tick, then claim nothing in the box ax0..ax1, ay0..ay1 for
         # avoid_ticks ticks
         self.leave = 0

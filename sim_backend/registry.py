@@ -1,6 +1,6 @@
 """Behaviours by name or by folder: the one seam every engine, link and tool
-goes through (host side only; never deployed, see HOST_ONLY in
-bridge/firmware/subset_check.py).
+goes through: host code, CPython only, so it lives beside the engine and not
+in firmware_logic/ (which holds only what may run on a robot).
 
 A behaviour is a package of firmware-subset modules:
 
@@ -27,21 +27,26 @@ by path to a folder holding such a package.
 from __future__ import annotations
 
 import functools
+import hashlib
 import importlib
 import importlib.metadata
 import importlib.util
+import re
 import sys
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
 from typing import Any
 
+import firmware_logic.behaviours
+from sim_backend.errors import SimError
+
 GROUP = "touchswarm.behaviours"
-BEHAVIOURS_DIR = Path(__file__).resolve().parent / "behaviours"
+BEHAVIOURS_DIR = Path(firmware_logic.behaviours.__file__).resolve().parent
 SPEC_KEYS = ("NAME", "TITLE", "STATES", "MODELS", "PARAMS", "MEASURES")
 
 
-class BehaviourError(ValueError):
+class BehaviourError(SimError, ValueError):
     """A behaviour that cannot be found or does not declare what it must."""
 
 
@@ -94,7 +99,8 @@ class Behaviour:
         (after self); most is infinite with *args."""
         import inspect
         try:
-            sig = inspect.signature(self.robot_class.__init__)
+            cls: Any = self.robot_class
+            sig = inspect.signature(cls.__init__)
         except (TypeError, ValueError):
             return 0, float("inf")
         params = list(sig.parameters.values())[1:]
@@ -172,9 +178,6 @@ class Behaviour:
                                  "lacks STUDIES")
         return mod.STUDIES
 
-    def model_names(self) -> dict[int, str]:
-        return dict(self.spec.MODELS)
-
     def modules(self) -> list[Path]:
         """The behaviour's firmware files (what deploy copies to a board)."""
         return sorted(p for p in self.folder.glob("*.py"))
@@ -225,25 +228,33 @@ def _check(mod: ModuleType, spec: ModuleType, where: str) -> None:
             raise BehaviourError(f"behaviour {where}: __init__.py lacks {attr}")
 
 
+def folder_module_name(path: Path) -> str:
+    """The module name a behaviour folder is imported under: its folder's name
+    plus a digest of its full path, so that it never shadows an installed
+    behaviour (or another folder) of the same name in one process, and a
+    worker process that loads the same folder gets the same name."""
+    digest = hashlib.sha1(str(path).encode()).hexdigest()[:12]
+    return "_touchswarm_folder_%s_%s" % (re.sub(r"\W", "_", path.name), digest)
+
+
 def _import_folder(path: Path) -> ModuleType:
     init = path / "__init__.py"
     if not init.is_file():
         raise BehaviourError(f"behaviour folder {str(path)!r} has no __init__.py")
-    name = path.name
-    if name in sys.modules and Path(getattr(sys.modules[name], "__file__", "")) \
-            .resolve() == init.resolve():
+    name = folder_module_name(path)
+    if name in sys.modules:
         return sys.modules[name]
-    # another folder of the same name was imported before: its modules
-    # (name.spec, name.robot, ...) must not stand in for this one's
-    for key in [k for k in sys.modules if k.startswith(name + ".")]:
-        del sys.modules[key]
     spec = importlib.util.spec_from_file_location(name, init,
                                                   submodule_search_locations=[str(path)])
     if spec is None or spec.loader is None:
         raise BehaviourError(f"behaviour folder {str(path)!r} cannot be imported")
     mod = importlib.util.module_from_spec(spec)
     sys.modules[name] = mod
-    spec.loader.exec_module(mod)
+    try:
+        spec.loader.exec_module(mod)
+    except BaseException:
+        del sys.modules[name]       # a fixed file loads afresh on the next try
+        raise
     return mod
 
 

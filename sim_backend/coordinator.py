@@ -1,0 +1,96 @@
+"""The coordinator contract as types: what every behaviour's coordinator
+offers the engines, and the abilities a coordinator may add, each declared
+once here instead of asked for by name (`hasattr`) where it is used.
+
+A behaviour's coordinator lives in its folder (firmware-subset code, see
+firmware_logic/roster.py for the host contract its base class Roster
+implements); these protocols only describe it, so a coordinator needs no
+import of this module to meet them. Each ability is a runtime-checkable
+protocol: `isinstance(c, Measuring)` says whether `c` has it.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Protocol, runtime_checkable
+
+
+@runtime_checkable
+class Coordinator(Protocol):
+    """What an engine asks of every coordinator (sim_backend/engine.py)."""
+
+    touches: Any            # the accepted touches, each with node, tick, rx, ry
+    delivered_tick: int     # -1 until the object is home
+
+    def on_message(self, node: int, kind: int, fields: Any, tick: int) -> None: ...
+
+    def tick(self, t: int) -> list: ...
+
+    def status(self) -> str: ...
+
+
+@runtime_checkable
+class HostCoordinator(Coordinator, Protocol):
+    """What the host process relies on besides (the host contract,
+    firmware_logic/roster.py; Roster has all of it)."""
+
+    nodes: dict
+    rejected: dict
+
+    def replay(self, node: int, kind: int, fields: Any, tick: int) -> None: ...
+
+    def snapshot(self) -> dict: ...
+
+    def adopt(self, state: dict) -> None: ...
+
+    def decision(self, before: dict, out: list) -> Any: ...
+
+    def done(self) -> bool: ...
+
+    def carriers(self) -> Any: ...
+
+    def quiet(self) -> bool: ...
+
+
+@runtime_checkable
+class Measuring(Protocol):
+    """Ability: the behaviour's own end-of-run measures (summary.json)."""
+
+    def measures(self) -> dict: ...
+
+
+@runtime_checkable
+class Segmenting(Protocol):
+    """Ability: the touched cells as they are now (the host's perceived shape)."""
+
+    def segments_now(self) -> Any: ...
+
+
+@runtime_checkable
+class Tracking(Protocol):
+    """Ability: the touched segments of an object the coordinator tracks as it
+    moves (touches with sx, sy; the displacement since), as the thesis's does."""
+
+    touches: Any
+    moved_x: int
+    moved_y: int
+
+
+def measures_of(c: Any) -> dict:
+    """The coordinator's own measures; none when it declares no such ability."""
+    return c.measures() if isinstance(c, Measuring) else {}
+
+
+def members(contract: type) -> list[str]:
+    """The names a protocol above declares, its bases' included."""
+    out: list[str] = []
+    for cls in reversed(contract.__mro__):
+        if getattr(cls, "_is_protocol", False) and cls is not Protocol:
+            out += list(vars(cls).get("__annotations__", {}))
+            out += [m for m, v in vars(cls).items() if callable(v) and not m.startswith("_")]
+    return list(dict.fromkeys(out))
+
+
+def lacks(c: Any, contract: type) -> list[str]:
+    """The members of `contract` that `c` lacks, by name (for an error that
+    says what to add); empty when `c` meets it."""
+    return [m for m in members(contract) if not hasattr(c, m)]

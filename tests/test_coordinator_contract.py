@@ -1,0 +1,57 @@
+"""The coordinator contract as types (sim_backend/coordinator.py): every
+installed behaviour's coordinator meets the host contract, its abilities are
+read off the protocols, and a missing member is named."""
+
+from __future__ import annotations
+
+import pytest
+
+from sim_backend import coordinator as C
+from sim_backend import registry
+from sim_backend.scenario import load
+
+
+def make(behaviour: str):
+    sc = load().replace(behaviour=behaviour)
+    return registry.load(behaviour).coordinator(sc, journal=None, cells=None, on_reject=None)
+
+
+@pytest.mark.parametrize("behaviour", sorted(registry.names()))
+def test_every_installed_coordinator_meets_the_host_contract(behaviour: str) -> None:
+    c = make(behaviour)
+    assert C.lacks(c, C.HostCoordinator) == []
+    assert isinstance(c, C.Coordinator) and isinstance(c, C.HostCoordinator)
+
+
+def test_abilities_are_what_each_coordinator_declares() -> None:
+    thesis, aggregate = make("thesis"), make("aggregate")
+    assert isinstance(thesis, C.Tracking) and not isinstance(aggregate, C.Tracking)
+    assert isinstance(aggregate, C.Measuring) and isinstance(aggregate, C.Segmenting)
+    assert C.measures_of(aggregate) == aggregate.measures()
+
+
+def test_a_coordinator_without_an_ability_is_named_what_it_lacks() -> None:
+    class Bare:
+        touches = ()
+        delivered_tick = -1
+
+        def on_message(self, node, kind, fields, tick):
+            return None
+
+        def tick(self, t):
+            return []
+
+        def status(self):
+            return "bare"
+
+    bare = Bare()
+    assert isinstance(bare, C.Coordinator) and not isinstance(bare, C.Measuring)
+    assert C.measures_of(bare) == {}
+    assert C.lacks(bare, C.HostCoordinator) == ["nodes", "rejected", "replay", "snapshot",
+                                                "adopt", "decision", "done", "carriers",
+                                                "quiet"]
+
+
+def test_the_host_process_asks_for_nothing_the_contract_leaves_out() -> None:
+    from bridge.host.process import HOST_ATTRIBUTES
+    assert set(HOST_ATTRIBUTES) <= set(C.members(C.HostCoordinator))
