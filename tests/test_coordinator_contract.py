@@ -50,8 +50,3 @@ def test_a_coordinator_without_an_ability_is_named_what_it_lacks() -> None:
     assert C.lacks(bare, C.HostCoordinator) == ["nodes", "rejected", "replay", "snapshot",
                                                 "adopt", "decision", "done", "carriers",
                                                 "quiet"]
-
-
-def test_the_host_process_asks_for_nothing_the_contract_leaves_out() -> None:
-    from bridge.host.process import HOST_ATTRIBUTES
-    assert set(HOST_ATTRIBUTES) <= set(C.members(C.HostCoordinator))

@@ -71,8 +71,8 @@ def test_a_behaviour_without_the_host_contract_is_refused_in_one_line(tmp_path, 
         "        return []\n\n\n"
         "def make_coordinator(sc, journal=None, cells=None, on_reject=None):\n"
         "    return Bare()\n"))
-    with pytest.raises(UsageError, match="lacks replay, snapshot, adopt, decision, done, "
-                                         "carriers, status, quiet"):
+    with pytest.raises(UsageError, match="lacks delivered_tick, status, replay, snapshot, "
+                                         "adopt, decision, done, carriers, quiet"):
         host_behaviour(str(bare), AGG)
     assert main(["host", "--behaviour", str(bare), "--bus", "slcan:///nonexistent"]) == 2
     assert "derive it from firmware_logic.roster.Roster" in capsys.readouterr().err

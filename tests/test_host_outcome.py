@@ -10,7 +10,8 @@ import json
 
 from bridge.cli import main
 from bridge.host.journal import Journal
-from bridge.host.process import HOST_ATTRIBUTES, HostProcess
+from bridge.host.process import HostProcess
+from sim_backend.coordinator import HostCoordinator, members
 from firmware_logic import messages as msg
 from firmware_logic.roster import OUTCOMES
 from sim_backend import scenario
@@ -99,7 +100,7 @@ def test_a_stopped_host_says_stopped_and_a_delivered_one_delivered(tmp_path) -> 
     s = h.run(clock=Ticks(), max_ticks=20)
     assert (s["outcome"], s["delivered"]) == ("delivered", True) and s["home_tick"] is not None
     assert set(OUTCOMES) == {"delivered", "halted", "stalled", "stopped"}
-    assert "done" in HOST_ATTRIBUTES
+    assert "done" in members(HostCoordinator)
 
 
 def test_an_in_process_run_names_its_outcome_for_any_behaviour() -> None:

@@ -42,6 +42,7 @@ from bridge.transport import RobotTransport
 from firmware_logic import messages as msg
 from firmware_logic import roster
 from sim_backend import registry
+from sim_backend.coordinator import HostCoordinator, lacks
 from sim_backend.scenario import CHOICES
 
 # A coordinator is any behaviour's that meets the host contract
@@ -59,11 +60,9 @@ LIVE_EVERY = 10
 # The host contract (firmware_logic/roster.py, docs/writing-a-behaviour.md
 # "What the host needs"): make_coordinator keywords for journalling each
 # report before its ACK and logging refused ones, and what resume, the
-# decisions and the liveness checks call. A Coordinator deriving from
-# firmware_logic.roster.Roster has all of HOST_ATTRIBUTES.
+# decisions and the liveness checks call (sim_backend.coordinator.HostCoordinator).
+# A Coordinator deriving from firmware_logic.roster.Roster has all of it.
 HOST_KEYWORDS = ("journal", "cells", "on_reject")
-HOST_ATTRIBUTES = ("nodes", "touches", "rejected", "on_message", "tick", "replay", "snapshot",
-                   "adopt", "decision", "done", "carriers", "status", "quiet")
 
 
 def host_behaviour(name: str | None, sc: Any = None) -> registry.Behaviour:
@@ -78,7 +77,7 @@ def host_behaviour(name: str | None, sc: Any = None) -> registry.Behaviour:
     missing = [k for k in HOST_KEYWORDS if k not in params]
     if not missing and sc is not None:
         coord = b.coordinator(sc, journal=None, cells=None, on_reject=None)
-        missing = [a for a in HOST_ATTRIBUTES if not hasattr(coord, a)]
+        missing = lacks(coord, HostCoordinator)
     if missing:
         raise UsageError(f"host: behaviour {b.name!r} cannot run in the host process: its "
                          f"coordinator lacks {', '.join(missing)} (the host contract: "
