@@ -1,4 +1,4 @@
-"""The sweeps of docs/extensions.md for issue 11 (sim_backend/arena_presets.py:
+"""The sweeps of docs/extensions.md (sim_backend/arena_presets.py:
 `touchswarm sweep --preset sizes|obstacles|field` runs the same points).
 Each writes OUT/<name>.csv and OUT/<name>.png (delivery rate, time to
 delivery, IoU per point); one JSON line per preset on stdout and in

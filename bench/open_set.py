@@ -1,4 +1,4 @@
-"""Open-set perception (issue 30, docs/perception.md): shapes the library
+"""Open-set perception (docs/perception.md): shapes the library
 does not hold, shapes a scenario adds to it, and the built-ins.
 
 Three groups of runs (20 firefly robots, default scenario otherwise,

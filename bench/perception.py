@@ -1,5 +1,5 @@
 """The new shape estimate and recognition against the thesis's hull
-(issue 13 §3, docs/perception.md): for every built-in object, 20 seeds,
+(docs/perception.md): for every built-in object, 20 seeds,
 runs with objectWeight 12 (so the swarm keeps touching until 12 robots hold
 it); the host's view is taken as each touch arrives (k = 1..12), which is the
 view at convergence of a run whose weight is k (before convergence the

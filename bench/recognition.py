@@ -1,4 +1,4 @@
-"""The host's decision by recognition (issue 13 §2, docs/perception.md "The
+"""The host's decision by recognition (docs/perception.md "The
 decision"): every built-in shape as the target beside the diagonal decoy of
 the built-in `decoy` scenario, `recognise = true`, seeds 1..N, reference
 engine. Accuracy against touches: whenever the host accepts a touch on an

@@ -1,4 +1,4 @@
-"""The thesis's own shape measure (issue 31): the polygon through the holders'
+"""The thesis's own shape measure: the polygon through the holders'
 rounded positions (DrawShape's shape.txt, Figures 22-24) and the IoU with
 the object of the cells it encloses, `polygon_iou`, beside `shape_iou` in
 summary.json, sweep.csv, the trace and the touchmap figures."""

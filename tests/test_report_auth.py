@@ -1,4 +1,4 @@
-"""Issue 29 item 2: the host's word can be trusted only if what it is told
+"""Authenticated and plausible reports: the host's word can be trusted only if what it is told
 is. Robot reports are sealed too (bridge/links/secoc.py, "robot reports"):
 with keys, a TOUCH or HEARTBEAT that does not verify under its robot's key,
 bound to the last host command that robot took, never reaches the

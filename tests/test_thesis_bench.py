@@ -1,5 +1,5 @@
 """The tables of docs/thesis-reproduction.md that a command produces are
-produced by a bench script (issue 31): the claims table is exactly what
+produced by a bench script: the claims table is exactly what
 bench/thesis_claims.py renders from its committed statistics; the options
 and Appendix A tables have the rows and columns bench/thesis_options.py and
 bench/appendix_a.py print, which run here in a tiny mode (one or two seeds,

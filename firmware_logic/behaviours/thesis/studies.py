@@ -111,7 +111,7 @@ RATES = ("0.0", "0.1", "0.25", "0.5")
 
 FAULTS = {
     "name": "faults",
-    "about": "robustness (issue 12): each fault alone at rates 0-0.5, field noise 0-4 and "
+    "about": "robustness: each fault alone at rates 0-0.5, field noise 0-4 and "
              "the goal mix (25% dead, 10% ignoring the field, 10% random); the host drops a "
              "holder silent 100 ticks",
     "seeds": 40,          # the issue asks for at least 40 seeds of the goal mix
