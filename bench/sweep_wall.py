@@ -23,7 +23,7 @@ against its floor. Every figure is a fresh interpreter timed from outside
 
 Medians of --reps (the sweeps: one each unless --reps). Prints one JSON.
 
-    .venv/bin/python bench/sweep_wall.py [--reps N] [--mesa-runs N] [--skip-fresh]
+    .venv/bin/python bench/sweep_wall.py [--reps N] [--mesa-runs N] [--sweep-runs N] [--skip-fresh]
 """
 
 from __future__ import annotations
@@ -50,8 +50,10 @@ sys.path.insert(0, sys.argv[1])
 import mesa_baseline as m
 n, act = int(sys.argv[2]), sys.argv[3]
 side = m.Side()
+t = time.perf_counter()
 for seed in range(1, n + 1):
     side.mesa_run(20, 18, seed, act, 20000)
+print(time.perf_counter() - t)
 """
 
 RUN_FLOOR = r"""
@@ -78,21 +80,24 @@ def scenario_args(activation: str) -> list[str]:
     return out
 
 
-def wall(argv: list[str], env: dict | None = None, cwd: Path = ROOT) -> tuple[float, str]:
-    """Wall seconds of one child process, and its stderr."""
+def wall(argv: list[str], env: dict | None = None, cwd: Path = ROOT
+         ) -> tuple[float, str, str]:
+    """Wall seconds of one child process, its stdout and its stderr."""
     t = time.perf_counter()
-    p = subprocess.run(argv, cwd=cwd, env=env, stdout=subprocess.DEVNULL,
+    p = subprocess.run(argv, cwd=cwd, env=env, stdout=subprocess.PIPE,
                        stderr=subprocess.PIPE, text=True)
     w = time.perf_counter() - t
     if p.returncode != 0:
         raise SystemExit(f"bench/sweep_wall.py: {' '.join(argv[:4])} ... failed "
                          f"({p.returncode}): {p.stderr.strip().splitlines()[-1:]}")
-    return w, p.stderr
+    return w, p.stdout, p.stderr
 
 
 def sweep(seeds: int, activation: str, out: Path, env: dict | None = None) -> tuple[float, str]:
-    return wall([sys.executable, "-c", CLI, "sweep", "--seeds", str(seeds), "--no-plots",
+    """Wall seconds of the sweep and its stderr."""
+    w, _, err = wall([sys.executable, "-c", CLI, "sweep", "--seeds", str(seeds), "--no-plots",
                  "--overwrite", "--out", str(out), *scenario_args(activation)], env)
+    return w, err
 
 
 def end_background_compile(stderr: str) -> int | None:
@@ -108,8 +113,12 @@ def end_background_compile(stderr: str) -> int | None:
     return pid
 
 
-def mesa(runs: int, activation: str) -> float:
-    return wall([sys.executable, "-c", MESA, str(BENCH), str(runs), activation])[0]
+def mesa(runs: int, activation: str, scale_to: int | None = None) -> float:
+    """Wall seconds of a process running the Mesa port's seeds 1..runs; with
+    scale_to, its runs' share scaled to that many runs (start-up as measured)."""
+    w, out, _ = wall([sys.executable, "-c", MESA, str(BENCH), str(runs), activation])
+    inside = float(out.strip().splitlines()[-1])
+    return w if scale_to is None else w - inside + inside * scale_to / runs
 
 
 def workers() -> int:
@@ -122,6 +131,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--mesa-runs", type=int, default=40,
                     help="Mesa runs timed for the 500-run figure, scaled to 500 (default: 40)")
     ap.add_argument("--activation", choices=("sync", "netlogo"), default="sync")
+    ap.add_argument("--sweep-runs", type=int, default=500,
+                    help="runs of the warm-cache sweep (default: 500)")
     ap.add_argument("--skip-fresh", action="store_true", help="no fresh-cache sweep")
     a = ap.parse_args(argv)
     act = a.activation
@@ -144,11 +155,12 @@ def main(argv: list[str] | None = None) -> int:
         sweep(1, act, tmpd / "warmup")                       # the step loaded, text kept
         rows = []
         for k in range(a.reps):
-            rows.append((sweep(500, act, tmpd / f"s500_{k}")[0], mesa(a.mesa_runs, act)))
+            rows.append((sweep(a.sweep_runs, act, tmpd / f"big{k}")[0],
+                         mesa(a.mesa_runs, act, scale_to=a.sweep_runs)))
         s = statistics.median(r[0] for r in rows)
-        m1 = statistics.median(r[1] for r in rows) * 500 / a.mesa_runs
+        m1 = statistics.median(r[1] for r in rows)
         out["sweep_500"] = {
-            "runs": 500, "cache": "warm", "sweep_wall_s": round(s, 2),
+            "runs": a.sweep_runs, "cache": "warm", "sweep_wall_s": round(s, 2),
             "mesa_runs_timed": a.mesa_runs, "mesa_wall_s_one_process": round(m1, 1),
             "mesa_wall_s_per_worker": round(m1 / out["workers"], 1),
             "speedup_one_process": round(m1 / s, 1),

@@ -675,14 +675,27 @@ class Coordinator(Recognising, Roster):
             if self.body is None:
                 for t in self.touches:
                     box = _grow(box, t.sx, t.sy)
+        if box is None:
+            for t in self.touches:
+                if t.node not in self.lost:
+                    box = (t.rx, t.rx, t.ry, t.ry)
+                    break
+            if box is None:
+                return None
+        x0, x1, y0, y1 = box
         for t in self.touches:
             if t.node not in self.lost:
-                box = _grow(box, t.rx, t.ry)
-        if box is None:
-            return None
+                if t.rx < x0:
+                    x0 = t.rx
+                elif t.rx > x1:
+                    x1 = t.rx
+                if t.ry < y0:
+                    y0 = t.ry
+                elif t.ry > y1:
+                    y1 = t.ry
         mx = self.moved_x
         my = self.moved_y
-        return box[0] + mx, box[1] + mx, box[2] + my, box[3] + my
+        return x0 + mx, x1 + mx, y0 + my, y1 + my
 
     def _take(self, tick, ranked):
         """Command the candidate (key, order, dx, dy) the blocked count points
