@@ -44,7 +44,8 @@ def targets(mesa: dict, wall: dict) -> dict:
             goal = {"20 robots x 500 runs": 50, "1000 robots": 50, "10000 robots": 100}.get(name)
             out[f"soa/Mesa robot-ticks per CPU s, {name}, {act}"] = {
                 "ratio": case["ratio"], **({"target": f">= {goal}"} if goal else {})}
-    for key, ratio in (("fresh_sweep", "sweep_over_mesa"), ("sweep_500", "speedup_one_process"),
+    for key, ratio in (("fresh_sweep", "sweep_over_mesa"), ("fresh_sweep", "sweep_over_mesa_cpu"),
+                       ("sweep_500", "speedup_one_process"), ("sweep_500", "speedup_cpu"),
                        ("run", "over_floor")):
         if key in wall:
             out[f"{key}: {ratio}"] = {"ratio": wall[key][ratio], "target": wall[key]["target"]}

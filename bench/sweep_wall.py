@@ -32,6 +32,7 @@ import argparse
 import json
 import os
 import re
+import resource
 import signal
 import statistics
 import subprocess
@@ -50,10 +51,10 @@ sys.path.insert(0, sys.argv[1])
 import mesa_baseline as m
 n, act = int(sys.argv[2]), sys.argv[3]
 side = m.Side()
-t = time.perf_counter()
+t, c = time.perf_counter(), time.process_time()
 for seed in range(1, n + 1):
     side.mesa_run(20, 18, seed, act, 20000)
-print(time.perf_counter() - t)
+print(time.perf_counter() - t, time.process_time() - c)
 """
 
 RUN_FLOOR = r"""
@@ -80,13 +81,20 @@ def scenario_args(activation: str) -> list[str]:
     return out
 
 
+CPU = [0.0]        # the CPU seconds of the last child (and the children it waited for)
+
+
 def wall(argv: list[str], env: dict | None = None, cwd: Path = ROOT
          ) -> tuple[float, str, str]:
-    """Wall seconds of one child process, its stdout and its stderr."""
+    """Wall seconds of one child process, its stdout and its stderr; its CPU
+    seconds (user + system, its worker processes included) in CPU[0]."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t = time.perf_counter()
     p = subprocess.run(argv, cwd=cwd, env=env, stdout=subprocess.PIPE,
                        stderr=subprocess.PIPE, text=True)
     w = time.perf_counter() - t
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    CPU[0] = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     if p.returncode != 0:
         raise SystemExit(f"bench/sweep_wall.py: {' '.join(argv[:4])} ... failed "
                          f"({p.returncode}): {p.stderr.strip().splitlines()[-1:]}")
@@ -113,12 +121,14 @@ def end_background_compile(stderr: str) -> int | None:
     return pid
 
 
-def mesa(runs: int, activation: str, scale_to: int | None = None) -> float:
-    """Wall seconds of a process running the Mesa port's seeds 1..runs; with
-    scale_to, its runs' share scaled to that many runs (start-up as measured)."""
+def mesa(runs: int, activation: str, scale_to: int | None = None) -> tuple[float, float]:
+    """Wall and CPU seconds of a process running the Mesa port's seeds
+    1..runs; with scale_to, its runs' share scaled to that many runs
+    (start-up as measured)."""
     w, out, _ = wall([sys.executable, "-c", MESA, str(BENCH), str(runs), activation])
-    inside = float(out.strip().splitlines()[-1])
-    return w if scale_to is None else w - inside + inside * scale_to / runs
+    inside, inside_cpu = map(float, out.strip().splitlines()[-1].split())
+    k = 1.0 if scale_to is None else scale_to / runs
+    return w - inside + inside * k, CPU[0] - inside_cpu + inside_cpu * k
 
 
 def workers() -> int:
@@ -145,22 +155,26 @@ def main(argv: list[str] | None = None) -> int:
             for k in range(a.reps):
                 env = {**os.environ, "TOUCHSWARM_CACHE": str(tmpd / f"cache{k}")}
                 w, err = sweep(20, act, tmpd / f"fresh{k}", env)
-                pid = end_background_compile(err)
-                rows.append((w, mesa(20, act), pid))
-            s, m = statistics.median(r[0] for r in rows), statistics.median(r[1] for r in rows)
+                cpu = CPU[0]
+                end_background_compile(err)
+                rows.append((w, cpu) + mesa(20, act))
+            s, sc, m, mc = (statistics.median(r[j] for r in rows) for j in range(4))
             out["fresh_sweep"] = {
                 "runs": 20, "cache": "empty (soa compiles in the background; ended after)",
                 "sweep_wall_s": round(s, 2), "mesa_wall_s": round(m, 2),
-                "sweep_over_mesa": round(s / m, 2), "target": "<= 1.5"}
+                "sweep_cpu_s": round(sc, 2), "mesa_cpu_s": round(mc, 2),
+                "sweep_over_mesa": round(s / m, 2), "sweep_over_mesa_cpu": round(sc / mc, 2),
+                "target": "<= 1.5"}
         sweep(1, act, tmpd / "warmup")                       # the step loaded, text kept
         rows = []
         for k in range(a.reps):
-            rows.append((sweep(a.sweep_runs, act, tmpd / f"big{k}")[0],
-                         mesa(a.mesa_runs, act, scale_to=a.sweep_runs)))
-        s = statistics.median(r[0] for r in rows)
-        m1 = statistics.median(r[1] for r in rows)
+            w = sweep(a.sweep_runs, act, tmpd / f"big{k}")[0]
+            rows.append((w, CPU[0]) + mesa(a.mesa_runs, act, scale_to=a.sweep_runs))
+        s, sc, m1, mc = (statistics.median(r[j] for r in rows) for j in range(4))
         out["sweep_500"] = {
             "runs": a.sweep_runs, "cache": "warm", "sweep_wall_s": round(s, 2),
+            "sweep_cpu_s": round(sc, 2), "mesa_cpu_s": round(mc, 1),
+            "speedup_cpu": round(mc / sc, 1),
             "mesa_runs_timed": a.mesa_runs, "mesa_wall_s_one_process": round(m1, 1),
             "mesa_wall_s_per_worker": round(m1 / out["workers"], 1),
             "speedup_one_process": round(m1 / s, 1),
