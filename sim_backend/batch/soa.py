@@ -526,14 +526,14 @@ class SoaEngine:
                 else:
                     raise EngineError(f"run {r}: the coordinator addressed node {node}, "
                                       f"which is not one of its {agents} robots")
+        seen: dict[int, int] = {}      # messages to each robot so far this tick
+        nth = []                       # each message's place among them
+        for i in to:
+            k = seen.get(i, 0)
+            nth.append(k)
+            seen[i] = k + 1
         idx = np.array(to, dtype=np.int64)
         m = len(to)
-        # each message's place among this tick's to the same robot (0, 1, ...)
-        order = np.argsort(idx, kind="stable")
-        ranked = idx[order]
-        new = np.flatnonzero(np.concatenate(([True], ranked[1:] != ranked[:-1])))
-        nth = np.empty(m, dtype=np.int64)
-        nth[order] = np.arange(m) - np.repeat(new, np.diff(np.append(new, m)))
         head, tail = self.rb[B.IN_HEAD], self.rb[B.IN_TAIL]
         pos = tail[idx] + nth
         full = pos - head[idx] >= INBOX
@@ -549,7 +549,7 @@ class SoaEngine:
             if width:
                 pick = np.flatnonzero(nf == width)
                 self.in_f[idx[pick], slot[pick], :width] = [fields[j] for j in pick.tolist()]
-        tail[ranked[new]] += np.diff(np.append(new, m))
+        tail[list(seen)] += list(seen.values())
 
     # -- run ends -----------------------------------------------------------------------------
 
