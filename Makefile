@@ -47,7 +47,7 @@ lint: $(STAMP)
 # runtime or test dependency
 bench: $(STAMP)
 	$(BIN)/python -m pip install -q 'mesa>=3,<4'
-	for b in bench/*.py; do $(BIN)/python $$b; done
+	$(BIN)/python bench/all.py
 
 clean:
 	rm -rf $(VENV) demo-out .pytest_cache .mypy_cache .ruff_cache

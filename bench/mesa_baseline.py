@@ -35,7 +35,7 @@ Prints one JSON: per case and activation, robot-ticks per CPU second of
 each side and the ratio soa / Mesa, and the median converged tick of both
 over seeds 1..20 (the check that the port is the same model, roughly).
 
-    .venv/bin/python bench/mesa_baseline.py [--quick] [--activation sync|netlogo|both]
+    .venv/bin/python bench/mesa_baseline.py [--quick] [--activation sync|netlogo|both] [--batch-runs N]
 
 Mesa is a bench-only package (`make bench` installs it; not a runtime or
 test dependency).
@@ -442,12 +442,16 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="fewer runs and ticks (a smoke)")
     ap.add_argument("--activation", choices=("sync", "netlogo", "both"), default="both")
+    ap.add_argument("--batch-runs", type=int, default=None,
+                    help="soa runs in the batch case (default: 500, 40 with --quick)")
     a = ap.parse_args()
     from sim_backend.batch.soa import SoaEngine
     acts = ("sync", "netlogo") if a.activation == "both" else (a.activation,)
     q = a.quick
     seeds = list(range(1, (6 if q else 20) + 1))
     batch_n, mesa_n = (40, 6) if q else (500, 60)
+    if a.batch_runs is not None:
+        batch_n = a.batch_runs
     big = {"1000": (1000, 40, 30 if q else 120), "10000": (10000, 150, 6 if q else 40)}
     out = {"clock": "process CPU seconds, one pinned core, both sides in turn",
            "mesa": mesa.__version__, "params": PARAMS, "cases": {}}

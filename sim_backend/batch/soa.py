@@ -16,7 +16,8 @@ One compiled call steps a tick of every live run; the host coordinators stay
 the behaviour's Python objects, fed the same messages in the same order as
 the reference engine's in-process link feeds them, and asked to tick when
 they received a message or are not `quiet()` (a coordinator without `quiet`
-is asked every tick). A run stops where `Engine.run` stops it: delivered
+is asked every tick); a message the coordinator declared `muted()` (one
+that would change nothing) is not handed to it. A run stops where `Engine.run` stops it: delivered
 (or, with until="converged", converged) or at its maxTicks. At a run's end
 the robots' fields are written back into their CPython objects and the
 run's final state into a World, so a RunResult holds the very robots and
@@ -387,8 +388,18 @@ class SoaEngine:
                        for (sc, _), w in zip(runs, self.worlds)]
         self.busy = np.array([not _quiet(c) for c in self.coords], dtype=bool)
         self.lo = starts[:-1].tolist()
+        self.agents = np.diff(starts).tolist()
         self.run_of = rb[B.RUN].tolist()
+        self.node_of = (np.arange(len(self.run_of)) - starts[rb[B.RUN]] + 1).tolist()
+        self._hear = [c.on_message for c in self.coords]
+        # messages a coordinator declared to change nothing (`_muted`): bit
+        # `kind` of a robot's word set drops its messages of that kind
+        self.mute = np.zeros(len(self.run_of), dtype=np.int64)
+        self.muted: list[Any] = [None] * nr
+        for r, c in enumerate(self.coords):
+            self._mute(r, c)
         self.max_ticks = np.array([sc.maxTicks for sc, _ in runs], dtype=np.int64)
+        self.first_cap = int(self.max_ticks.min())    # no run ends at its cap before
         self.conv_steps = [-1] * nr      # rt[STEPS] when the run converged
         self.results: list[RunResult | None] = [None] * nr
         self.frames: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
@@ -446,59 +457,106 @@ class SoaEngine:
         self._finish(t, called)
 
     def _exchange(self, t: int) -> set[int]:
+        """This tick's messages to their coordinators in the order they were
+        sent, then a tick of every coordinator that got one or is busy (in
+        run order); their commands reach the robots' inboxes together."""
         n = int(self.out_n[0])
         called: set[int] = set()
-        coords = self.coords
         if n:
-            senders = self.out_i[:n].tolist()
-            kinds = self.out_kind[:n].tolist()
-            fields = self.out_f[:n].tolist()
-            for j in range(n):
-                i = senders[j]
-                r = self.run_of[i]
-                kind = kinds[j]
-                coords[r].on_message(i - self.lo[r] + 1, kind,
-                                     tuple(fields[j][:self.nfields[kind]]), t)
-                called.add(r)
-        live = self.rt[B.LIVE]
-        for r in np.flatnonzero(self.busy & (live == 1)).tolist():
-            called.add(r)
+            senders, kinds = self.out_i[:n], self.out_kind[:n]
+            keep = np.flatnonzero(((self.mute[senders] >> kinds) & 1) == 0)
+            senders, kinds = senders[keep], kinds[keep]
+            hear, run_of, node_of, nfields = self._hear, self.run_of, self.node_of, self.nfields
+            fields = self.out_f[keep].tolist()
+            for i, kind, f in zip(senders.tolist(), kinds.tolist(), fields):
+                hear[run_of[i]](node_of[i], kind, tuple(f[:nfields[kind]]), t)
+            called.update(self.rb[B.RUN][senders].tolist())
+        busy = self.busy
+        called.update(np.flatnonzero(busy & (self.rt[B.LIVE] == 1)).tolist())
+        coords, conv = self.coords, self.conv_steps
+        sends = []
         for r in sorted(called):
             c = coords[r]
             out = c.tick(t)
             if out:
-                self._deliver(r, out)
-            self.busy[r] = not _quiet(c)
-            if self.conv_steps[r] < 0 and c.converged_tick >= 0:
-                self.conv_steps[r] = int(self.rt[B.STEPS, r])
+                sends.append((r, out))
+            busy[r] = not _quiet(c)
+            self._mute(r, c)
+            if conv[r] < 0 and c.converged_tick >= 0:
+                conv[r] = int(self.rt[B.STEPS, r])
+        if sends:
+            self._deliver(sends)
         return called
 
-    def _deliver(self, r: int, out: Iterable[tuple[int, int, tuple]]) -> None:
-        lo = self.lo[r]
-        agents = int(self.rt[B.HI, r]) - lo
+    def _mute(self, r: int, c: Any) -> None:
+        """Run r's robots' mute words from what its coordinator declares
+        (`_muted`), rewritten only when that changed."""
+        m = _muted(c)
+        key = None if m is None else (m[0], len(m[1]), m[2])
+        if key == self.muted[r]:
+            return
+        self.muted[r] = key
+        lo, agents = self.lo[r], self.agents[r]
+        self.mute[lo:lo + agents] = 0
+        if m is not None:
+            kind, nodes, but = m
+            for node in nodes:
+                if node != but and 1 <= node <= agents:
+                    self.mute[lo + node - 1] |= 1 << kind
+
+    def _deliver(self, sends: list[tuple[int, Iterable[tuple[int, int, tuple]]]]) -> None:
+        """Commands (run, [(node, kind, fields), ...]) into the robots'
+        inbox rings, each robot's in the order given; a few array writes per
+        tick, not one per message."""
+        to: list[int] = []            # robot of each message, kind, its fields
+        kinds: list[int] = []
+        fields: list[tuple] = []
+        lo_of, agents_of = self.lo, self.agents
+        for r, out in sends:
+            lo, agents = lo_of[r], agents_of[r]
+            for node, kind, f in out:
+                if node == msg.HOST:
+                    to.extend(range(lo, lo + agents))
+                    kinds.extend([kind] * agents)
+                    fields.extend([f] * agents)
+                elif 1 <= node <= agents:
+                    to.append(lo + node - 1)
+                    kinds.append(kind)
+                    fields.append(f)
+                else:
+                    raise EngineError(f"run {r}: the coordinator addressed node {node}, "
+                                      f"which is not one of its {agents} robots")
+        seen: dict[int, int] = {}      # messages to each robot so far this tick
+        nth = []                       # each message's place among them
+        for i in to:
+            k = seen.get(i, 0)
+            nth.append(k)
+            seen[i] = k + 1
+        idx = np.array(to, dtype=np.int64)
+        m = len(to)
         head, tail = self.rb[B.IN_HEAD], self.rb[B.IN_TAIL]
-        for node, kind, fields in out:
-            if node == msg.HOST:
-                targets = range(lo, lo + agents)
-            elif 1 <= node <= agents:
-                targets = (lo + node - 1,)
-            else:
-                raise EngineError(f"run {r}: the coordinator addressed node {node}, "
-                                  f"which is not one of its {agents} robots")
-            for i in targets:
-                if tail[i] - head[i] >= INBOX:
-                    raise EngineError(f"run {r}: robot {i - lo + 1} has {INBOX} unread messages")
-                slot = tail[i] % INBOX
-                self.in_kind[i, slot] = kind
-                self.in_nf[i, slot] = len(fields)
-                self.in_f[i, slot, :len(fields)] = fields
-                tail[i] += 1
+        pos = tail[idx] + nth
+        full = pos - head[idx] >= INBOX
+        if full.any():
+            i = to[int(np.argmax(full))]
+            r = self.run_of[i]
+            raise EngineError(f"run {r}: robot {i - self.lo[r] + 1} has {INBOX} unread messages")
+        slot = pos % INBOX
+        self.in_kind[idx, slot] = kinds
+        nf = np.fromiter(map(len, fields), dtype=np.int64, count=m)
+        self.in_nf[idx, slot] = nf
+        for width in set(nf.tolist()):
+            if width:
+                pick = np.flatnonzero(nf == width)
+                self.in_f[idx[pick], slot[pick], :width] = [fields[j] for j in pick.tolist()]
+        tail[list(seen)] += list(seen.values())
 
     # -- run ends -----------------------------------------------------------------------------
 
     def _finish(self, t: int, called: set[int]) -> None:
         live = self.rt[B.LIVE]
-        done = set(np.flatnonzero((live == 1) & (self.max_ticks <= t)).tolist())
+        done = set(np.flatnonzero((live == 1) & (self.max_ticks <= t)).tolist()) \
+            if t >= self.first_cap else set()
         for r in called:
             c = self.coords[r]
             if (c.done() if self.until == "delivered" else c.converged_tick >= 0
@@ -551,6 +609,15 @@ class SoaEngine:
 def _quiet(c: Any) -> bool:
     q = getattr(c, "quiet", None)
     return bool(q()) if q is not None else False
+
+
+def _muted(c: Any) -> tuple[int, Any, int] | None:
+    """c.muted(): (kind, nodes, but), the messages of that kind from the
+    nodes in `nodes` (a collection that only grows) other than `but` change
+    nothing until c's next tick() (the engine drops them), or None; a
+    coordinator without `muted` hears every message."""
+    m = getattr(c, "muted", None)
+    return m() if m is not None else None
 
 
 def _pairs(scenarios: Scenario | Sequence[Scenario], seeds: Iterable[int]

@@ -29,7 +29,7 @@ NO_PATH = 1
 STALLED = 2
 STOP_REASONS = ("", "no path home", "stalled")
 # host-side logic: portable, but allowed to allocate
-SUBSET_SETUP = ("Touch", "Coordinator", "way_home", "_free")
+SUBSET_SETUP = ("Touch", "Coordinator", "way_home", "_free", "_box_of", "_grow")
 STEPS = ((-1, -1), (-1, 0), (0, -1), (1, -1), (-1, 1), (1, 0), (0, 1), (1, 1))
 
 
@@ -126,6 +126,24 @@ def _free(d, box, footprint, blocked, ok):
     return v
 
 
+def _box_of(pts):
+    """(x0, x1, y0, y1) round the points, or None when there are none."""
+    box = None
+    if pts is not None:
+        for x, y in pts:
+            box = _grow(box, x, y)
+    return box
+
+
+def _grow(box, x, y):
+    """`box` grown to hold (x, y) (None: no box yet)."""
+    if box is None:
+        return x, x, y, y
+    if x >= box[0] and x <= box[1] and y >= box[2] and y <= box[3]:
+        return box
+    return min(box[0], x), max(box[1], x), min(box[2], y), max(box[3], y)
+
+
 class Touch:
     def __init__(self, node, seq, rx, ry, sx, sy, power, tick, mx=0, my=0):
         """rx..sy in the object's frame; (mx, my) is how far the object had
@@ -155,7 +173,7 @@ class Touch:
 
 class Coordinator(Recognising, Roster):
     NOT_SNAPSHOT = Roster.NOT_SNAPSHOT + ("home_x", "home_y", "home_r2", "by_carrier",
-                                          "closed", "stall_ticks") \
+                                          "closed", "stall_ticks", "cells_box") \
         + Recognising.RECOGNITION_NOT_SNAPSHOT
     VOLATILE = ("step_sent_tick",)     # a resend of the same TRANSPORT
 
@@ -204,6 +222,7 @@ class Coordinator(Recognising, Roster):
         self.by_carrier = by_carrier
         self.world_size = BYTE_ARENA if world_size is None else world_size
         self.cells = None if cells is None else frozenset(cells)
+        self.cells_box = None if cells is None else _box_of(self.cells)
         self.touches = []        # accepted, in order of acceptance
         # node -> its accepted Touch: one touch per node per object (a robot
         # never releases the object), so the node identifies the touch and a
@@ -436,6 +455,17 @@ class Coordinator(Recognising, Roster):
             return False             # a verdict may come with no new message
         return self.converged_tick < 0 and not (self.touches and self.power >= self.weight)
 
+    def muted(self):
+        """(kind, nodes, but): the messages of that kind from the nodes in
+        `nodes` (a collection that only grows) other than node `but` would
+        change nothing until the next tick() (a batch engine then does not
+        hand them over; a message taken in between never makes one of them
+        count), or None. Here the HEARTBEATs of announced holders other than
+        the transport's leader, unless liveness or recognition read them."""
+        if self.lost_after or self.recognise:
+            return None
+        return msg.HEARTBEAT, self.nodes, self.leader if self.step > 0 else 0
+
     def tick(self, tick):
         """Advance the centralised phase; return and clear the commands to send."""
         self._acks_out(self.outbox)
@@ -505,24 +535,47 @@ class Coordinator(Recognising, Roster):
                 out.append((t.rx + self.moved_x, t.ry + self.moved_y))
         return out
 
-    def _home_d2(self, ddx, ddy):
+    def _home_d2(self, ddx, ddy, rel=None):
+        """The least squared distance to home of a point that counts for
+        arrival, displaced by (ddx, ddy); -1 without one. rel: those points
+        less home (`_from_home`), when the caller has them already."""
+        if rel is None:
+            rel = self._from_home()
         best = -1
-        pts = self._carriers_now() if self.by_carrier else self.segments_now()
-        for x, y in pts:
-            d = (x + ddx - self.home_x) ** 2 + (y + ddy - self.home_y) ** 2
+        for x, y in rel:
+            x += ddx
+            y += ddy
+            d = x * x + y * y
             if best < 0 or d < best:
                 best = d
         return best
+
+    def _from_home(self):
+        """The points that count for arrival (carriers when by_carrier, else
+        segments) where they are now, less home."""
+        mx = self.moved_x - self.home_x
+        my = self.moved_y - self.home_y
+        out = []
+        for t in self.touches:
+            if self.by_carrier:
+                if t.node not in self.lost:
+                    out.append((t.rx + mx, t.ry + my))
+            else:
+                out.append((t.sx + mx, t.sy + my))
+        return out
 
     def _home_reached(self):
         # ours: a robot or a segment within 4 of home (`wayHome < 4` only
         # sets canTransport in Appendix A); by_carrier: a robot within
         # home_radius, as the thesis's tt.txt (`distancexy -15 -15 < 1`)
-        pts = self._carriers_now() if self.by_carrier else self._points_now()
-        for x, y in pts:
-            ddx = x - self.home_x
-            ddy = y - self.home_y
-            if ddx * ddx + ddy * ddy < self.home_r2:
+        mx = self.moved_x - self.home_x
+        my = self.moved_y - self.home_y
+        r2 = self.home_r2
+        for t in self.touches:
+            if not self.by_carrier and (t.sx + mx) * (t.sx + mx) + (t.sy + my) * (t.sy + my) < r2:
+                return True
+            if t.node not in self.lost and \
+                    (t.rx + mx) * (t.rx + mx) + (t.ry + my) * (t.ry + my) < r2:
                 return True
         return False
 
@@ -576,11 +629,12 @@ class Coordinator(Recognising, Roster):
             return
         down = []
         side = []
+        rel = self._from_home()
         for ddx, ddy in STEPS:
             d = way.get((here[0] + ddx, here[1] + ddy))
             if d is None:
                 continue
-            item = ((d, self._home_d2(ddx, ddy)), len(down) + len(side), ddx, ddy)
+            item = ((d, self._home_d2(ddx, ddy, rel)), len(down) + len(side), ddx, ddy)
             if d < way[here]:
                 down.append(item)
             elif d == way[here]:
@@ -595,10 +649,11 @@ class Coordinator(Recognising, Roster):
             return
         # Every step that brings the object's nearest segment closer to home,
         # best first; each blocked attempt moves on to the next candidate.
-        here = self._home_d2(0, 0)
+        rel = self._from_home()       # once: the 9 distances below share it
+        here = self._home_d2(0, 0, rel)
         ranked = []
         for ddx, ddy in STEPS:
-            d = self._home_d2(ddx, ddy)
+            d = self._home_d2(ddx, ddy, rel)
             if d < here:
                 ranked.append((d, len(ranked), ddx, ddy))
         ranked.sort()
@@ -616,18 +671,46 @@ class Coordinator(Recognising, Roster):
         """True if every step in `ranked` would put a cell of the object or a
         carrier outside the arena -w..w."""
         w = self.world_size
-        pts = self._footprint()
-        for item in ranked:
-            fits = True
-            for x, y in pts:
-                nx = x + item[2]
-                ny = y + item[3]
-                if nx < -w or nx > w or ny < -w or ny > w:
-                    fits = False
-                    break
-            if fits:
+        box = self._box()
+        if box is None:
+            return not ranked
+        x0, x1, y0, y1 = box
+        for item in ranked:           # a step fits when the footprint's box does
+            if -w <= x0 + item[2] and x1 + item[2] <= w and -w <= y0 + item[3] \
+                    and y1 + item[3] <= w:
                 return False
         return True
+
+    def _box(self):
+        """(x0, x1, y0, y1): the box round `_footprint()`, or None when it is empty."""
+        if self.cells is not None:
+            box = self.cells_box
+        else:
+            box = _box_of(self.body)
+            if self.body is None:
+                for t in self.touches:
+                    box = _grow(box, t.sx, t.sy)
+        if box is None:
+            for t in self.touches:
+                if t.node not in self.lost:
+                    box = (t.rx, t.rx, t.ry, t.ry)
+                    break
+            if box is None:
+                return None
+        x0, x1, y0, y1 = box
+        for t in self.touches:
+            if t.node not in self.lost:
+                if t.rx < x0:
+                    x0 = t.rx
+                elif t.rx > x1:
+                    x1 = t.rx
+                if t.ry < y0:
+                    y0 = t.ry
+                elif t.ry > y1:
+                    y1 = t.ry
+        mx = self.moved_x
+        my = self.moved_y
+        return x0 + mx, x1 + mx, y0 + my, y1 + my
 
     def _take(self, tick, ranked):
         """Command the candidate (key, order, dx, dy) the blocked count points

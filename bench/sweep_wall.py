@@ -1,0 +1,199 @@
+"""Wall clock where a user waits: a `touchswarm sweep` against the Mesa 3
+port of bench/mesa_baseline.py doing the same runs, and `touchswarm run`
+against its floor. Every figure is a fresh interpreter timed from outside
+(its imports, set-up and exit included), as a user meets it.
+
+- "fresh_sweep": `touchswarm sweep --seeds 20` of the Mesa port's scenario
+  (20 robots, worldSize 18, its parameters; --no-plots) with an empty
+  `$TOUCHSWARM_CACHE` (a fresh machine, or a behaviour just edited: the
+  runs start in the reference engine while the soa step compiles in the
+  background), beside the Mesa port's 20 runs in one process. The
+  compile the sweep leaves running is ended (by its pid, which the sweep
+  names on stderr) before anything else is timed.
+- "sweep_500": the same sweep with `--seeds 500` on the warm cache (the
+  step on disk), beside the Mesa port's wall time for 500 runs: measured on
+  --mesa-runs of them in one process and scaled (all 500 with
+  --mesa-runs 500). Both in one process each: the sweep's default executor
+  uses every core, so the Mesa figure is given for one process and for as
+  many processes as the sweep used (its wall time divided by them, the best
+  a process pool could do).
+- "run": `touchswarm run --json` (the default scenario, seed 1, reference
+  engine) against its floor, `python -c "import numpy"` plus the same run
+  timed inside a process that has everything imported already.
+
+Medians of --reps (the sweeps: one each unless --reps). Prints one JSON.
+
+    .venv/bin/python bench/sweep_wall.py [--reps N] [--mesa-runs N] [--sweep-runs N] [--skip-fresh]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import resource
+import signal
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+BENCH = Path(__file__).resolve().parent
+CLI = "import sys; from bridge.cli import main; sys.exit(main(sys.argv[1:]))"
+
+MESA = r"""
+import sys, time
+sys.path.insert(0, sys.argv[1])
+import mesa_baseline as m
+n, act = int(sys.argv[2]), sys.argv[3]
+side = m.Side()
+t, c = time.perf_counter(), time.process_time()
+for seed in range(1, n + 1):
+    side.mesa_run(20, 18, seed, act, 20000)
+print(time.perf_counter() - t, time.process_time() - c)
+"""
+
+RUN_FLOOR = r"""
+import contextlib, io, sys, time
+from bridge.cli import main
+with contextlib.redirect_stdout(io.StringIO()):
+    main(["run", "--json"])                      # everything imported, once
+t = time.perf_counter()
+with contextlib.redirect_stdout(io.StringIO()):
+    main(["run", "--json"])
+print(time.perf_counter() - t)
+"""
+
+
+def scenario_args(activation: str) -> list[str]:
+    """--set options making the sweep's scenario the Mesa port's."""
+    sys.path.insert(0, str(BENCH))
+    import mesa_baseline as m
+    keys = {"agents": 20, "worldSize": 18, "maxTicks": 20000, "activation": activation,
+            **m.PARAMS}
+    out = []
+    for k, v in keys.items():
+        out += ["--set", f"{k}={v}"]
+    return out
+
+
+CPU = [0.0]        # the CPU seconds of the last child (and the children it waited for)
+
+
+def wall(argv: list[str], env: dict | None = None, cwd: Path = ROOT
+         ) -> tuple[float, str, str]:
+    """Wall seconds of one child process, its stdout and its stderr; its CPU
+    seconds (user + system, its worker processes included) in CPU[0]."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t = time.perf_counter()
+    p = subprocess.run(argv, cwd=cwd, env=env, stdout=subprocess.PIPE,
+                       stderr=subprocess.PIPE, text=True)
+    w = time.perf_counter() - t
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    CPU[0] = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    if p.returncode != 0:
+        raise SystemExit(f"bench/sweep_wall.py: {' '.join(argv[:4])} ... failed "
+                         f"({p.returncode}): {p.stderr.strip().splitlines()[-1:]}")
+    return w, p.stdout, p.stderr
+
+
+def sweep(seeds: int, activation: str, out: Path, env: dict | None = None) -> tuple[float, str]:
+    """Wall seconds of the sweep and its stderr."""
+    w, _, err = wall([sys.executable, "-c", CLI, "sweep", "--seeds", str(seeds), "--no-plots",
+                 "--overwrite", "--out", str(out), *scenario_args(activation)], env)
+    return w, err
+
+
+def end_background_compile(stderr: str) -> int | None:
+    """End the soa compile a sweep left running (it names its pid)."""
+    m = re.search(r"pid (\d+)", stderr)
+    if not m:
+        return None
+    pid = int(m.group(1))
+    try:
+        os.kill(pid, signal.SIGTERM)
+    except ProcessLookupError:
+        return None
+    return pid
+
+
+def mesa(runs: int, activation: str, scale_to: int | None = None) -> tuple[float, float]:
+    """Wall and CPU seconds of a process running the Mesa port's seeds
+    1..runs; with scale_to, its runs' share scaled to that many runs
+    (start-up as measured)."""
+    w, out, _ = wall([sys.executable, "-c", MESA, str(BENCH), str(runs), activation])
+    inside, inside_cpu = map(float, out.strip().splitlines()[-1].split())
+    k = 1.0 if scale_to is None else scale_to / runs
+    return w - inside + inside * k, CPU[0] - inside_cpu + inside_cpu * k
+
+
+def workers() -> int:
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--reps", type=int, default=1, help="times per figure (default: 1)")
+    ap.add_argument("--mesa-runs", type=int, default=40,
+                    help="Mesa runs timed for the 500-run figure, scaled to 500 (default: 40)")
+    ap.add_argument("--activation", choices=("sync", "netlogo"), default="sync")
+    ap.add_argument("--sweep-runs", type=int, default=500,
+                    help="runs of the warm-cache sweep (default: 500)")
+    ap.add_argument("--skip-fresh", action="store_true", help="no fresh-cache sweep")
+    a = ap.parse_args(argv)
+    act = a.activation
+    out: dict = {"cpus": os.cpu_count(), "workers": workers(), "load_before": os.getloadavg()[0],
+                 "activation": act}
+    with tempfile.TemporaryDirectory() as tmp:
+        tmpd = Path(tmp)
+        if not a.skip_fresh:
+            rows = []
+            for k in range(a.reps):
+                env = {**os.environ, "TOUCHSWARM_CACHE": str(tmpd / f"cache{k}")}
+                w, err = sweep(20, act, tmpd / f"fresh{k}", env)
+                cpu = CPU[0]
+                end_background_compile(err)
+                rows.append((w, cpu) + mesa(20, act))
+            s, sc, m, mc = (statistics.median(r[j] for r in rows) for j in range(4))
+            out["fresh_sweep"] = {
+                "runs": 20, "cache": "empty (soa compiles in the background; ended after)",
+                "sweep_wall_s": round(s, 2), "mesa_wall_s": round(m, 2),
+                "sweep_cpu_s": round(sc, 2), "mesa_cpu_s": round(mc, 2),
+                "sweep_over_mesa": round(s / m, 2), "sweep_over_mesa_cpu": round(sc / mc, 2),
+                "target": "<= 1.5"}
+        sweep(1, act, tmpd / "warmup")                       # the step loaded, text kept
+        rows = []
+        for k in range(a.reps):
+            w = sweep(a.sweep_runs, act, tmpd / f"big{k}")[0]
+            rows.append((w, CPU[0]) + mesa(a.mesa_runs, act, scale_to=a.sweep_runs))
+        s, sc, m1, mc = (statistics.median(r[j] for r in rows) for j in range(4))
+        out["sweep_500"] = {
+            "runs": a.sweep_runs, "cache": "warm", "sweep_wall_s": round(s, 2),
+            "sweep_cpu_s": round(sc, 2), "mesa_cpu_s": round(mc, 1),
+            "speedup_cpu": round(mc / sc, 1),
+            "mesa_runs_timed": a.mesa_runs, "mesa_wall_s_one_process": round(m1, 1),
+            "mesa_wall_s_per_worker": round(m1 / out["workers"], 1),
+            "speedup_one_process": round(m1 / s, 1),
+            "speedup_per_worker": round(m1 / out["workers"] / s, 1), "target": ">= 10"}
+    rows = []
+    for _ in range(max(3, a.reps)):
+        run = wall([sys.executable, "-c", CLI, "run", "--json"])[0]
+        numpy = wall([sys.executable, "-c", "import numpy"], cwd=Path("/"))[0]
+        inside = float(subprocess.run([sys.executable, "-c", RUN_FLOOR], cwd=ROOT,
+                                      capture_output=True, text=True, check=True).stdout)
+        rows.append((run, numpy, inside))
+    run, numpy, inside = (statistics.median(r[k] for r in rows) for k in range(3))
+    out["run"] = {"touchswarm_run_wall_s": round(run, 3), "import_numpy_wall_s": round(numpy, 3),
+                  "run_in_process_s": round(inside, 3), "floor_s": round(numpy + inside, 3),
+                  "over_floor": round(run / (numpy + inside), 2), "target": "<= 1.2"}
+    out["load_after"] = os.getloadavg()[0]
+    print(json.dumps(out, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
