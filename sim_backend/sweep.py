@@ -17,7 +17,7 @@ import itertools
 import logging
 import os
 import socket
-from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
+from concurrent.futures import Executor, Future, ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
@@ -787,7 +787,6 @@ def make_row(pt: Point, sc: Scenario, seed: int, s: dict, until: str,
 def _cells(pairs: list) -> str:
     """A list of (x, y) cells as one CSV field, "x:y x:y"."""
     return " ".join(f"{x}:{y}" for x, y in pairs)
-    return row
 
 
 def write_csv(rows: Sequence[dict], path: Path, names: Sequence[str] | None = None) -> Path:

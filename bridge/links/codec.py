@@ -104,7 +104,7 @@ class Schema:
         self.behaviour = behaviour
         self.rows = msg.MESSAGES + behaviour.messages
         tables = value_tables(behaviour)
-        self.by_direction = {msg.DOWN: set(), msg.UP: set(), msg.CAPTURE: set()}
+        self.by_direction: dict[Any, set[int]] = {msg.DOWN: set(), msg.UP: set(), msg.CAPTURE: set()}
         self.valid: dict[int, Callable[[tuple], bool]] = {}
         self.names: dict[int, str] = {}
         # arbitration id -> (node, kind, Struct, dlc)

@@ -426,12 +426,14 @@ class Sealer:
             return None
         if len(data) != n + 1 + MAC_BYTES:
             if len(data) == n:
-                return self._hello_failed(node, frame, HELLO_PLAIN)
+                self._hello_failed(node, frame, HELLO_PLAIN)
+                return None
             return frame            # the decoder names a wrong length
         payload, low, tag = data[:n], data[n], data[n + 1:]
         block = self._find_block(key, frame.arbitration_id, payload, low, tag, node)
         if block is None:
-            return self._hello_failed(node, frame, HELLO_BAD_MAC)
+            self._hello_failed(node, frame, HELLO_BAD_MAC)
+            return None
         self.confirmed.add(node)
         if node not in self.hellos:     # the first HELLO fixes them (roster.py)
             self.hellos[node] = tuple(self._hello_struct().unpack(payload))
@@ -600,13 +602,15 @@ class Sealer:
                 # replay of it): dropped, not held against the node
                 self._count(REPORT_DUPLICATE, frame)
                 return None
-            return self._report_failed(node, frame, REPORT_BAD_MAC)
+            self._report_failed(node, frame, REPORT_BAD_MAC)
+            return None
         if self._rows is None or msg.ACTIVE != self._rows:
             self._layouts, self._rows = report_layouts(), list(msg.ACTIVE)
         hello = self.hellos.get(node) if self.nodes is None else self.hello_of(node)
         fields = self._layouts[ident >> 7].open(data, hello)
         if fields is None:
-            return self._report_failed(node, frame, REPORT_BAD_MAC)
+            self._report_failed(node, frame, REPORT_BAD_MAC)
+            return None
         self.report_at[node] = found
         self.report_last[node] = bytes(data)
         return fields
