@@ -10,12 +10,14 @@ from __future__ import annotations
 from firmware_logic import messages as msg
 from firmware_logic import hal
 from firmware_logic.hal import Hal
-from sim_backend import faults, kernel
+from sim_backend import kernel
 from sim_backend.world import World
 
 
 class SimBody(Hal):
-    """Robot `index` (node `node`) of a World; the rules are sim_backend/kernel.py."""
+    """Robot `index` (node `node`) of a World: the HAL over the kernel's state
+    (sim_backend/kernel.py holds the rules, faults included); this adds the
+    tapes and the link."""
 
     def __init__(self, world: World, index: int, node: int, link) -> None:
         self.world = world
@@ -25,43 +27,21 @@ class SimBody(Hal):
         self.tape = None           # optional list receiving (query, arg, value)
         self.acts = None           # optional list receiving (action, a, b)
         self.sent = None           # optional list receiving (node, kind, fields) sent
-        # faults (sim_backend/faults.py): this robot's share of the run's plan
-        self.faulty = faults.active(world.sc)
-        if self.faulty:
-            die, s0, s1, flags = faults.plan(world.sc, world.seed)
-            self.die, self.s0, self.s1, self.flags = die[index], s0[index], s1[index], flags[index]
-            self.fseed, self.miss, self.ghost, self.noise = faults.per_run(world.sc, world.seed)
-        self.t = -1                # the tick (reset_intents starts each one)
-        self.k = 0                 # fault draws this tick
+        # whether the run injects faults (sim_backend/faults.py): when not, no
+        # fault rule is asked
+        self.faulty = world.run.faulty[0] == 1
         self.reset_intents()
 
     def reset_intents(self) -> None:
+        """A new turn: no intents yet (kernel.start_turn, which lets a robot
+        whose death tick it is go limp)."""
         w = self.world
-        w.mv_on[self.i] = 0
-        w.claim[self.i] = -1
-        w.beacon_set[self.i] = -1
-        self.t += 1
-        self.k = 0
-        if self.faulty and self.t == self.die:
-            # it goes limp: its beacon dies and its grip lets go
-            w.beacon_set[self.i] = 0
-            faults.release(w.obj, w.owner, 0, w.held, self.i)
+        kernel.start_turn(w.grid, w.rb, w.run, 0, self.i)
 
     # -- faults ------------------------------------------------------------
 
     def dead(self) -> bool:
-        return self.faulty and self.t >= self.die
-
-    def _draw(self) -> int:
-        self.k += 1
-        return faults.draw(self.fseed, self.i, self.t, self.k)
-
-    def _sensed_field(self, v: int) -> int:
-        if self.flags & (faults.IGNORE_FIELD | faults.RANDOM):
-            return 0
-        if self.noise:
-            v += self._draw() % (2 * self.noise + 1) - self.noise
-        return v if v > 0 else 0
+        return self.faulty and kernel.dead(self.world.rb, self.world.run, 0, self.i) == 1
 
     @property
     def held(self) -> int:
@@ -78,34 +58,27 @@ class SimBody(Hal):
 
     def probe(self, heading: int) -> int:
         w = self.world
-        r = kernel.probe(w.obj, w.occ, 0, w.w, w.n, w.xs[self.i], w.ys[self.i], heading,
-                         w.rules)
+        r = kernel.probe(w.grid, w.run, 0, w.xs[self.i], w.ys[self.i], heading)
         if self.faulty:
-            if r == hal.OBJECT and self.flags & faults.RANDOM:
-                r = hal.ROBOT
-            elif r == hal.OBJECT and self.miss and self._draw() < self.miss:
-                r = hal.NOTHING
-            elif r == hal.NOTHING and self.ghost and self._draw() < self.ghost:
-                r = hal.OBJECT
+            r = kernel.sensed_probe(w.rb, w.run, 0, self.i, r)
         if self.tape is not None:
             self.tape.append((hal.PROBE, heading, r))
         return r
 
     def field_ahead(self, heading: int) -> int:
         w = self.world
-        v = kernel.field_ahead(w.field, 0, w.w, w.n, w.xs[self.i], w.ys[self.i], heading,
-                               w.rules)
+        v = kernel.field_ahead(w.grid, w.run, 0, w.xs[self.i], w.ys[self.i], heading)
         if self.faulty:
-            v = self._sensed_field(v)
+            v = kernel.sensed_field(w.rb, w.run, 0, self.i, v)
         if self.tape is not None:
             self.tape.append((hal.FIELD_AHEAD, heading, v))
         return v
 
     def field_here(self) -> int:
         w = self.world
-        v = kernel.field_here(w.field, 0, w.w, w.n, w.xs[self.i], w.ys[self.i])
+        v = kernel.field_here(w.grid, w.run, 0, w.xs[self.i], w.ys[self.i])
         if self.faulty:
-            v = self._sensed_field(v)
+            v = kernel.sensed_field(w.rb, w.run, 0, self.i, v)
         if self.tape is not None:
             self.tape.append((hal.FIELD_HERE, 0, v))
         return v
@@ -113,14 +86,15 @@ class SimBody(Hal):
     def uphill(self) -> int:
         w = self.world
         out = w.uphill(self.i)
-        if self.faulty and self.flags & (faults.IGNORE_FIELD | faults.RANDOM):
-            out = -1
+        if self.faulty:
+            out = kernel.sensed_uphill(w.rb, w.run, 0, self.i, out)
         if self.tape is not None:
             self.tape.append((hal.UPHILL, 0, out))
         return out
 
     def holding(self) -> int:
-        r = kernel.holding(self.world.owner, 0, self.world.held[self.i], self.node)
+        w = self.world
+        r = kernel.holding(w.grid, w.rb, w.run, 0, self.i)
         if self.tape is not None:
             self.tape.append((hal.HOLDING, 0, r))
         return r
@@ -134,7 +108,7 @@ class SimBody(Hal):
     def forward(self, heading: int, step: int) -> None:
         if self.acts is not None:
             self.acts.append((hal.FORWARD, heading, step))
-        if self.faulty and (self.dead() or self.s0 <= self.t < self.s1):
+        if self.faulty and kernel.stuck(self.world.rb, self.world.run, 0, self.i) == 1:
             return
         w = self.world
         w.mv_on[self.i] = 1
@@ -147,8 +121,7 @@ class SimBody(Hal):
         if self.faulty and self.dead():
             return
         w = self.world
-        w.claim[self.i] = kernel.ahead_cell(w.w, w.n, w.xs[self.i], w.ys[self.i], heading,
-                                            w.rules)
+        w.claim[self.i] = kernel.claim_cell(w.rb, w.run, 0, self.i, heading)
 
     def carry(self, dx: int, dy: int) -> None:
         if self.acts is not None:
@@ -180,9 +153,8 @@ class SimBody(Hal):
 
     def recv(self, buf: list) -> int:
         m = self.link.robot_recv(self.node)
-        while m is not None and self.faulty and (
-                self.dead() or (self.flags & faults.IGNORE_HOST
-                                and m[0] in (msg.TRANSPORT, msg.HALT))):
+        w = self.world
+        while m is not None and self.faulty and kernel.drops(w.rb, w.run, 0, self.i, m[0]):
             m = self.link.robot_recv(self.node)     # lost on a dead or defiant robot
         if m is None:
             if self.tape is not None:

@@ -176,6 +176,16 @@ class RunResult:
         return hook(set(self.scenario.pieces()[0].placed(self.world.obj_x, self.world.obj_y)))
 
 
+UNTIL = ("delivered", "converged")
+
+
+def run_ended(c: Any, until: str) -> bool:
+    """Whether a run stops on its coordinator's word, in either engine: the
+    mission ended (c.done()), or with until="converged" the swarm converged.
+    (A run also stops at its maxTicks.)"""
+    return bool(c.done()) or (until == "converged" and c.converged_tick >= 0)
+
+
 def run_outcome(c: Any) -> str:
     """The roster's outcome of an in-process run's coordinator: delivered,
     halted or stalled when it ended the mission, else stopped (maxTicks)."""
@@ -188,7 +198,10 @@ class Engine:
     """Runs one scenario with one seed; `step()` advances one tick."""
 
     def __init__(self, sc: Scenario, seed: int, link: Link | None = None,
-                 record_trajectories: bool = False) -> None:
+                 record_trajectories: bool = False, until: str = "delivered") -> None:
+        if until not in UNTIL:
+            raise ValueError(f"until: expected one of {UNTIL}, got {until!r}")
+        self.until = until
         self.sc = sc
         self.seed = seed
         self.world = World(sc, seed)
@@ -210,7 +223,6 @@ class Engine:
         self.msgs_up = 0                 # messages the host received this tick
         self.msgs_down = 0               # messages (commands) it sent this tick
         self.bad_seen = 0                # the link's bad frames counted so far
-        self.steps = 0                   # FSM steps of every robot so far (netlogo activation)
         self.conv_steps = -1             # self.steps when the swarm converged
         # measures that watch the run through `observe` and add summary
         # fields and trace columns (COLUMNS, row()); none by default
@@ -227,15 +239,17 @@ class Engine:
     # -- one tick --------------------------------------------------------------
 
     def step(self) -> None:
-        """One tick; under activation netlogo one go iteration."""
+        """One tick; under activation netlogo one go iteration (the kernel's
+        turn loops, kernel.sync_tick and kernel.go_iteration)."""
         self.tick += 1
-        if self.world.act == kernel.SEQUENTIAL:
-            self._go_iteration()
+        w = self.world
+        w.run.tick[0] = self.tick
+        w._cells_in(self.tick)
+        if w.act == kernel.SEQUENTIAL:
+            kernel.go_iteration(self.robots, self, w.grid, w.rb, w.run, 0)
         else:
-            for robot, body in zip(self.robots, self.bodies):
-                body.reset_intents()
-                robot.step(body)
-            self._apply()
+            kernel.sync_tick(self.robots, self, w.grid, w.rb, w.run, 0)
+        w.object_cells = list(zip(w.grid.cx, w.grid.cy))
         self.exchange()
         if self.conv_steps < 0 and self.coordinator.converged_tick >= 0:
             self.conv_steps = self.steps
@@ -247,29 +261,14 @@ class Engine:
             self.trajectories.append((list(self.world.xs), list(self.world.ys)))
             self.states.append([r.state for r in self.robots])
 
-    def _go_iteration(self) -> None:
-        """NetLogo's `ask robots` (kernel, sequential activation): each robot
-        in a freshly drawn order takes its turn's steps, each applied at once;
-        then the iteration's beacons and the carried group."""
-        w = self.world
-        fs, fd = w.field_state, w.extra_steps
-        for i in range(len(self.robots)):
-            w.beacon_set[i] = -1
-        for i in w.draw_order():
-            robot, body = self.robots[i], self.bodies[i]
-            steps = kernel.turn_steps(robot.state, fs, fd)
-            k = 0
-            while k < steps:
-                was = robot.state
-                w.mv_on[i] = 0
-                w.claim[i] = -1
-                robot.step(body)
-                claimed = w.claim[i] >= 0
-                w.apply_robot(i)
-                self.steps += 1
-                steps = kernel.turn_length(steps, k, claimed, was, robot.state, fs, fd)
-                k += 1
-        w.end_iteration(self.tick)
+    def turn(self, robot: Any, i: int) -> None:
+        """Robot i's FSM steps once on its body (the kernel's turn loops ask it)."""
+        robot.step(self.bodies[i])
+
+    @property
+    def steps(self) -> int:
+        """FSM steps of every robot so far (activation netlogo)."""
+        return self.world.run.steps[0]
 
     def exchange(self) -> None:
         c = self.coordinator
@@ -294,7 +293,7 @@ class Engine:
     # -- a whole run -------------------------------------------------------------------
 
     def finished(self) -> bool:
-        return self.coordinator.done() or self.tick >= self.sc.maxTicks
+        return run_ended(self.coordinator, self.until) or self.tick >= self.sc.maxTicks
 
     def run(self, progress: Callable[[int], None] | None = None) -> RunResult:
         while not self.finished():

@@ -5,9 +5,10 @@ of its own (Python's `random.Random` seeded from the run seed and a fixed
 salt), never from the robots' firmware RNG, so a run with every fault off is
 bit-identical to a run without this module. The per-call draws of the sensor
 faults come from `draw`, a pure integer hash of (run seed, robot, tick, call
-number): the reference body (sim_backend/body.py) and the batch engine's body
-(sim_backend/batch/body.py, compiled by numba) call the same function on the
-same arguments, so both engines see the same faults.
+number). The rules that apply them (start_turn, dead, stuck, sensed_probe,
+sensed_field, ... in sim_backend/kernel.py) are written once, for the
+reference engine and the batch engine (compiled by numba) alike, so both
+engines see the same faults.
 
 The robot's firmware never knows: a dead robot's actions, messages and
 beacon go nowhere, a robot ignoring the field senses none, a random agent
@@ -17,10 +18,9 @@ way), a probe may miss a segment or see one where none is.
 
 from __future__ import annotations
 
-# only firmware-subset imports here: the batch engine transforms and compiles
-# `draw` and `release` (sim_backend/batch/transform.py); the planning below
-# is host side and imports what it needs where it runs
-from sim_backend import kernel
+# no imports here: the batch engine transforms and compiles `draw`
+# (sim_backend/batch/transform.py); the planning below is host side and
+# imports what it needs where it runs
 
 # per-robot flags (bits)
 IGNORE_FIELD = 1     # non-complying: never senses the field
@@ -43,17 +43,6 @@ def draw(seed, robot, tick, k):
     h = ((h ^ (k * 69069 + 1)) * 1103515245 + 12345) & MASK31
     h = (h ^ (h >> 13)) * 1103515245 & MASK31
     return (h >> 7) % SCALE
-
-
-def release(obj, owner, base, held, i):
-    """Robot i dies: the segment it held is free again (a limp gripper holds
-    nothing up), so the others can claim it and carry without it."""
-    k = held[i]
-    if k >= 0:
-        if owner[base + k] > 0:
-            obj[base + k] = kernel.YELLOW
-            owner[base + k] = 0
-        held[i] = -1
 
 
 def active(sc) -> bool:

@@ -366,17 +366,10 @@ def run_chunk(jobs: Sequence[tuple[dict, dict, int]], engine: str = "auto",
         return run_batch(scs, seeds, until=until, progress=report)
     if engine != "reference":
         raise ValueError(f"engine: expected one of {ENGINES}, got {engine!r}")
-    from sim_backend.engine import Engine, RunResult
+    from sim_backend.engine import Engine
     out = []
     for sc, seed in zip(scs, seeds):
-        e = Engine(sc, seed)
-        if until == "delivered":
-            out.append(e.run().summary())
-        else:
-            while not (e.coordinator.converged_tick >= 0 or e.tick >= sc.maxTicks):
-                e.step()
-            out.append(RunResult(sc, seed, e.tick, e.world, e.coordinator, e.robots,
-                                 conv_steps=e.conv_steps).summary())
+        out.append(Engine(sc, seed, until=until).run().summary())
         if report is not None:
             report(len(out))
     return out

@@ -9,24 +9,22 @@ the vectorised engine keeps the same grids as numpy arrays.
 
 from __future__ import annotations
 
-import math
-
 from firmware_logic import fixedpoint as fx
 from firmware_logic.rng import Rng
-from sim_backend import arena, kernel, objects
+from sim_backend import arena, faults, kernel, objects
 from sim_backend.kernel import BLUE, FREE, OBSTACLE, YELLOW  # noqa: F401  (the cell values)
 from sim_backend.scenario import CHOICES, Scenario
 
 
 def signal_table(radius: int) -> list[tuple[int, int, int]]:
-    """(dx, dy, increment) of Signal (thesis eq. 3): round(10 / (1 + d)) on
-    every patch within sigRadius of the source; NetLogo rounds halves up."""
+    """(dx, dy, increment) of Signal (kernel.signal_value) on every patch
+    within sigRadius of the source patch, by patch centres."""
     out = []
     for ddy in range(-radius, radius + 1):
         for ddx in range(-radius, radius + 1):
             d2 = ddx * ddx + ddy * ddy
             if d2 <= radius * radius:
-                v = math.floor(10.0 / (1.0 + math.sqrt(d2)) + 0.5)
+                v = kernel.signal_value(d2 * fx.ONE * fx.ONE)
                 if v:
                     out.append((ddx, ddy, v))
     return out
@@ -94,30 +92,42 @@ class World:
             self._netlogo_starts(sc, seed, setup)
         else:
             self._redrawn_starts(sc, setup)
-        # every robot's intents and holdings, as the kernel reads them
+        # the world state the kernel reads (sim_backend/kernel.py): this one
+        # run's grids, robots (kernel.ROBOT_FIELDS) and run (kernel.RUN_FIELDS,
+        # one value each); the lists are also the World's attributes below
         a = sc.agents
-        self.held = [-1] * a             # held cell, -1: none
-        self.mv_on = [0] * a             # a forward() this tick, of mv_step along mv_h
-        self.mv_h = [0] * a
-        self.mv_step = [0] * a
-        self.claim = [-1] * a            # cell claimed this tick
-        self.beacon_set = [-1] * a       # -1: no beacon() call this tick
-        self.beacon_on = [0] * a         # field source on, centred on (bsx, bsy)
-        self.bsx = [0] * a
-        self.bsy = [0] * a
-        self.carry_on = [0] * a          # a carry() asked and not yet consumed
-        self.carry_dx = [0] * a
-        self.carry_dy = [0] * a
+        rows = {name: [0] * a for name in kernel.ROBOT_FIELDS}
+        rows["xs"], rows["ys"] = self.xs, self.ys
+        rows["held"] = [-1] * a          # held cell, -1: none
+        rows["claim"] = [-1] * a
+        rows["beacon_set"] = [-1] * a
+        rows["tie"] = [kernel.tie_seed(seed, node) for node in range(1, a + 1)]
+        rows["order"] = list(range(a))
+        # faults (sim_backend/faults.py): the run's plan
+        rows["die"], rows["stuck0"], rows["stuck1"], rows["flags"] = faults.plan(sc, seed)
+        self.rb = kernel.Robots([rows[name] for name in kernel.ROBOT_FIELDS])
+        for name in kernel.ROBOT_FIELDS:
+            setattr(self, name, rows[name])
         # the NetLogo options the kernel reads (scenario.CHOICES; index 0 the default)
         self.sigmode = CHOICES["signalMode"].index(sc.signalMode)
         self.ties = CHOICES["uphillTies"].index(sc.uphillTies)
-        self.tie = [kernel.tie_seed(seed, node) for node in range(1, a + 1)]
         # activation (kernel.SYNC, SEQUENTIAL): with SEQUENTIAL the engine draws
         # an order every go iteration and applies each robot's actions at once
         self.act = CHOICES["activation"].index(sc.activation)
-        self.order = list(range(a))
-        self.order_state = [kernel.order_seed(seed)]
         self.field_state, self.extra_steps = multi_step(sc)
+        fseed, miss, ghost, noise = faults.per_run(sc, seed)
+        run = {"base": 0, "w": self.w, "n": self.n, "lo": 0, "hi": a, "t0": 0,
+               "t1": len(self.tv), "c0": 0, "c1": len(self.object_cells), "live": 1,
+               "sigmode": self.sigmode, "radius": sc.sigRadius, "ties": self.ties,
+               "act": self.act, "order_rng": kernel.order_seed(seed),
+               "field_state": self.field_state, "extra_steps": self.extra_steps,
+               "rules": self.rules, "faulty": int(faults.active(sc)), "fseed": fseed,
+               "miss": miss, "ghost": ghost, "noise": noise}
+        self.run = kernel.Run([[run.get(name, 0)] for name in kernel.RUN_FIELDS])
+        self.order_state = self.run.order_rng
+        cx, cy, cv, cw = self.cell_arrays()
+        self.grid = kernel.Grid((self.obj, self.owner, self.field, self.occ, self.stamp),
+                                (self.tdx, self.tdy, self.tv), (cx, cy, cv, cw))
         self.recount()
 
     def _redrawn_starts(self, sc: Scenario, setup: Rng) -> None:
@@ -155,41 +165,34 @@ class World:
         return [c[0] for c in self.object_cells], [c[1] for c in self.object_cells], \
             [0] * m, [0] * m
 
-    def apply(self, tick: int) -> None:
-        """Apply the robots' intents of this tick (sim_backend/kernel.py)."""
-        cx, cy, cv, cw = self.cell_arrays()
-        kernel.apply_tick(self.obj, self.owner, self.field, self.occ, self.stamp, 0, self.w,
-                          self.n, self.tdx, self.tdy, self.tv, 0, len(self.tv), self.xs,
-                          self.ys, 0, len(self.xs), self.held, self.mv_on, self.mv_h,
-                          self.mv_step, self.claim, self.beacon_set, self.beacon_on,
-                          self.bsx, self.bsy, self.carry_on, self.carry_dx, self.carry_dy,
-                          cx, cy, cv, cw, 0, len(cx), tick, self.sigmode, self.sc.sigRadius,
-                          self.rules)
-        self.object_cells = list(zip(cx, cy))
+    def _cells_in(self, tick: int) -> None:
+        """The tick and the carried object's cells into the kernel's state."""
+        self.run.tick[0] = tick
+        g = self.grid
+        g.cx, g.cy, g.cv, g.cw = self.cell_arrays()
+        self.run.c1[0] = len(g.cx)
 
-    # -- sequential activation (kernel.SEQUENTIAL) ------------------------------
+    def apply(self, tick: int) -> None:
+        """Apply the robots' intents of this tick (kernel.apply_tick)."""
+        self._cells_in(tick)
+        kernel.apply_tick(self.grid, self.rb, self.run, 0)
+        self.object_cells = list(zip(self.grid.cx, self.grid.cy))
+
+    def end_iteration(self, tick: int) -> None:
+        """Beacons, the carried group and occupancy after every robot's turn
+        of a go iteration (kernel.end_iteration)."""
+        self._cells_in(tick)
+        kernel.end_iteration(self.grid, self.rb, self.run, 0)
+        self.object_cells = list(zip(self.grid.cx, self.grid.cy))
 
     def draw_order(self) -> list[int]:
-        """This go iteration's order of robot indices (kernel.draw_order)."""
-        kernel.draw_order(self.order, 0, len(self.xs), self.order_state, 0)
+        """A go iteration's order of robot indices (kernel.draw_order)."""
+        kernel.draw_order(self.rb, self.run, 0)
         return list(self.order)
 
     def apply_robot(self, i: int) -> None:
-        """Robot i's claim and move of its last step, at once."""
-        kernel.apply_robot(self.obj, self.owner, self.occ, 0, self.w, self.n, self.xs,
-                           self.ys, 0, i, self.held, self.mv_on, self.mv_h, self.mv_step,
-                           self.claim, self.rules)
-
-    def end_iteration(self, tick: int) -> None:
-        """Beacons, the carried group and occupancy after every robot's turn."""
-        cx, cy, cv, cw = self.cell_arrays()
-        kernel.end_iteration(self.obj, self.owner, self.field, self.occ, self.stamp, 0,
-                             self.w, self.n, self.tdx, self.tdy, self.tv, 0, len(self.tv),
-                             self.xs, self.ys, 0, len(self.xs), self.held, self.beacon_set,
-                             self.beacon_on, self.bsx, self.bsy, self.carry_on,
-                             self.carry_dx, self.carry_dy, cx, cy, cv, cw, 0, len(cx), tick,
-                             self.sigmode, self.sc.sigRadius, self.order, self.rules)
-        self.object_cells = list(zip(cx, cy))
+        """Robot i's claim and move of its last step, at once (kernel.apply_robot)."""
+        kernel.apply_robot(self.grid, self.rb, self.run, 0, i)
 
     def idx(self, px: int, py: int) -> int:
         return (py + self.w) * self.n + (px + self.w)
@@ -198,14 +201,12 @@ class World:
         return -self.w <= px <= self.w and -self.w <= py <= self.w
 
     def recount(self) -> None:
-        kernel.recount(self.occ, 0, self.w, self.n, self.xs, self.ys, 0, len(self.xs))
+        kernel.recount(self.grid, self.rb, self.run, 0)
 
     def uphill(self, i: int) -> int:
         """kernel.uphill for robot index i."""
-        return kernel.uphill(self.field, 0, self.w, self.n, self.xs[i], self.ys[i],
-                             self.ties, self.tie, i, self.rules)
+        return kernel.uphill(self.grid, self.rb, self.run, 0, i)
 
     def signal(self, px: int, py: int, sign: int = 1) -> None:
         """Add (or, sign=-1, remove) one beacon's field centred on a patch."""
-        kernel.signal(self.field, 0, self.w, self.n, self.tdx, self.tdy, self.tv, 0,
-                      len(self.tv), px, py, sign, self.rules)
+        kernel.signal(self.grid, self.run, 0, px, py, sign)

@@ -6,19 +6,13 @@ import random
 
 from sim_backend import objects
 from sim_backend.batch.soa import run_batch_results
-from sim_backend.engine import Engine, RunResult
+from sim_backend.engine import Engine
 from sim_backend.errors import ScenarioError
 from sim_backend.scenario import validate
 
 
 def reference(sc, seed, until="delivered"):
-    e = Engine(sc, seed, record_trajectories=True)
-    if until == "delivered":
-        return e.run()
-    while not (e.coordinator.converged_tick >= 0 or e.tick >= sc.maxTicks):
-        e.step()
-    return RunResult(sc, seed, e.tick, e.world, e.coordinator, e.robots, e.trajectories,
-                     e.states, e.conv_steps)
+    return Engine(sc, seed, record_trajectories=True, until=until).run()
 
 
 def assert_same(scs, seeds, until="delivered", states=True):

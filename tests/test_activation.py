@@ -79,13 +79,14 @@ def test_a_robot_steps_once_in_search_and_one_plus_defiance_times_in_a_field():
         sc = validate({"movementModel": "firefly", "fieldDefiance": fd,
                        "activation": "netlogo", "maxTicks": 400})
         e = Engine(sc, 3)
+        assert (e.world.run.field_state[0], e.world.run.extra_steps[0]) == (R.FIELD, fd)
         seen = {R.SEARCH: 0, R.FIELD: 0}
         while not e.finished():
             before = [(r.state, r.ticks) for r in e.robots]
             e.step()
             for (state, ticks), r in zip(before, e.robots):
                 if state == r.state and state in seen:
-                    assert r.ticks - ticks == kernel.turn_steps(state, R.FIELD, fd)
+                    assert r.ticks - ticks == kernel.turn_steps(e.world.run, 0, state)
                     seen[state] += 1
         assert seen[R.SEARCH] > 100 and seen[R.FIELD] > 20, seen
 

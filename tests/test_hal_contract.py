@@ -23,6 +23,7 @@ from firmware_logic import fixedpoint as fx
 from firmware_logic import hal as H
 from firmware_logic import messages as msg
 from firmware_logic.scripted import ScriptHal
+from sim_backend import kernel
 from sim_backend.batch.body import BatchBody
 from sim_backend.batch.soa import BatchArrays
 from sim_backend.engine import Engine
@@ -150,10 +151,11 @@ class TestBatchBody(HalContract):
 
         def tick():
             clock[0] += 1
-            body.apply(0, clock[0])
-            body.mv_on[0] = 0
-            body.claim_k[0] = -1
-            body.beacon_set[0] = -1
+            body.runs.tick[0] = clock[0]
+            kernel.apply_tick(body.g, body.rb, body.runs, 0)
+            body.rb.mv_on[0] = 0
+            body.rb.claim[0] = -1
+            body.rb.beacon_set[0] = -1
         return body, tick
 
 

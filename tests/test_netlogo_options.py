@@ -44,7 +44,7 @@ def test_uphill_ties_are_drawn_at_random_among_the_highest_neighbours():
     got = [w.uphill(0) for _ in range(300)]
     assert set(got) == {0, 90, 225}
     assert min(got.count(h) for h in (0, 90, 225)) > 60      # about a third each
-    w.ties = kernel.ORDERED
+    w.run.ties[0] = kernel.ORDERED
     assert {w.uphill(0) for _ in range(20)} == {0}          # the default: first in order
 
 
@@ -93,8 +93,8 @@ def probe_self(rule):
         w.xs[i], w.ys[i] = 5 * 256, 2 * i * 256
     w.recount()
     # heading 225: the point one ahead (-61, -61) in Q8 is still patch (0, 0)
-    return kernel.probe(w.obj, w.occ, 0, w.w, w.n, w.xs[0], w.ys[0], 225, w.rules), \
-        kernel.probe(w.obj, w.occ, 0, w.w, w.n, w.xs[0], w.ys[0], 45, w.rules)
+    return kernel.probe(w.grid, w.run, 0, w.xs[0], w.ys[0], 225), \
+        kernel.probe(w.grid, w.run, 0, w.xs[0], w.ys[0], 45)
 
 
 def test_netlogo_probe_counts_the_robot_itself_in_its_own_patch():

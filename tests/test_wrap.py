@@ -56,13 +56,13 @@ def test_a_probe_and_a_claim_see_across_the_edge():
     w = _world(True)
     _place(w, 1, -18, 0)
     w.obj[w.idx(18, 0)] = kernel.YELLOW             # a segment on the far side
-    body = kernel.probe(w.obj, w.occ, 0, w.w, w.n, w.xs[1], w.ys[1], WEST, w.rules)
+    body = kernel.probe(w.grid, w.run, 0, w.xs[1], w.ys[1], WEST)
     assert body == OBJECT
     assert kernel.ahead_cell(w.w, w.n, w.xs[1], w.ys[1], WEST, w.rules) == w.idx(18, 0)
     b = _world(False)
     _place(b, 1, -18, 0)
-    assert kernel.probe(b.obj, b.occ, 0, b.w, b.n, b.xs[1], b.ys[1], WEST, b.rules) == WALL
-    assert kernel.probe(w.obj, w.occ, 0, w.w, w.n, w.xs[1], w.ys[1], NORTH, w.rules) == NOTHING
+    assert kernel.probe(b.grid, b.run, 0, b.xs[1], b.ys[1], WEST) == WALL
+    assert kernel.probe(w.grid, w.run, 0, w.xs[1], w.ys[1], NORTH) == NOTHING
 
 
 def test_the_field_is_painted_on_the_torus_and_uphill_follows_it():

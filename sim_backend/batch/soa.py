@@ -47,17 +47,16 @@ import numpy as np
 
 from firmware_logic import messages as msg
 from sim_backend import registry
-from sim_backend import faults
+from sim_backend import kernel
 from sim_backend.batch import body as B
 from sim_backend.batch import transform as T
-from sim_backend.engine import RunResult
+from sim_backend.engine import UNTIL, RunResult, run_ended
 from sim_backend.errors import EngineError
 from sim_backend.scenario import Scenario
 from sim_backend.world import World
 
 log = logging.getLogger(__name__)
 
-UNTIL = ("delivered", "converged")
 INBOX = 16            # messages a robot may have waiting (the host sends a few per tick)
 SENDS_PER_ROBOT = 8   # messages a robot may send in one tick
 PREFIX = "_touchswarm_soa_"
@@ -259,7 +258,8 @@ def _nfields() -> list[int]:
 
 class BatchArrays:
     """The flat arrays of a batch of worlds (sim_backend/batch/body.py's
-    layout), filled from each World's start; what a BatchBody is made of."""
+    layout), filled from each World's start: the kernel's world state of
+    every run (kernel.Grid, Robots, Run); what a BatchBody is made of."""
 
     def __init__(self, worlds: Sequence[World]) -> None:
         nr = len(worlds)
@@ -268,28 +268,19 @@ class BatchArrays:
         starts = self.starts
         nrob = int(starts[-1])
         self.stride = max(w.n * w.n for w in worlds)
-        rt = np.zeros((B.RUN_ROWS, nr), dtype=np.int64)
         tables = [(w.tdx, w.tdy, w.tv) for w in worlds]
         tstarts = np.concatenate([[0], np.cumsum([len(t[0]) for t in tables])])
         cells = [w.cell_arrays() for w in worlds]
         cstarts = np.concatenate([[0], np.cumsum([len(c[0]) for c in cells])])
-        for r, w in enumerate(worlds):
-            rt[B.BASE, r] = r * self.stride
-            rt[B.W, r] = w.w
-            rt[B.N, r] = w.n
-            rt[B.LO, r] = starts[r]
-            rt[B.HI, r] = starts[r + 1]
-            rt[B.T0, r], rt[B.T1, r] = tstarts[r], tstarts[r + 1]
-            rt[B.C0, r], rt[B.C1, r] = cstarts[r], cstarts[r + 1]
-            rt[B.SIGMODE, r] = w.sigmode
-            rt[B.RADIUS, r] = w.sc.sigRadius
-            rt[B.TIES, r] = w.ties
-            rt[B.ACT, r] = w.act
-            rt[B.ORDER_RNG, r] = w.order_state[0]
-            rt[B.FIELD_STATE, r] = w.field_state
-            rt[B.EXTRA_STEPS, r] = w.extra_steps
-            rt[B.RULES, r] = w.rules
-        rt[B.LIVE] = 1
+        # every run's row of each kernel.RUN_FIELDS name, its World's own value
+        # but for where its share of the batch's arrays starts and ends
+        rt = np.array([[getattr(w.run, name)[0] for w in worlds]
+                       for name in kernel.RUN_FIELDS], dtype=np.int64).reshape(B.RUN_ROWS, nr)
+        for r in range(nr):
+            run = dict(base=r * self.stride, lo=starts[r], hi=starts[r + 1], t0=tstarts[r],
+                       t1=tstarts[r + 1], c0=cstarts[r], c1=cstarts[r + 1])
+            for name, v in run.items():
+                rt[kernel.RUN_FIELDS.index(name), r] = v
         table = np.zeros((3, max(1, int(tstarts[-1]))), dtype=np.int64)
         cell = np.zeros((4, max(1, int(cstarts[-1]))), dtype=np.int64)
         if max(agents) > np.iinfo(B.GRID_TYPES[B.OCC]).max:
@@ -299,33 +290,22 @@ class BatchArrays:
         grids[B.STAMP][:] = -1
         rb = np.zeros((B.ROBOT_ROWS, nrob), dtype=np.int64)
         for r, w in enumerate(worlds):
-            a, b = int(rt[B.T0, r]), int(rt[B.T1, r])
+            a, b = int(tstarts[r]), int(tstarts[r + 1])
             table[:, a:b] = tables[r]
-            a, b = int(rt[B.C0, r]), int(rt[B.C1, r])
+            a, b = int(cstarts[r]), int(cstarts[r + 1])
             cell[:2, a:b] = cells[r][:2]
             base, size = r * self.stride, w.n * w.n
             for row, grid in ((B.OBJ, w.obj), (B.OWNER, w.owner), (B.FIELD, w.field),
                               (B.OCC, w.occ)):
                 grids[row][base:base + size] = grid
             lo, hi = int(starts[r]), int(starts[r + 1])
-            rb[B.XS, lo:hi] = w.xs
-            rb[B.YS, lo:hi] = w.ys
+            for j, name in enumerate(kernel.ROBOT_FIELDS):
+                rb[j, lo:hi] = getattr(w.rb, name)
             rb[B.RUN, lo:hi] = r
-            rb[B.TIE, lo:hi] = w.tie
-        for r, w in enumerate(worlds):
-            # faults (sim_backend/faults.py): the plan the reference body reads
-            if faults.active(w.sc):
-                die, s0, s1, flags = faults.plan(w.sc, w.seed)
-                lo, hi = int(starts[r]), int(starts[r + 1])
-                rb[B.DIE, lo:hi], rb[B.STUCK0, lo:hi] = die, s0
-                rb[B.STUCK1, lo:hi], rb[B.FLAGS, lo:hi] = s1, flags
-                rt[B.FAULTY, r] = 1
-                rt[B.FSEED, r], rt[B.MISS, r], rt[B.GHOST, r], rt[B.NOISE, r] = \
-                    faults.per_run(w.sc, w.seed)
-        rb[B.HELD] = -1
-        rb[B.CLAIM] = -1
-        rb[B.BEACON_SET] = -1
         self.rt, self.rb, self.grids, self.cells, self.table = rt, rb, grids, cell, table
+        self.grid = kernel.Grid(grids, table, cell)
+        self.robots = kernel.Robots(rb)
+        self.runs = kernel.Run(rt)
         cap = SENDS_PER_ROBOT * nrob + 16
         self.out_i = np.zeros(cap, dtype=np.int64)
         self.out_kind = np.zeros(cap, dtype=np.int64)
@@ -337,8 +317,8 @@ class BatchArrays:
 
     def body_args(self) -> tuple:
         """BatchBody's constructor arguments (the arrays are shared, not copied)."""
-        return (self.grids, self.rb, self.rt, self.cells, self.table, self.out_i,
-                self.out_kind, self.out_f, self.out_n, self.in_kind, self.in_nf, self.in_f)
+        return (self.grid, self.robots, self.runs, self.rb, self.out_i, self.out_kind,
+                self.out_f, self.out_n, self.in_kind, self.in_nf, self.in_f)
 
 
 class SoaEngine:
@@ -559,8 +539,7 @@ class SoaEngine:
             if t >= self.first_cap else set()
         for r in called:
             c = self.coords[r]
-            if (c.done() if self.until == "delivered" else c.converged_tick >= 0
-                    or c.done()):
+            if run_ended(c, self.until):
                 done.add(r)
         for r in sorted(done):
             if live[r] == 1:
