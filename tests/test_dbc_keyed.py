@@ -169,3 +169,15 @@ def test_a_field_named_like_the_freshness_signal_is_refused():
     assert dbc.build(max_node=2, behaviour=own).get_message_by_name("X_2").length == 1
     with pytest.raises(ValueError, match="message X: a field named 'fv' clashes"):
         dbc.build(max_node=2, behaviour=own, keyed=True)
+
+
+def test_a_report_that_does_not_fit_the_sealed_form_is_refused_with_its_name():
+    from types import SimpleNamespace
+
+    from sim_backend import registry
+    row = (9, "BIG", msg.UP, "", tuple((f"a{i}", 1, 0, 1, "", None, None, "")
+                                       for i in range(5)))
+    own = SimpleNamespace(spec=registry.load().spec, messages=(row,), name="big",
+                          module_name="test_dbc_keyed.big")
+    with pytest.raises(secoc.SecocError, match="message BIG: its sealed form takes 5 bytes"):
+        dbc.build(max_node=2, behaviour=own, keyed=True)
