@@ -22,6 +22,12 @@ def register(sub) -> None:
     p.add_argument("--behaviour", default="thesis", metavar="NAME|DIR",
                    help="whose messages, states and models: an installed behaviour or a "
                         "behaviour's folder (default: %(default)s)")
+    p.add_argument("--keyed", action="store_true",
+                   help="describe a keyed bus (--keys, SecOC) instead: every host command and "
+                        "robot report in its sealed 8-byte layout (payload or sealed payload "
+                        "fields, then `fv`, the freshness value's low bytes, and `mac`, the "
+                        "24-bit MAC); host commands for robots 1..N only (no broadcast on a "
+                        "keyed bus)")
     p.set_defaults(func=cmd_dbc)
 
 
@@ -34,8 +40,9 @@ def cmd_dbc(args: argparse.Namespace) -> int:
         b = registry.load(args.behaviour)
     except registry.BehaviourError as err:
         raise UsageError(f"--behaviour: {err}") from None
-    n = dbc.write(args.out, args.max_node, behaviour=b)
+    n = dbc.write(args.out, args.max_node, behaviour=b, keyed=args.keyed)
     own = ", ".join(m[1] for m in b.messages)
-    print(f"{args.out}: {n} messages for nodes 0..{args.max_node} "
+    print(f"{args.out}: {n} {'sealed (keyed bus) ' if args.keyed else ''}messages for nodes "
+          f"0..{args.max_node} "
           f"(behaviour {b.name}{'; its own: ' + own if own else ''})")
     return 0

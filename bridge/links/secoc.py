@@ -840,13 +840,39 @@ class ReportLayout:
         self.open = space["open"]
 
 
+def report_layout(row: tuple) -> ReportLayout:
+    """The sealed layout of the report `row` (not HELLO): messages.SEALED's
+    or derived; SecocError when it does not fit."""
+    explicit = {k: fields for k, fields in msg.SEALED}
+    return ReportLayout(row, explicit.get(row[0]), msg.spec(msg.HELLO)[4])
+
+
 def report_layouts() -> dict[int, ReportLayout]:
     """The sealed layout of every report kind in use but HELLO (which has its
     own, seal_hello); SecocError when one does not fit."""
-    hello = msg.spec(msg.HELLO)[4]
-    explicit = {k: fields for k, fields in msg.SEALED}
-    return {row[0]: ReportLayout(row, explicit.get(row[0]), hello)
+    return {row[0]: report_layout(row)
             for row in msg.rows() if row[2] == msg.UP and row[0] != msg.HELLO}
+
+
+def keyed_layout(row: tuple) -> tuple[tuple, int, int] | None:
+    """How a message travels on a keyed bus, as this module seals it: (payload
+    fields, payload bytes, freshness bytes); MAC_BYTES of MAC follow, and the
+    freshness value's low bytes and the MAC are big-endian. A host command:
+    its plain fields and fv_bytes (Sealer.seal); HELLO: its plain fields and
+    the floor block's low byte (seal_hello); any other report: its sealed
+    fields in REPORT_BYTES and r's low byte (seal_report). `row` is a row of
+    messages.rows() or of a behaviour's spec.MESSAGES; None: never sealed (a
+    capture frame). The DBC of a keyed bus (bridge/links/dbc.py) is made
+    from this."""
+    kind, _name, direction = row[:3]
+    if direction == msg.DOWN or (direction == msg.UP and kind == msg.HELLO):
+        fields = tuple(row[4])
+        n = sum(f[1] for f in fields)
+    elif direction == msg.UP:
+        fields, n = report_layout(row).sealed, REPORT_BYTES
+    else:
+        return None
+    return fields, n, fv_bytes(n)
 
 
 def _report_message(ident: int, payload: bytes, h: int, r: int) -> bytes:
