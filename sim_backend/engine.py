@@ -243,13 +243,12 @@ class Engine:
         turn loops, kernel.sync_tick and kernel.go_iteration)."""
         self.tick += 1
         w = self.world
-        w.run.tick[0] = self.tick
-        w._cells_in(self.tick)
+        w.to_kernel(self.tick)
         if w.act == kernel.SEQUENTIAL:
             kernel.go_iteration(self.robots, self, w.grid, w.rb, w.run, 0)
         else:
             kernel.sync_tick(self.robots, self, w.grid, w.rb, w.run, 0)
-        w.object_cells = list(zip(w.grid.cx, w.grid.cy))
+        w.from_kernel()
         self.exchange()
         if self.conv_steps < 0 and self.coordinator.converged_tick >= 0:
             self.conv_steps = self.steps

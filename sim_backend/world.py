@@ -165,25 +165,22 @@ class World:
         return [c[0] for c in self.object_cells], [c[1] for c in self.object_cells], \
             [0] * m, [0] * m
 
-    def _cells_in(self, tick: int) -> None:
+    def to_kernel(self, tick: int) -> None:
         """The tick and the carried object's cells into the kernel's state."""
         self.run.tick[0] = tick
         g = self.grid
         g.cx, g.cy, g.cv, g.cw = self.cell_arrays()
         self.run.c1[0] = len(g.cx)
 
-    def apply(self, tick: int) -> None:
-        """Apply the robots' intents of this tick (kernel.apply_tick)."""
-        self._cells_in(tick)
-        kernel.apply_tick(self.grid, self.rb, self.run, 0)
+    def from_kernel(self) -> None:
+        """The carried object's cells back from the kernel's state."""
         self.object_cells = list(zip(self.grid.cx, self.grid.cy))
 
-    def end_iteration(self, tick: int) -> None:
-        """Beacons, the carried group and occupancy after every robot's turn
-        of a go iteration (kernel.end_iteration)."""
-        self._cells_in(tick)
-        kernel.end_iteration(self.grid, self.rb, self.run, 0)
-        self.object_cells = list(zip(self.grid.cx, self.grid.cy))
+    def apply(self, tick: int) -> None:
+        """Apply the robots' intents of this tick (kernel.apply_tick)."""
+        self.to_kernel(tick)
+        kernel.apply_tick(self.grid, self.rb, self.run, 0)
+        self.from_kernel()
 
     def draw_order(self) -> list[int]:
         """A go iteration's order of robot indices (kernel.draw_order)."""

@@ -64,40 +64,34 @@ def mixed_scenarios(n=24, seed=11):
 def arena_scenarios():
     """Drawn objects, decoys, obstacles and the dynamic field, in
     both movement models and both fields, and the aggregate behaviour among
-    obstacles: each with two seeds."""
+    obstacles: one run of each, the seeds alternating."""
     from sim_backend.scenario import load
-    scs, seeds = [], []
+    scs = []
     for name in ("crate", "decoy", "wall"):
         for model in ("firefly", "ant"):
             for field in ("static", "dynamic"):
-                sc = load(name).replace(movementModel=model, field=field, maxTicks=2500)
-                scs += [sc, sc]
-                seeds += [1, 2]
-    agg = load("wall").replace(behaviour="aggregate", maxTicks=1500)
+                scs.append(load(name).replace(movementModel=model, field=field, maxTicks=2500))
+    scs.append(load("wall").replace(behaviour="aggregate", maxTicks=1500))
     # a crowd that yields to the carried object, in both fields
-    crowd = [validate({"agents": 120, "crowd": "yield", "field": f, "maxTicks": 1500})
-             for f in ("static", "dynamic")]
-    return scs + [agg, agg] + crowd * 2, seeds + [1, 2, 1, 1, 2, 2]
+    scs += [validate({"agents": 120, "crowd": "yield", "field": f, "maxTicks": 1500})
+            for f in ("static", "dynamic")]
+    return scs, [1 + j % 2 for j in range(len(scs))]
 
 
 def wrap_scenarios():
     """wrap = true: both movement models, both activations, the
     NetLogo Signal and tie rules, and a yielding crowd with the dynamic field
-    in a small arena, so robots and fields cross the edges often; each with
-    two seeds."""
-    scs, seeds = [], []
-    for model in ("firefly", "ant"):
-        for act in ("sync", "netlogo"):
-            sc = validate({"wrap": True, "movementModel": model, "activation": act,
-                           "maxTicks": 1200})
-            scs += [sc, sc]
-            seeds += [1, 2]
-    nl = validate({"wrap": True, "signalMode": "netlogo", "uphillTies": "netlogo",
-                   "leaderField": "netlogo", "maxTicks": 1200})
-    small = validate({"wrap": True, "worldSize": 12, "agents": 30, "objectX": 0,
-                      "objectY": 0, "homeX": -9, "homeY": -9, "sigRadius": 7,
-                      "field": "dynamic", "crowd": "yield", "maxTicks": 1200})
-    return scs + [nl, nl, small, small], seeds + [1, 2, 1, 2]
+    in a small arena, so robots and fields cross the edges often; one run of
+    each, the seeds alternating."""
+    scs = [validate({"wrap": True, "movementModel": model, "activation": act,
+                     "maxTicks": 1200})
+           for model in ("firefly", "ant") for act in ("sync", "netlogo")]
+    scs.append(validate({"wrap": True, "signalMode": "netlogo", "uphillTies": "netlogo",
+                         "leaderField": "netlogo", "maxTicks": 1200}))
+    scs.append(validate({"wrap": True, "worldSize": 12, "agents": 30, "objectX": 0,
+                         "objectY": 0, "homeX": -9, "homeY": -9, "sigRadius": 7,
+                         "field": "dynamic", "crowd": "yield", "maxTicks": 1200}))
+    return scs, [1 + j % 2 for j in range(len(scs))]
 
 
 def count_pushes(monkeypatch) -> list[int]:

@@ -69,8 +69,8 @@ def test_the_plan_is_seeded_disjoint_and_sized():
     {**GOAL, "movementModel": "levy"},
 ], ids=["goal", "sensors", "deadlock", "ignore-host", "goal-levy"])
 def test_faults_are_equal_in_both_engines(raw):
-    scs = [validate({"maxTicks": 2500, **raw})] * 3
-    got = assert_same(scs, [1, 2, 3])
+    scs = [validate({"maxTicks": 2500, **raw})] * 2
+    got = assert_same(scs, [1, 2])
     assert any(r.coordinator.converged_tick >= 0 for r in got)
 
 
