@@ -117,7 +117,7 @@ class Decider:
 def equip(coordinator: Any, sc: Any) -> Any:
     """Give a coordinator that wants one (its wants_decider()) a decider;
     a no-op otherwise."""
-    wants = getattr(coordinator, "wants_decider", None)
-    if wants is not None and wants():
+    from sim_backend.coordinator import Recognising
+    if isinstance(coordinator, Recognising) and coordinator.wants_decider():
         coordinator.decider = Decider(sc)
     return coordinator

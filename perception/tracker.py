@@ -64,12 +64,14 @@ class Perceiver:
         # with recognise = true the host's decider judges the touches: its
         # verdict is the run's, one posterior for the decision and for what
         # the run reports
-        self.decider = getattr(engine.coordinator, "decider", None)
+        from sim_backend.coordinator import Recognising
+        c = engine.coordinator
+        self.decider = c.decider if isinstance(c, Recognising) else None
         if library is None:
             library = self.decider.library if self.decider is not None else Library.of(engine.sc)
         self.library = library
         if self.decider is not None:
-            threshold = getattr(engine.coordinator, "confidence", threshold * 1000) / 1000
+            threshold = c.confidence / 1000
         self.threshold = threshold
         self.free_every = free_every
         self.ev = Evidence(engine.sc.worldSize)

@@ -75,6 +75,18 @@ class Tracking(Protocol):
     moved_y: int
 
 
+@runtime_checkable
+class Recognising(Protocol):
+    """Ability: judges touched clusters with the host's decider
+    (perception/decide.py): asks for one (`wants_decider()`, answered by
+    `equip`) and holds it as `decider` (None until given), as the thesis's
+    does; the permille a verdict needs is the behaviour's own parameter."""
+
+    decider: Any
+
+    def wants_decider(self) -> bool: ...
+
+
 def measures_of(c: Any) -> dict:
     """The coordinator's own measures; none when it declares no such ability."""
     return c.measures() if isinstance(c, Measuring) else {}

@@ -28,6 +28,17 @@ def test_abilities_are_what_each_coordinator_declares() -> None:
     assert isinstance(thesis, C.Tracking) and not isinstance(aggregate, C.Tracking)
     assert isinstance(aggregate, C.Measuring) and isinstance(aggregate, C.Segmenting)
     assert C.measures_of(aggregate) == aggregate.measures()
+    assert isinstance(thesis, C.Recognising) and not isinstance(aggregate, C.Recognising)
+
+
+def test_equip_gives_a_decider_only_to_a_coordinator_that_wants_one() -> None:
+    from perception.decide import Decider, equip
+    sc = load().replace(behaviour="thesis", recognise=True)
+    wants = registry.load("thesis").coordinator(sc, journal=None, cells=None, on_reject=None)
+    assert isinstance(equip(wants, sc).decider, Decider)
+    plain, aggregate = make("thesis"), make("aggregate")
+    assert equip(plain, sc).decider is None
+    assert not hasattr(equip(aggregate, sc), "decider")
 
 
 def test_a_coordinator_without_an_ability_is_named_what_it_lacks() -> None:

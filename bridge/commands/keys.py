@@ -58,10 +58,10 @@ def keys_from_args(args: argparse.Namespace, agents: int) -> dict[int, bytes] | 
     """The key file's keys, checked to cover every robot; None without --keys."""
     if args.keys is None:
         return None
-    from bridge.links.secoc import KeyFileError, load_keys
+    from bridge.links.secoc import SecocError, load_keys
     try:
         keys = load_keys(args.keys)
-    except KeyFileError as err:
+    except SecocError as err:
         raise UsageError(f"--keys: {err}") from None
     missing = [n for n in range(1, agents + 1) if n not in keys]
     if missing:

@@ -55,12 +55,12 @@ def cmd_robots(args: argparse.Namespace) -> int:
     if keys is not None:
         # the robots' counters survive a restart (a real robot: its flash),
         # so nothing the host sealed before is taken again
-        from bridge.links.secoc import FreshnessStore, KeyFileError
+        from bridge.links.secoc import FreshnessStore, SecocError
         fv_path = freshness_file(args.keys, "robots")
         check_out_file(fv_path, "--keys (the robots' freshness file)", fv_path.name)
         try:
             fresh = FreshnessStore(fv_path)
-        except KeyFileError as err:
+        except SecocError as err:
             raise UsageError(f"--keys: {err}") from None
     try:
         up = Faults(args.seed, args.loss, args.dup, args.reorder)

@@ -9,7 +9,7 @@ import can
 
 from bridge.links.canbus import converted, shutdown_quietly
 from bridge.links.codec import OUT_OF_RANGE, BadFrames, Decoder, Message, encode
-from bridge.links.errors import KeyMismatch, LinkOperationError
+from bridge.links.errors import LinkError
 from firmware_logic import messages as msg
 from sim_backend import registry
 
@@ -50,7 +50,7 @@ class CanTransport:
         cut), or after BATCH frames. So poll(0) takes up to CHECK_EVERY of
         the frames waiting, not one."""
         if self._closed:
-            raise LinkOperationError("host recv: the transport is closed")
+            raise LinkError("host recv: the transport is closed")
         clock = self.clock
         deadline = clock() + max(timeout, 0.0)
         out: list[Message] = []
@@ -143,12 +143,12 @@ class CanTransport:
         self.decoder.bad.add(KEYED_HELLO, frame)
         k = self.keyed_hellos[node] = self.keyed_hellos.get(node, 0) + 1
         if k >= MISMATCH_AFTER:
-            raise KeyMismatch(f"robot {node} sends authenticated HELLOs: it has a key file; "
-                              "give `touchswarm host` the same --keys FILE as the robots")
+            raise LinkError(f"robot {node} sends authenticated HELLOs: it has a key file; "
+                            "give `touchswarm host` the same --keys FILE as the robots")
 
     def send(self, node: int, kind: int, fields: tuple) -> None:
         if self._closed:
-            raise LinkOperationError("host send: the transport is closed")
+            raise LinkError("host send: the transport is closed")
         frame = encode(node, kind, fields)
         frames = [frame] if self.sealer is None else self.sealer.seal(frame)
         with converted("host send"):

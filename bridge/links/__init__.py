@@ -15,11 +15,10 @@ import importlib
 from typing import Any
 from urllib.parse import parse_qsl, urlsplit
 
-from bridge.links.errors import (LinkError, LinkInitError, LinkOperationError,
-                                 LinkTimeoutError, LinkURLError)
+from bridge.links.errors import LinkError, LinkTimeoutError, LinkURLError
 
 __all__ = ["REGISTRY", "open_bus", "parse_url", "refuse_in_process", "LinkError",
-           "LinkInitError", "LinkOperationError", "LinkTimeoutError", "LinkURLError"]
+           "LinkTimeoutError", "LinkURLError"]
 
 REGISTRY: dict[str, str] = {
     "virtual": "bridge.links.canbus:open_virtual",
@@ -106,6 +105,6 @@ def open_bus(url: str) -> Any:
     try:
         mod = importlib.import_module(modname)
     except ImportError as err:
-        raise LinkInitError(f"link {scheme}:// needs {err.name!r}, which is not "
-                            f"installed ({err})") from err
+        raise LinkError(f"link {scheme}:// needs {err.name!r}, which is not "
+                        f"installed ({err})") from err
     return getattr(mod, func)(channel, **opts)

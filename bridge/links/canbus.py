@@ -15,8 +15,7 @@ import can
 import serial
 from can.interfaces.slcan import slcanBus
 
-from bridge.links.errors import (LinkError, LinkInitError, LinkOperationError,
-                                 LinkTimeoutError)
+from bridge.links.errors import LinkError, LinkTimeoutError
 
 log = logging.getLogger(__name__)
 
@@ -37,25 +36,21 @@ def _why(err: BaseException) -> str:
 
 
 @contextlib.contextmanager
-def converted(what: str, opening: bool = False) -> Iterator[None]:
+def converted(what: str) -> Iterator[None]:
     """Turn python-can's and the OS's errors into the link error tree, naming
-    `what`. `opening`: an OSError means the link could not be opened
-    (LinkInitError); otherwise it failed in use (LinkOperationError)."""
+    `what` (which says whether the link could not be opened or failed in use)."""
     try:
         yield
     except LinkError:
         raise                      # already converted (e.g. a LinkTimeoutError, an OSError too)
     except TimeoutError as err:    # can.CanTimeoutError included; before OSError, its base
         raise LinkTimeoutError(f"{what}: timed out ({_why(err)})") from err
-    except can.CanInitializationError as err:
-        raise LinkInitError(f"{what}: {_why(err)}") from err
     except can.CanInterfaceNotImplementedError as err:
-        raise LinkInitError(f"{what}: interface not available ({_why(err)})") from err
+        raise LinkError(f"{what}: interface not available ({_why(err)})") from err
     except can.CanError as err:
-        raise LinkOperationError(f"{what}: {_why(err)}") from err
+        raise LinkError(f"{what}: {_why(err)}") from err
     except OSError as err:
-        cls = LinkInitError if opening else LinkOperationError
-        raise cls(f"{what}: {err}") from err
+        raise LinkError(f"{what}: {err}") from err
 
 
 def shutdown_quietly(bus: Any, what: str) -> None:
@@ -69,11 +64,11 @@ def shutdown_quietly(bus: Any, what: str) -> None:
 
 
 def _bus(what: str, cls: type[can.BusABC] | None = None, **kw: Any) -> can.BusABC:
-    with converted(f"cannot open {what}", opening=True):
+    with converted(f"cannot open {what}"):
         try:
             return cls(**kw) if cls is not None else can.Bus(**kw)
         except ValueError as err:
-            raise LinkInitError(f"cannot open {what}: {err}") from err
+            raise LinkError(f"cannot open {what}: {err}") from err
 
 
 def open_virtual(channel: str) -> can.BusABC:
@@ -246,8 +241,8 @@ def open_slcan(channel: str, bitrate: int | None = None, baud: int = 115200,
 def open_interface(channel: str, bitrate: int | None = None) -> can.BusABC:
     interface, _, chan = channel.partition("/")
     if interface == "udp_multicast":
-        raise LinkInitError("can://udp_multicast/... is not allowed: it leaves the machine; "
-                            "use virtual://CHANNEL")
+        raise LinkError("can://udp_multicast/... is not allowed: it leaves the machine; "
+                        "use virtual://CHANNEL")
     kw: dict[str, Any] = {}
     if bitrate is not None:
         kw["bitrate"] = bitrate

@@ -1,5 +1,8 @@
-"""Errors of the links: one root with initialisation, operation and timeout
-subclasses (the timeout one is also a TimeoutError), as python-can does."""
+"""Errors of the links: one root, with the two kinds a caller tells apart:
+a timeout (also a TimeoutError; the host drops the tick's frames and goes
+on) and a malformed link URL (also a UsageError; the CLI exits 2). A link
+that cannot be opened or fails in use, and host and robots without a shared
+key file, are a LinkError whose one-line message says which."""
 
 from __future__ import annotations
 
@@ -10,22 +13,9 @@ class LinkError(BridgeError):
     """Base of every error a link raises."""
 
 
-class LinkInitError(LinkError):
-    """A bus or port could not be opened (missing driver, device, option)."""
-
-
-class LinkOperationError(LinkError):
-    """Sending or receiving failed on an open link."""
-
-
 class LinkTimeoutError(LinkError, TimeoutError):
     """An expected frame did not arrive in time."""
 
 
-class LinkURLError(LinkInitError, UsageError):
+class LinkURLError(LinkError, UsageError):
     """A link URL is malformed or has an unknown option; names the expected form."""
-
-
-class KeyMismatch(LinkError):
-    """Host and robots do not share a key file (one of them has none, or they
-    have different ones): the robots would drop every host command."""

@@ -44,7 +44,7 @@ from cryptography.hazmat.primitives.ciphers.modes import ECB
 from cryptography.hazmat.primitives.cmac import CMAC
 
 from bridge.errors import BridgeError
-from bridge.links.errors import KeyMismatch
+from bridge.links.errors import LinkError
 from firmware_logic import messages as msg
 
 log = logging.getLogger(__name__)
@@ -96,15 +96,9 @@ REPORT_WINDOW = 64
 
 
 class SecocError(BridgeError):
-    """Base of the errors of authenticated frames; every message is one line."""
-
-
-class KeyFileError(SecocError, ValueError):
-    """A key or freshness file that cannot be used."""
-
-
-class FreshnessExhausted(SecocError):
-    """A node's 32-bit freshness counter reached its end: the node needs a new key."""
+    """An error of authenticated frames, in one line: a key or freshness file
+    that cannot be used, a node's 32-bit freshness counter at its end (the
+    node needs a new key), a message with no room for its seal."""
 
 
 REKEY = ("rekey: `touchswarm keys new --out NEW.toml`, give NEW.toml to the robots "
@@ -119,20 +113,20 @@ def _read_small(path: Path, what: str) -> bytes:
     try:
         st = os.stat(path)
     except OSError as err:
-        raise KeyFileError(f"{where}: {err.strerror}") from None
+        raise SecocError(f"{where}: {err.strerror}") from None
     if not stat.S_ISREG(st.st_mode):
-        raise KeyFileError(f"{where}: not a regular file; expected the TOML written by "
-                           "`touchswarm keys new`")
+        raise SecocError(f"{where}: not a regular file; expected the TOML written by "
+                         "`touchswarm keys new`")
     if st.st_size > MAX_FILE:
-        raise KeyFileError(f"{where}: {st.st_size} bytes; such a file is at most "
-                           f"{MAX_FILE} bytes")
+        raise SecocError(f"{where}: {st.st_size} bytes; such a file is at most "
+                         f"{MAX_FILE} bytes")
     try:
         with open(path, "rb") as f:
             data = f.read(MAX_FILE + 1)
     except OSError as err:
-        raise KeyFileError(f"{where}: {err.strerror}") from None
+        raise SecocError(f"{where}: {err.strerror}") from None
     if len(data) > MAX_FILE:
-        raise KeyFileError(f"{where}: more than {MAX_FILE} bytes")
+        raise SecocError(f"{where}: more than {MAX_FILE} bytes")
     return data
 
 
@@ -142,8 +136,8 @@ def _check_private(path: Path) -> None:
         return
     mode = os.stat(path).st_mode & 0o777
     if mode & 0o077:
-        raise KeyFileError(f"key file {str(path)!r}: mode {mode:04o} lets others read it; "
-                           f"keys must be private: chmod 600 {path}")
+        raise SecocError(f"key file {str(path)!r}: mode {mode:04o} lets others read it; "
+                         f"keys must be private: chmod 600 {path}")
 
 
 def down_kinds() -> set[int]:
@@ -159,8 +153,8 @@ def check_layout() -> None:
     """Every host command must leave room for at least one FV byte."""
     for m in msg.rows():
         if m[2] == msg.DOWN and fv_bytes(msg.dlc(m[0])) < 1:
-            raise KeyFileError(f"message {m[1]} ({msg.dlc(m[0])} bytes) leaves no room for "
-                               f"the {MAC_BYTES}-byte MAC and a freshness byte")
+            raise SecocError(f"message {m[1]} ({msg.dlc(m[0])} bytes) leaves no room for "
+                             f"the {MAC_BYTES}-byte MAC and a freshness byte")
 
 
 _MASK128 = (1 << 128) - 1
@@ -265,24 +259,24 @@ def load_keys(path: Path) -> dict[int, bytes]:
     try:
         raw = tomllib.loads(data.decode("utf-8"))
     except UnicodeDecodeError:
-        raise KeyFileError(f"{where}: not UTF-8 text; expected TOML from "
-                           "`touchswarm keys new`") from None
+        raise SecocError(f"{where}: not UTF-8 text; expected TOML from "
+                         "`touchswarm keys new`") from None
     except tomllib.TOMLDecodeError as err:
-        raise KeyFileError(f"{where}: not valid TOML: {err}") from None
+        raise SecocError(f"{where}: not valid TOML: {err}") from None
     table = raw.get("keys")
     if not isinstance(table, dict) or not table:
-        raise KeyFileError(f"{where}: no [keys] table; expected NODE = \"32 hex digits\" "
-                           "lines from `touchswarm keys new`")
+        raise SecocError(f"{where}: no [keys] table; expected NODE = \"32 hex digits\" "
+                         "lines from `touchswarm keys new`")
     keys: dict[int, bytes] = {}
     named: dict[int, str] = {}
     owner: dict[bytes, int] = {}
     for name, value in table.items():
         node = _node_id(name)
         if node is None:
-            raise KeyFileError(f"{where}: key {name!r}: expected a node id 1..{msg.MAX_NODE}")
+            raise SecocError(f"{where}: key {name!r}: expected a node id 1..{msg.MAX_NODE}")
         if node in keys:
-            raise KeyFileError(f"{where}: node {node} is given twice ({named[node]!r} and "
-                               f"{name!r}); one key per node")
+            raise SecocError(f"{where}: node {node} is given twice ({named[node]!r} and "
+                             f"{name!r}); one key per node")
         key = b""
         if isinstance(value, str) and value.isascii():
             try:
@@ -290,14 +284,14 @@ def load_keys(path: Path) -> dict[int, bytes]:
             except ValueError:
                 pass
         if len(key) != KEY_BYTES:
-            raise KeyFileError(f"{where}: node {name}: expected {2 * KEY_BYTES} hex digits "
-                               "(an AES-128 key)")
+            raise SecocError(f"{where}: node {name}: expected {2 * KEY_BYTES} hex digits "
+                             "(an AES-128 key)")
         if not any(key):
-            raise KeyFileError(f"{where}: node {name}: an all-zero key is no secret; make "
-                               "keys with `touchswarm keys new`")
+            raise SecocError(f"{where}: node {name}: an all-zero key is no secret; make "
+                             "keys with `touchswarm keys new`")
         if key in owner:
-            raise KeyFileError(f"{where}: nodes {owner[key]} and {node} have the same key; "
-                               "a shared key lets one robot forge the host to the other")
+            raise SecocError(f"{where}: nodes {owner[key]} and {node} have the same key; "
+                             "a shared key lets one robot forge the host to the other")
         keys[node], named[node], owner[key] = key, name, node
     return keys
 
@@ -340,20 +334,20 @@ class FreshnessStore:
         try:
             raw = json.loads(_read_small(path, "freshness file").decode("utf-8"))
         except (UnicodeDecodeError, ValueError) as err:
-            raise KeyFileError(f"{where}: not JSON ({err}){keep}") from None
+            raise SecocError(f"{where}: not JSON ({err}){keep}") from None
         if not isinstance(raw, dict):
-            raise KeyFileError(f"{where}: expected an object of node: counter{keep}")
+            raise SecocError(f"{where}: expected an object of node: counter{keep}")
         out: dict[int, int] = {}
         for name, value in raw.items():
             node = _node_id(name)
             if node is None:
-                raise KeyFileError(f"{where}: {name!r}: expected a node id 1..{msg.MAX_NODE}"
-                                   f"{keep}")
+                raise SecocError(f"{where}: {name!r}: expected a node id 1..{msg.MAX_NODE}"
+                                 f"{keep}")
             if node in out:
-                raise KeyFileError(f"{where}: node {node} is given twice{keep}")
+                raise SecocError(f"{where}: node {node} is given twice{keep}")
             if type(value) is not int or not 0 <= value <= FV_MAX:
-                raise KeyFileError(f"{where}: node {name}: counter {json.dumps(value)}; "
-                                   f"expected an integer 0..{FV_MAX}{keep}")
+                raise SecocError(f"{where}: node {name}: counter {json.dumps(value)}; "
+                                 f"expected an integer 0..{FV_MAX}{keep}")
             out[node] = value
         return out
 
@@ -385,8 +379,8 @@ class Sealer:
         self.fv = {n: self.store.start(n) for n in keys}
         spent = [n for n, fv in self.fv.items() if fv >= FV_MAX]
         if spent:
-            raise FreshnessExhausted(f"node {spent[0]}: freshness counter at its end "
-                                     f"({FV_MAX}) in {self.store.path}; {REKEY}")
+            raise SecocError(f"node {spent[0]}: freshness counter at its end "
+                             f"({FV_MAX}) in {self.store.path}; {REKEY}")
         self.limit = dict(self.fv)
         self.hello_kind_len = msg.dlc(msg.HELLO)
         self.confirmed: set[int] = set()        # nodes whose HELLO MAC verified
@@ -416,7 +410,7 @@ class Sealer:
     def open_hello(self, frame: can.Message, node: int) -> can.Message | None:
         """A robot's HELLO, verified and stripped to its plain layout, or None
         (counted). Moves the node's counter above the floor it names. Raises
-        KeyMismatch when a node whose key was never confirmed fails
+        a LinkError when a node whose key was never confirmed fails
         MISMATCH_AFTER times."""
         data = bytes(frame.data)
         n = self.hello_kind_len
@@ -481,11 +475,11 @@ class Sealer:
         if node not in self.confirmed:
             if k >= MISMATCH_AFTER:
                 if fault == HELLO_PLAIN:
-                    raise KeyMismatch(f"robot {node} sends HELLO without a MAC: it has no key "
-                                      "file; give `touchswarm robots` the same --keys FILE "
-                                      "as the host")
-                raise KeyMismatch(f"robot {node}'s MAC fails with this key file: host and "
-                                  "robots have different key files")
+                    raise LinkError(f"robot {node} sends HELLO without a MAC: it has no key "
+                                    "file; give `touchswarm robots` the same --keys FILE "
+                                    "as the host")
+                raise LinkError(f"robot {node}'s MAC fails with this key file: host and "
+                                "robots have different key files")
         elif k >= HELLO_LOCKOUT and node not in self.locked:
             self.locked.add(node)
             log.warning("robot %d: %d HELLOs failed authentication after its key was "
@@ -496,8 +490,8 @@ class Sealer:
     def _next_fv(self, node: int) -> int:
         fv = self.fv[node] + 1
         if fv > FV_MAX:
-            raise FreshnessExhausted(f"node {node}: freshness counter exhausted ({FV_MAX} "
-                                     f"commands sealed with its key); {REKEY}")
+            raise SecocError(f"node {node}: freshness counter exhausted ({FV_MAX} "
+                             f"commands sealed with its key); {REKEY}")
         if fv > self.limit[node]:
             self.limit[node] = min(FV_MAX, fv + RESERVE)
             self.store.reserve(node, self.limit[node])

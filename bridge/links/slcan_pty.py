@@ -34,7 +34,7 @@ from typing import Any
 
 import can
 
-from bridge.links.errors import LinkInitError
+from bridge.links.errors import LinkError
 
 log = logging.getLogger(__name__)
 
@@ -58,7 +58,7 @@ class SlcanPtyBus(can.BusABC):
         except OSError as err:
             os.close(self.master)
             os.close(self.slave)
-            raise LinkInitError(f"slcan-pty://{channel}: cannot link the pty there: {err}") from err
+            raise LinkError(f"slcan-pty://{channel}: cannot link the pty there: {err}") from err
         self.is_open = False
         self.bitrate = bitrate
         self.inbuf = bytearray()

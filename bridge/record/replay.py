@@ -160,6 +160,20 @@ def load(path: Path, folder: Path | None = None) -> Recording:
     """Read a recording and its sidecar. UsageError (bad input: the CLI exits 2)
     for a missing, unreadable, corrupt, truncated or mismatched recording."""
     path = Path(path)
+    fmt = _recording_format(path)
+    rec = Recording(meta=_sidecar(path))
+    b = behaviour(rec.meta, path, folder)   # its own message kinds, before any frame is read
+    rec.meta["scenario"]["behaviour"] = b.ref     # its name when installed, else its folder
+    dec = Decoder("host", BadFrames("replay"), behaviour=b)
+    _read_frames(path, fmt, _Sorter(rec, dec))
+    rec.bad = dict(dec.bad.counts)
+    _check_complete(rec, path)
+    return rec
+
+
+def _recording_format(path: Path) -> str:
+    """The format of the recording file at `path` (by its suffix); UsageError
+    when there is no such file, a directory or an empty one."""
     if not path.exists():
         raise UsageError(f"replay: no such recording {path}")
     if path.is_dir():
@@ -169,42 +183,72 @@ def load(path: Path, folder: Path | None = None) -> Recording:
     if path.stat().st_size == 0:
         raise UsageError(f"replay: {path} is empty (0 bytes); expected a recording made by "
                          "`touchswarm run --record`")
-    rec = Recording(meta=_sidecar(path))
-    b = behaviour(rec.meta, path, folder)   # its own message kinds, before any frame is read
-    rec.meta["scenario"]["behaviour"] = b.ref     # its name when installed, else its folder
-    dec = Decoder("host", BadFrames("replay"), behaviour=b)
-    tick = 0
-    host_left = 0        # frames still to come of those the host received
+    return fmt
+
+
+class _Sorter:
+    """Files each frame of a recording in its Recording: capture frames
+    (SENSOR, ACTION) by robot and tick, the frames the host received on a
+    faulty link, the host's commands and the robots' messages by tick."""
+
+    def __init__(self, rec: Recording, dec: Decoder) -> None:
+        self.rec = rec
+        self.dec = dec
+        self.tick = 0
+        self.host_left = 0      # frames still to come of those the host received
+
+    def frame(self, frame: can.Message) -> None:
+        if frame.is_error_frame:
+            return
+        self.rec.frames += 1
+        m = self.dec.decode_capture(frame)
+        if m is None:
+            return
+        node, kind, f = m
+        if kind in (msg.SENSOR, msg.ACTION):
+            self.capture(node, kind, f, frame.timestamp)
+        else:
+            self.message(node, kind, tuple(f))
+
+    def capture(self, node: int, kind: int, f: tuple, stamp: float) -> None:
+        """A robot's sensor reading or action, or the host's count of the
+        frames it received this tick (those frames follow)."""
+        rec = self.rec
+        t = self.tick + ((f[0] - self.tick) & 0xFFFF)   # 16-bit tick field, unwrapped
+        if t != self.tick:
+            self.tick = t
+            rec.ticks.append(t)
+            rec.stamps[t] = stamp
+        if node == HOST and kind == msg.SENSOR and f[2] == Q_RECV:
+            rec.host_in[t] = []
+            self.host_left = f[3]
+            return
+        rec.recv_fields |= kind == msg.SENSOR and f[2] == Q_RECV_FIELD
+        table = rec.sensors if kind == msg.SENSOR else rec.actions
+        table[node].setdefault(t, []).append(tuple(f[2:]))
+
+    def message(self, node: int, kind: int, f: tuple) -> None:
+        """A frame on the bus: one the host received (after its count), a
+        host command, or a robot's message."""
+        rec = self.rec
+        host_kind = kind in self.dec.schema.host_kinds
+        if self.host_left > 0 and not host_kind:
+            rec.host_in[self.tick].append((node, kind, f))
+            self.host_left -= 1
+        elif host_kind:
+            rec.down[self.tick].append((node, kind, f))
+        else:
+            rec.up[self.tick].append((node, kind, f))
+
+
+def _read_frames(path: Path, fmt: str, sorter: _Sorter) -> None:
+    """Every frame of the recording through `sorter`; UsageError for a cut or
+    damaged file, naming what its reader hit."""
+    rec = sorter.rec
     try:
         with _quiet_python_can():
             for frame in can.LogReader(str(path)):
-                if frame.is_error_frame:
-                    continue
-                rec.frames += 1
-                m = dec.decode_capture(frame)
-                if m is None:
-                    continue
-                node, kind, f = m
-                if kind in (msg.SENSOR, msg.ACTION):
-                    t = tick + ((f[0] - tick) & 0xFFFF)   # 16-bit tick field, unwrapped
-                    if t != tick:
-                        tick = t
-                        rec.ticks.append(t)
-                        rec.stamps[t] = frame.timestamp
-                    if node == HOST and kind == msg.SENSOR and f[2] == Q_RECV:
-                        rec.host_in[t] = []
-                        host_left = f[3]
-                        continue
-                    rec.recv_fields |= kind == msg.SENSOR and f[2] == Q_RECV_FIELD
-                    table = rec.sensors if kind == msg.SENSOR else rec.actions
-                    table[node].setdefault(t, []).append(tuple(f[2:]))
-                elif host_left > 0 and kind not in dec.schema.host_kinds:
-                    rec.host_in[tick].append((node, kind, tuple(f)))
-                    host_left -= 1
-                elif kind in dec.schema.host_kinds:
-                    rec.down[tick].append((node, kind, tuple(f)))
-                else:
-                    rec.up[tick].append((node, kind, tuple(f)))
+                sorter.frame(frame)
     except struct.error as err:
         # the .blf reader unpacks fixed-size headers: a short read is a cut file
         raise UsageError(f"replay: {path} is truncated or damaged: a {fmt} header ends "
@@ -218,7 +262,11 @@ def load(path: Path, folder: Path | None = None) -> Recording:
         why = (str(err).splitlines() or [""])[0][:120]
         raise UsageError(f"replay: {path} is not a readable {fmt} recording "
                          f"({type(err).__name__}: {why})") from None
-    rec.bad = dict(dec.bad.counts)
+
+
+def _check_complete(rec: Recording, path: Path) -> None:
+    """The recording against its sidecar: as many frames as it records, a
+    sensor stream to replay; warnings where the sidecar cannot tell."""
     want = rec.meta.get("frames")
     if want is None:
         rec.warnings.append(f"sidecar {meta_path(path).name} has no frame count, so a "
@@ -236,7 +284,6 @@ def load(path: Path, folder: Path | None = None) -> Recording:
     if "summary" not in rec.meta:
         rec.warnings.append(f"sidecar {meta_path(path).name} has no run summary (the run "
                             "was interrupted?), so the outcome is not checked")
-    return rec
 
 
 class ReplayHal(Hal):
