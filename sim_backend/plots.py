@@ -741,20 +741,6 @@ def rates_plot(rows: Sequence[dict], fig: dict, path: Path) -> Path | None:
     return _save(f, path, dpi=110)
 
 
-def levels_table(rows: Sequence[dict], fig: dict) -> list[tuple[str, int, int, float | None,
-                                                             float | None]]:
-    """(label, runs, got there, median, mean of y) per level (experiment)."""
-    import statistics
-    out = []
-    for exp, label in fig["levels"]:
-        rs = [r for r in rows if r["experiment"] == exp]
-        got = [float(_num(r[fig["y"]])) for r in rs if _num(r[fig["y"]]) is not None]
-        if rs:
-            out.append((label, len(rs), len(got), statistics.median(got) if got else None,
-                        round(statistics.mean(got), 1) if got else None))
-    return out
-
-
 def levels_plot(rows: Sequence[dict], fig: dict, path: Path) -> Path | None:
     """Kind levels: boxes of the column y per experiment, in the order of
     levels ((experiment, label), ...), the mean as a line, and under each
