@@ -1,4 +1,4 @@
-"""Every speed figure of issue 28 in one JSON object (`make bench`): the
+"""Every speed figure in one JSON object (`make bench`): the
 soa engine against the Mesa 3 port in robot-ticks per CPU second, live
 ticks only (bench/mesa_baseline.py), the wall clock a user waits for a
 sweep against the same Mesa port and for `touchswarm run` against its floor
@@ -37,7 +37,7 @@ def piece(script: str, *args: str) -> dict:
 
 
 def targets(mesa: dict, wall: dict) -> dict:
-    """Each ratio of issue 28's "done when" and its target."""
+    """Each speed ratio and its target."""
     out = {}
     for act, cases in mesa.get("cases", {}).items():
         for name, case in cases.items():

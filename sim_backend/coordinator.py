@@ -87,6 +87,22 @@ class Recognising(Protocol):
     def wants_decider(self) -> bool: ...
 
 
+@runtime_checkable
+class Ending(Protocol):
+    """Ability: says how the mission ended (firmware_logic/roster.py OUTCOMES:
+    delivered, halted, stalled), "" while it goes on; Roster has it."""
+
+    def ended(self) -> str: ...
+
+
+@runtime_checkable
+class TruthMeasuring(Protocol):
+    """Ability: measures that need the truth a coordinator is never told (the
+    target's cells), given to it by an in-process engine at the end."""
+
+    def truth_measures(self, target: set) -> dict: ...
+
+
 def measures_of(c: Any) -> dict:
     """The coordinator's own measures; none when it declares no such ability."""
     return c.measures() if isinstance(c, Measuring) else {}

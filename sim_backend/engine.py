@@ -19,9 +19,8 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
-from firmware_logic import perception
 from sim_backend import registry
-from sim_backend.coordinator import measures_of
+from sim_backend.coordinator import Ending, TruthMeasuring, measures_of
 from sim_backend.link import Link
 from sim_backend import kernel
 from sim_backend.body import SimBody
@@ -84,9 +83,6 @@ class RunResult:
     def true_cells(self) -> list[tuple[int, int]]:
         return list(self.world.object_cells)
 
-    def perceived_cells(self) -> set[tuple[int, int]]:
-        return perception.outline_cells(self.coordinator.segments_now())
-
     def shape_iou(self) -> float:
         return shape_iou(self.coordinator, self.world)
 
@@ -109,7 +105,7 @@ class RunResult:
         """The measures the world computes for any behaviour, by name, each a
         function of this run. A summary holds one only when the behaviour
         declares it in spec.MEASURES: a dispersion run has no power or shape
-        IoU (issue 26: thesis words appear only for behaviours declaring them)."""
+        IoU (a behaviour's words appear only when it declares them)."""
         c = self.coordinator
 
         def tick(t: int) -> int | None:
@@ -148,9 +144,9 @@ class RunResult:
             # transporting, ...); `delivered` is true only with a delivered tick
             "outcome": run_outcome(c),
             **measures_of(c),
-            # [[breeds]] (issue 12 §3): each touch's breed, in touch order
+            # [[breeds]]: each touch's breed, in touch order
             **({"touch_breeds": [self.scenario.breed_name(t.node)
-                                  for t in getattr(c, "touches", ())]}
+                                  for t in c.touches]}
                if self.scenario.breeds else {}),
             **self.truth_measures(),
             **self.perception(),
@@ -170,10 +166,10 @@ class RunResult:
     def truth_measures(self) -> dict:
         """The coordinator's measures that need the truth it is not told (the
         target's cells): its truth_measures(cells), when it has them."""
-        hook = getattr(self.coordinator, "truth_measures", None)
-        if hook is None or not self.scenario.pieces():
+        c = self.coordinator
+        if not isinstance(c, TruthMeasuring) or not self.scenario.pieces():
             return {}
-        return hook(set(self.scenario.pieces()[0].placed(self.world.obj_x, self.world.obj_y)))
+        return c.truth_measures(set(self.scenario.pieces()[0].placed(self.world.obj_x, self.world.obj_y)))
 
 
 UNTIL = ("delivered", "converged")
@@ -190,8 +186,7 @@ def run_outcome(c: Any) -> str:
     """The roster's outcome of an in-process run's coordinator: delivered,
     halted or stalled when it ended the mission, else stopped (maxTicks)."""
     from firmware_logic.roster import STOPPED
-    ended = getattr(c, "ended", None)
-    return (ended() if ended is not None else "") or STOPPED
+    return (c.ended() if isinstance(c, Ending) else "") or STOPPED
 
 
 class Engine:

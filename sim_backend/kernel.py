@@ -607,7 +607,7 @@ def let_go(g, rb, run, r, i):
     """A robot that walks on (a forward intent, whether or not the move
     succeeds) lets go of the segment it held: it is free to claim again. The
     thesis's robots never walk while holding; a released holder does
-    (RELEASE, issue 13 §2)."""
+    (RELEASE)."""
     k = run.base[r] + rb.held[i]
     rb.held[i] = -1
     g.obj[k] = YELLOW

@@ -259,7 +259,7 @@ class Coordinator(Recognising, Roster):
         # displacements a transport step was blocked at (x, y pairs, flat):
         # the plan goes round them (dead robots stand still; see _bump)
         self.bumps = ()
-        self.setup_recognition()     # off; recognition() turns it on (issue 13 §2)
+        self.setup_recognition()     # off; recognition() turns it on
 
     # -- input -------------------------------------------------------------
 
