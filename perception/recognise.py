@@ -32,7 +32,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.lib.stride_tricks import sliding_window_view
 
 from perception.evidence import FREE, OBJECT, Evidence
 from perception.shapes import UNKNOWN, Library, Pose
@@ -74,6 +73,16 @@ def _logsumexp(a: np.ndarray) -> float:
     if m == -math.inf:
         return m
     return m + math.log(float(np.exp(a - m).sum()))
+
+
+def _count(grid: np.ndarray, cells: tuple[Cell, ...], gx: int, gy: int,
+           hx: int, hy: int) -> np.ndarray:
+    """(hy, hx) int32: for each origin (gx + j, gy + i) of a pose, the sum of
+    `grid` over the pose's `cells` placed there."""
+    out = np.zeros((hy, hx), dtype=np.int32)
+    for x, y in cells:
+        out += grid[gy + y:gy + y + hy, gx + x:gx + x + hx]
+    return out
 
 
 def touchable(cells: set[Cell]) -> int:
@@ -143,12 +152,10 @@ def recognise(ev: Evidence, library: Library, eps_touch: float = EPS_TOUCH,
                 hx, hy = ox1 - ox0 + 1, oy1 - oy0 + 1
                 inside = hx * hy
                 gx, gy = ox0 + w, oy0 + w        # grid index of the first origin
-                m_cells, m_touch = library.masks[(pose.shape, pose.index)]
-                ys_, xs_ = slice(gy, gy + hy + pose.height - 1), slice(gx, gx + hx + pose.width - 1)
-                win_o = sliding_window_view(obj[ys_, xs_], m_cells.shape)   # (hy, hx, h, w)
-                win_f = sliding_window_view(fre[ys_, xs_], m_cells.shape)
-                on_t = np.einsum("ijkl,kl->ij", win_o, m_touch)
-                on_f = np.einsum("ijkl,kl->ij", win_f, m_cells)
+                # per origin: touched cells on the pose's touchable cells,
+                # free cells on its cells (integer counts, a sum of shifted views)
+                on_t = _count(obj, pose.touchable, gx, gy, hx, hy)
+                on_f = _count(fre, pose.cells, gx, gy, hx, hy)
                 t = len(pose.touchable)
                 k = np.minimum(on_t, t)
                 ll = (k * log_true - (lfact[t] - lfact[t - k]) + (n_obj - k) * log_false

@@ -9,10 +9,9 @@ several times.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import Iterable, Mapping
-
-import numpy as np
 
 from sim_backend import objects
 
@@ -71,11 +70,11 @@ def _pose(name: str, index: int, cells: tuple[Cell, ...]) -> Pose:
                 max(c[1] for c in cells) + 1)
 
 
-def _mask(pose: Pose, cells: tuple[Cell, ...]) -> np.ndarray:
-    m = np.zeros((pose.height, pose.width), dtype=np.int32)
-    for x, y in cells:
-        m[y, x] = 1
-    return m
+@functools.lru_cache(maxsize=256)
+def _shape(name: str, cells: tuple[Cell, ...]) -> tuple[Pose, ...]:
+    """A shape's distinct poses, built once per process for each name and
+    cells (a sweep builds a library per run; a Pose is immutable)."""
+    return tuple(_pose(name, i, o) for i, o in enumerate(orientations(cells)))
 
 
 class Library:
@@ -88,12 +87,8 @@ class Library:
             raise ValueError(f"shape name {UNKNOWN!r} is taken: it names a shape not in the library")
         self.names = list(shapes)
         self.poses: dict[str, list[Pose]] = {
-            name: [_pose(name, i, o) for i, o in enumerate(orientations(cells))]
+            name: list(_shape(name, tuple((x, y) for x, y in cells)))
             for name, cells in shapes.items()}
-        # per pose: (cells mask, touchable mask) as (height, width) int32 arrays
-        self.masks: dict[tuple[str, int], tuple[np.ndarray, np.ndarray]] = {
-            (p.shape, p.index): (_mask(p, p.cells), _mask(p, p.touchable))
-            for ps in self.poses.values() for p in ps}
 
     @classmethod
     def builtin(cls, known: Mapping[str, Iterable[Cell]] | None = None) -> "Library":
