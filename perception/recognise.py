@@ -32,6 +32,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
 
 from perception.evidence import FREE, OBJECT, Evidence
 from perception.shapes import UNKNOWN, Library, Pose
@@ -73,16 +74,6 @@ def _logsumexp(a: np.ndarray) -> float:
     if m == -math.inf:
         return m
     return m + math.log(float(np.exp(a - m).sum()))
-
-
-def _count(grid: np.ndarray, cells: tuple[Cell, ...], gx: int, gy: int,
-           hx: int, hy: int) -> np.ndarray:
-    """(hy, hx) int32: for each origin (gx + j, gy + i) of a pose, the sum of
-    `grid` over the pose's `cells` placed there."""
-    out = np.zeros((hy, hx), dtype=np.int32)
-    for x, y in cells:
-        out += grid[gy + y:gy + y + hy, gx + x:gx + x + hx]
-    return out
 
 
 def touchable(cells: set[Cell]) -> int:
@@ -131,13 +122,29 @@ def recognise(ev: Evidence, library: Library, eps_touch: float = EPS_TOUCH,
     log_free = math.log(eps_free)
     maxt = max(len(p.touchable) for ps in library.poses.values() for p in ps)
     lfact = np.array([math.lgamma(k + 1) for k in range(maxt + 1)])
+    # for every origin near the touches and every pose: touched cells on the
+    # pose's touchable cells, free cells on its cells (integer counts as
+    # one exact product of 0/1 matrices; the arena padded with unknown)
+    mh, mw, m_touch, m_cells = library.masks()
+    x0, y0 = max(-w, xmin - mw + 1), max(-w, ymin - mh + 1)
+    rw, rh = xmax - x0 + 1, ymax - y0 + 1
+    counts = []
+    for g in (obj, fre):
+        pad = np.zeros((n + mh, n + mw))
+        pad[:n, :n] = g
+        win = sliding_window_view(pad[y0 + w:y0 + w + rh + mh - 1, x0 + w:x0 + w + rw + mw - 1],
+                                  (mh, mw)).reshape(rh * rw, mh * mw)
+        counts.append(win @ (m_touch if g is obj else m_cells))
+    c_touch, c_free = (c.astype(np.int32).reshape(rh, rw, -1) for c in counts)
+    first = 0                            # the shape's first pose's column in the masks
     per_shape: dict[str, float] = {}
     best_of: dict[str, tuple] = {}
+    tables: dict[tuple[int, int, float], np.ndarray] = {}
     for name in names:
         poses = library.poses[name]
         terms = []
         best = (-math.inf, None, (0, 0))
-        for pose in poses:
+        for column, pose in enumerate(poses, first):
             fits = (n - pose.width + 1) * (n - pose.height + 1)
             if fits <= 0:
                 continue
@@ -151,15 +158,20 @@ def recognise(ev: Evidence, library: Library, eps_touch: float = EPS_TOUCH,
             if ox0 <= ox1 and oy0 <= oy1:
                 hx, hy = ox1 - ox0 + 1, oy1 - oy0 + 1
                 inside = hx * hy
-                gx, gy = ox0 + w, oy0 + w        # grid index of the first origin
-                # per origin: touched cells on the pose's touchable cells,
-                # free cells on its cells (integer counts, a sum of shifted views)
-                on_t = _count(obj, pose.touchable, gx, gy, hx, hy)
-                on_f = _count(fre, pose.cells, gx, gy, hx, hy)
+                box = (slice(oy0 - y0, oy0 - y0 + hy), slice(ox0 - x0, ox0 - x0 + hx), column)
+                on_t, on_f = c_touch[box], c_free[box]
                 t = len(pose.touchable)
-                k = np.minimum(on_t, t)
-                ll = (k * log_true - (lfact[t] - lfact[t - k]) + (n_obj - k) * log_false
-                      + on_f * log_free + place)
+                # the log-likelihood depends on an origin only through its two
+                # counts: tabulated once per (t, cells, placement prior), the
+                # poses of one shape share it
+                key = (t, len(pose.cells), place)
+                tab = tables.get(key)
+                if tab is None:
+                    k = np.arange(t + 1, dtype=np.int32)[:, None]
+                    f = np.arange(len(pose.cells) + 1, dtype=np.int32)[None, :]
+                    tab = tables[key] = (k * log_true - (lfact[t] - lfact[t - k])
+                                         + (n_obj - k) * log_false + f * log_free + place)
+                ll = tab[np.minimum(on_t, t), on_f]
                 terms.append(_logsumexp(ll))
                 j = int(np.argmax(ll))
                 if float(ll.flat[j]) > best[0]:
@@ -167,6 +179,7 @@ def recognise(ev: Evidence, library: Library, eps_touch: float = EPS_TOUCH,
             rest = fits - inside
             if rest > 0:   # placements away from every touch: all touches false
                 terms.append(place + math.log(rest) + n_obj * log_false)
+        first += len(poses)
         per_shape[name] = (_logsumexp(np.array(terms)) + math.log(prior[name])
                            if terms else -math.inf)
         best_of[name] = best

@@ -13,6 +13,8 @@ import functools
 from dataclasses import dataclass
 from typing import Iterable, Mapping
 
+import numpy as np
+
 from sim_backend import objects
 
 Cell = tuple[int, int]
@@ -77,6 +79,24 @@ def _shape(name: str, cells: tuple[Cell, ...]) -> tuple[Pose, ...]:
     return tuple(_pose(name, i, o) for i, o in enumerate(orientations(cells)))
 
 
+@functools.lru_cache(maxsize=32)
+def _masks(key: tuple) -> tuple[int, int, np.ndarray, np.ndarray]:
+    poses = [p for name, cells in key for p in _shape(name, cells)]
+    h = max(p.height for p in poses)
+    w = max(p.width for p in poses)
+    touch = np.zeros((h, w, len(poses)))
+    cells = np.zeros((h, w, len(poses)))
+    for i, p in enumerate(poses):
+        for x, y in p.touchable:
+            touch[y, x, i] = 1.0
+        for x, y in p.cells:
+            cells[y, x, i] = 1.0
+    out = touch.reshape(h * w, len(poses)), cells.reshape(h * w, len(poses))
+    for a in out:
+        a.flags.writeable = False
+    return h, w, out[0], out[1]
+
+
 class Library:
     """Candidate shapes by name, each with its distinct orientations."""
 
@@ -86,9 +106,11 @@ class Library:
         if UNKNOWN in shapes:
             raise ValueError(f"shape name {UNKNOWN!r} is taken: it names a shape not in the library")
         self.names = list(shapes)
-        self.poses: dict[str, list[Pose]] = {
-            name: list(_shape(name, tuple((x, y) for x, y in cells)))
-            for name, cells in shapes.items()}
+        # what the library is, as a key: names and cells, in order
+        self.key = tuple((name, tuple((x, y) for x, y in cells))
+                         for name, cells in shapes.items())
+        self.poses: dict[str, list[Pose]] = {name: list(_shape(name, cells))
+                                             for name, cells in self.key}
 
     @classmethod
     def builtin(cls, known: Mapping[str, Iterable[Cell]] | None = None) -> "Library":
@@ -110,6 +132,13 @@ class Library:
             for p in sc.pieces():
                 known.setdefault(p.name, list(p.cells))
         return cls.builtin(known)
+
+    def masks(self) -> tuple[int, int, np.ndarray, np.ndarray]:
+        """(H, W, touchable, cells): every pose as a column of an (H x W, poses)
+        0/1 matrix, its cells from the top left of an H x W box (H, W: the
+        tallest and widest pose), poses in the order of `names` and `poses`.
+        Built once per process per library (read-only, shared)."""
+        return _masks(self.key)
 
     def extent(self) -> int:
         """The largest width or height of any pose."""
