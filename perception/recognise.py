@@ -135,54 +135,46 @@ def recognise(ev: Evidence, library: Library, eps_touch: float = EPS_TOUCH,
         win = sliding_window_view(pad[y0 + w:y0 + w + rh + mh - 1, x0 + w:x0 + w + rw + mw - 1],
                                   (mh, mw)).reshape(rh * rw, mh * mw)
         counts.append(win @ (m_touch if g is obj else m_cells))
-    c_touch, c_free = (c.astype(np.int32).reshape(rh, rw, -1) for c in counts)
-    first = 0                            # the shape's first pose's column in the masks
+    c_touch, c_free = (c.astype(np.intp).reshape(rh, rw, -1) for c in counts)
+    # the log-likelihood of a placement depends on it only through its pose
+    # and its two counts: tabulated per pose (t touchable cells, its
+    # placement prior) and count, then looked up for every origin at once
+    ordered = [(name, pose) for name in names for pose in library.poses[name]]
+    fits = [(n - p.width + 1) * (n - p.height + 1) for _, p in ordered]
+    place = [-math.log(len(library.poses[name])) - math.log(f) if f > 0 else 0.0
+             for (name, _), f in zip(ordered, fits)]
+    t = np.array([len(p.touchable) for _, p in ordered])[:, None, None]
+    k = np.arange(maxt + 1, dtype=np.int32)[None, :, None]
+    f = np.arange(max(len(p.cells) for _, p in ordered) + 1, dtype=np.int32)[None, None, :]
+    table = (k * log_true - (lfact[t] - lfact[np.maximum(t - k, 0)]) + (n_obj - k) * log_false
+             + f * log_free + np.array(place)[:, None, None])
+    ll_all = table[np.arange(len(ordered)), c_touch, c_free]     # (rh, rw, poses)
     per_shape: dict[str, float] = {}
-    best_of: dict[str, tuple] = {}
-    tables: dict[tuple[int, int, float], np.ndarray] = {}
+    best_of: dict[str, tuple] = {name: (-math.inf, None, (0, 0)) for name in names}
+    terms: dict[str, list[float]] = {name: [] for name in names}
+    for column, (name, pose) in enumerate(ordered):
+        if fits[column] <= 0:
+            continue
+        # origins (patch coordinates) whose placement overlaps the touches' box
+        ox0 = max(-w, xmin - pose.width + 1)
+        ox1 = min(w - pose.width + 1, xmax)
+        oy0 = max(-w, ymin - pose.height + 1)
+        oy1 = min(w - pose.height + 1, ymax)
+        inside = 0
+        if ox0 <= ox1 and oy0 <= oy1:
+            hx, hy = ox1 - ox0 + 1, oy1 - oy0 + 1
+            inside = hx * hy
+            ll = ll_all[oy0 - y0:oy0 - y0 + hy, ox0 - x0:ox0 - x0 + hx, column]
+            terms[name].append(_logsumexp(ll))
+            j = int(np.argmax(ll))
+            if float(ll.flat[j]) > best_of[name][0]:
+                best_of[name] = (float(ll.flat[j]), pose, (ox0 + j % hx, oy0 + j // hx))
+        rest = fits[column] - inside
+        if rest > 0:   # placements away from every touch: all touches false
+            terms[name].append(place[column] + math.log(rest) + n_obj * log_false)
     for name in names:
-        poses = library.poses[name]
-        terms = []
-        best = (-math.inf, None, (0, 0))
-        for column, pose in enumerate(poses, first):
-            fits = (n - pose.width + 1) * (n - pose.height + 1)
-            if fits <= 0:
-                continue
-            place = -math.log(len(poses)) - math.log(fits)
-            # origins (patch coordinates) whose placement overlaps the touches' box
-            ox0 = max(-w, xmin - pose.width + 1)
-            ox1 = min(w - pose.width + 1, xmax)
-            oy0 = max(-w, ymin - pose.height + 1)
-            oy1 = min(w - pose.height + 1, ymax)
-            inside = 0
-            if ox0 <= ox1 and oy0 <= oy1:
-                hx, hy = ox1 - ox0 + 1, oy1 - oy0 + 1
-                inside = hx * hy
-                box = (slice(oy0 - y0, oy0 - y0 + hy), slice(ox0 - x0, ox0 - x0 + hx), column)
-                on_t, on_f = c_touch[box], c_free[box]
-                t = len(pose.touchable)
-                # the log-likelihood depends on an origin only through its two
-                # counts: tabulated once per (t, cells, placement prior), the
-                # poses of one shape share it
-                key = (t, len(pose.cells), place)
-                tab = tables.get(key)
-                if tab is None:
-                    k = np.arange(t + 1, dtype=np.int32)[:, None]
-                    f = np.arange(len(pose.cells) + 1, dtype=np.int32)[None, :]
-                    tab = tables[key] = (k * log_true - (lfact[t] - lfact[t - k])
-                                         + (n_obj - k) * log_false + f * log_free + place)
-                ll = tab[np.minimum(on_t, t), on_f]
-                terms.append(_logsumexp(ll))
-                j = int(np.argmax(ll))
-                if float(ll.flat[j]) > best[0]:
-                    best = (float(ll.flat[j]), pose, (ox0 + j % hx, oy0 + j // hx))
-            rest = fits - inside
-            if rest > 0:   # placements away from every touch: all touches false
-                terms.append(place + math.log(rest) + n_obj * log_false)
-        first += len(poses)
-        per_shape[name] = (_logsumexp(np.array(terms)) + math.log(prior[name])
-                           if terms else -math.inf)
-        best_of[name] = best
+        per_shape[name] = (_logsumexp(np.array(terms[name])) + math.log(prior[name])
+                           if terms[name] else -math.inf)
     outline: set[Cell] = set()
     if UNKNOWN in prior:
         outline = ev.hull_estimate()
