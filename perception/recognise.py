@@ -111,8 +111,6 @@ def recognise(ev: Evidence, library: Library, eps_touch: float = EPS_TOUCH,
         return Recognition(dict(prior))
     w, n = ev.w, ev.n
     area = n * n
-    obj = (ev.grid == OBJECT).astype(np.int32)
-    fre = (ev.grid == FREE).astype(np.int32)
     n_obj = len(ev.touched)
     xs = [c[0] for c in ev.touched]
     ys = [c[1] for c in ev.touched]
@@ -124,17 +122,17 @@ def recognise(ev: Evidence, library: Library, eps_touch: float = EPS_TOUCH,
     lfact = np.array([math.lgamma(k + 1) for k in range(maxt + 1)])
     # for every origin near the touches and every pose: touched cells on the
     # pose's touchable cells, free cells on its cells (integer counts as
-    # one exact product of 0/1 matrices; the arena padded with unknown)
+    # one exact product of 0/1 matrices; beyond the arena unknown)
     mh, mw, m_touch, m_cells = library.masks()
     x0, y0 = max(-w, xmin - mw + 1), max(-w, ymin - mh + 1)
     rw, rh = xmax - x0 + 1, ymax - y0 + 1
+    part = ev.grid[y0 + w:y0 + w + rh + mh - 1, x0 + w:x0 + w + rw + mw - 1]
     counts = []
-    for g in (obj, fre):
-        pad = np.zeros((n + mh, n + mw))
-        pad[:n, :n] = g
-        win = sliding_window_view(pad[y0 + w:y0 + w + rh + mh - 1, x0 + w:x0 + w + rw + mw - 1],
-                                  (mh, mw)).reshape(rh * rw, mh * mw)
-        counts.append(win @ (m_touch if g is obj else m_cells))
+    for code, mask in ((OBJECT, m_touch), (FREE, m_cells)):
+        pad = np.zeros((rh + mh - 1, rw + mw - 1))
+        pad[:part.shape[0], :part.shape[1]] = part == code
+        win = sliding_window_view(pad, (mh, mw)).reshape(rh * rw, mh * mw)
+        counts.append(win @ mask)
     c_touch, c_free = (c.astype(np.intp).reshape(rh, rw, -1) for c in counts)
     # the log-likelihood of a placement depends on it only through its pose
     # and its two counts: tabulated per pose (t touchable cells, its
