@@ -197,19 +197,14 @@ def active() -> Behaviour:
 def builtin() -> dict[str, str]:
     """The packages in firmware_logic/behaviours/ (a new folder there is found
     without any registration)."""
-    # every scenario and world loads its behaviour (six times a sweep's
-    # run): the listing is cached on the folders' modification times, which
-    # change when a folder, or a file in one, is added or removed
-    with os.scandir(BEHAVIOURS_DIR) as it:
-        key = tuple(sorted((e.name, e.stat().st_mtime_ns) for e in it if e.is_dir()))
-    return dict(_builtin(key))
-
-
-@functools.lru_cache(maxsize=4)
-def _builtin(key: tuple) -> tuple[tuple[str, str], ...]:
-    return tuple((p.name, "firmware_logic.behaviours." + p.name)
-                 for p in sorted(BEHAVIOURS_DIR.iterdir())
-                 if (p / "__init__.py").is_file() and (p / "spec.py").is_file())
+    # plain os calls, not pathlib: every scenario and world loads its
+    # behaviour (six times a sweep's run), and this listing was most of it
+    where = str(BEHAVIOURS_DIR)
+    with os.scandir(where) as it:
+        found = sorted(e.name for e in it if e.is_dir())
+    return {name: "firmware_logic.behaviours." + name for name in found
+            if os.path.isfile(os.path.join(where, name, "__init__.py"))
+            and os.path.isfile(os.path.join(where, name, "spec.py"))}
 
 
 @functools.lru_cache(maxsize=1)
