@@ -111,8 +111,6 @@ def recognise(ev: Evidence, library: Library, eps_touch: float = EPS_TOUCH,
         return Recognition(dict(prior))
     w, n = ev.w, ev.n
     area = n * n
-    obj = (ev.grid == OBJECT).astype(np.int32)
-    fre = (ev.grid == FREE).astype(np.int32)
     n_obj = len(ev.touched)
     xs = [c[0] for c in ev.touched]
     ys = [c[1] for c in ev.touched]
@@ -122,47 +120,59 @@ def recognise(ev: Evidence, library: Library, eps_touch: float = EPS_TOUCH,
     log_free = math.log(eps_free)
     maxt = max(len(p.touchable) for ps in library.poses.values() for p in ps)
     lfact = np.array([math.lgamma(k + 1) for k in range(maxt + 1)])
+    # for every origin near the touches and every pose: touched cells on the
+    # pose's touchable cells, free cells on its cells (integer counts as
+    # one exact product of 0/1 matrices; beyond the arena unknown)
+    mh, mw, m_touch, m_cells = library.masks()
+    x0, y0 = max(-w, xmin - mw + 1), max(-w, ymin - mh + 1)
+    rw, rh = xmax - x0 + 1, ymax - y0 + 1
+    part = ev.grid[y0 + w:y0 + w + rh + mh - 1, x0 + w:x0 + w + rw + mw - 1]
+    counts = []
+    for code, mask in ((OBJECT, m_touch), (FREE, m_cells)):
+        pad = np.zeros((rh + mh - 1, rw + mw - 1))
+        pad[:part.shape[0], :part.shape[1]] = part == code
+        win = sliding_window_view(pad, (mh, mw)).reshape(rh * rw, mh * mw)
+        counts.append(win @ mask)
+    c_touch, c_free = (c.astype(np.intp).reshape(rh, rw, -1) for c in counts)
+    # the log-likelihood of a placement depends on it only through its pose
+    # and its two counts: tabulated per pose (t touchable cells, its
+    # placement prior) and count, then looked up for every origin at once
+    ordered = [(name, pose) for name in names for pose in library.poses[name]]
+    fits = [(n - p.width + 1) * (n - p.height + 1) for _, p in ordered]
+    place = [-math.log(len(library.poses[name])) - math.log(f) if f > 0 else 0.0
+             for (name, _), f in zip(ordered, fits)]
+    t = np.array([len(p.touchable) for _, p in ordered])[:, None, None]
+    k = np.arange(maxt + 1, dtype=np.int32)[None, :, None]
+    f = np.arange(max(len(p.cells) for _, p in ordered) + 1, dtype=np.int32)[None, None, :]
+    table = (k * log_true - (lfact[t] - lfact[np.maximum(t - k, 0)]) + (n_obj - k) * log_false
+             + f * log_free + np.array(place)[:, None, None])
+    ll_all = table[np.arange(len(ordered)), c_touch, c_free]     # (rh, rw, poses)
     per_shape: dict[str, float] = {}
-    best_of: dict[str, tuple] = {}
+    best_of: dict[str, tuple] = {name: (-math.inf, None, (0, 0)) for name in names}
+    terms: dict[str, list[float]] = {name: [] for name in names}
+    for column, (name, pose) in enumerate(ordered):
+        if fits[column] <= 0:
+            continue
+        # origins (patch coordinates) whose placement overlaps the touches' box
+        ox0 = max(-w, xmin - pose.width + 1)
+        ox1 = min(w - pose.width + 1, xmax)
+        oy0 = max(-w, ymin - pose.height + 1)
+        oy1 = min(w - pose.height + 1, ymax)
+        inside = 0
+        if ox0 <= ox1 and oy0 <= oy1:
+            hx, hy = ox1 - ox0 + 1, oy1 - oy0 + 1
+            inside = hx * hy
+            ll = ll_all[oy0 - y0:oy0 - y0 + hy, ox0 - x0:ox0 - x0 + hx, column]
+            terms[name].append(_logsumexp(ll))
+            j = int(np.argmax(ll))
+            if float(ll.flat[j]) > best_of[name][0]:
+                best_of[name] = (float(ll.flat[j]), pose, (ox0 + j % hx, oy0 + j // hx))
+        rest = fits[column] - inside
+        if rest > 0:   # placements away from every touch: all touches false
+            terms[name].append(place[column] + math.log(rest) + n_obj * log_false)
     for name in names:
-        poses = library.poses[name]
-        terms = []
-        best = (-math.inf, None, (0, 0))
-        for pose in poses:
-            fits = (n - pose.width + 1) * (n - pose.height + 1)
-            if fits <= 0:
-                continue
-            place = -math.log(len(poses)) - math.log(fits)
-            # origins (patch coordinates) whose placement overlaps the touches' box
-            ox0 = max(-w, xmin - pose.width + 1)
-            ox1 = min(w - pose.width + 1, xmax)
-            oy0 = max(-w, ymin - pose.height + 1)
-            oy1 = min(w - pose.height + 1, ymax)
-            inside = 0
-            if ox0 <= ox1 and oy0 <= oy1:
-                hx, hy = ox1 - ox0 + 1, oy1 - oy0 + 1
-                inside = hx * hy
-                gx, gy = ox0 + w, oy0 + w        # grid index of the first origin
-                m_cells, m_touch = library.masks[(pose.shape, pose.index)]
-                ys_, xs_ = slice(gy, gy + hy + pose.height - 1), slice(gx, gx + hx + pose.width - 1)
-                win_o = sliding_window_view(obj[ys_, xs_], m_cells.shape)   # (hy, hx, h, w)
-                win_f = sliding_window_view(fre[ys_, xs_], m_cells.shape)
-                on_t = np.einsum("ijkl,kl->ij", win_o, m_touch)
-                on_f = np.einsum("ijkl,kl->ij", win_f, m_cells)
-                t = len(pose.touchable)
-                k = np.minimum(on_t, t)
-                ll = (k * log_true - (lfact[t] - lfact[t - k]) + (n_obj - k) * log_false
-                      + on_f * log_free + place)
-                terms.append(_logsumexp(ll))
-                j = int(np.argmax(ll))
-                if float(ll.flat[j]) > best[0]:
-                    best = (float(ll.flat[j]), pose, (ox0 + j % hx, oy0 + j // hx))
-            rest = fits - inside
-            if rest > 0:   # placements away from every touch: all touches false
-                terms.append(place + math.log(rest) + n_obj * log_false)
-        per_shape[name] = (_logsumexp(np.array(terms)) + math.log(prior[name])
-                           if terms else -math.inf)
-        best_of[name] = best
+        per_shape[name] = (_logsumexp(np.array(terms[name])) + math.log(prior[name])
+                           if terms[name] else -math.inf)
     outline: set[Cell] = set()
     if UNKNOWN in prior:
         outline = ev.hull_estimate()

@@ -9,6 +9,7 @@ several times.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import Iterable, Mapping
 
@@ -71,11 +72,29 @@ def _pose(name: str, index: int, cells: tuple[Cell, ...]) -> Pose:
                 max(c[1] for c in cells) + 1)
 
 
-def _mask(pose: Pose, cells: tuple[Cell, ...]) -> np.ndarray:
-    m = np.zeros((pose.height, pose.width), dtype=np.int32)
-    for x, y in cells:
-        m[y, x] = 1
-    return m
+@functools.lru_cache(maxsize=256)
+def _shape(name: str, cells: tuple[Cell, ...]) -> tuple[Pose, ...]:
+    """A shape's distinct poses, built once per process for each name and
+    cells (a sweep builds a library per run; a Pose is immutable)."""
+    return tuple(_pose(name, i, o) for i, o in enumerate(orientations(cells)))
+
+
+@functools.lru_cache(maxsize=32)
+def _masks(key: tuple) -> tuple[int, int, np.ndarray, np.ndarray]:
+    poses = [p for name, cells in key for p in _shape(name, cells)]
+    h = max(p.height for p in poses)
+    w = max(p.width for p in poses)
+    touch = np.zeros((h, w, len(poses)))
+    cells = np.zeros((h, w, len(poses)))
+    for i, p in enumerate(poses):
+        for x, y in p.touchable:
+            touch[y, x, i] = 1.0
+        for x, y in p.cells:
+            cells[y, x, i] = 1.0
+    out = touch.reshape(h * w, len(poses)), cells.reshape(h * w, len(poses))
+    for a in out:
+        a.flags.writeable = False
+    return h, w, out[0], out[1]
 
 
 class Library:
@@ -87,13 +106,11 @@ class Library:
         if UNKNOWN in shapes:
             raise ValueError(f"shape name {UNKNOWN!r} is taken: it names a shape not in the library")
         self.names = list(shapes)
-        self.poses: dict[str, list[Pose]] = {
-            name: [_pose(name, i, o) for i, o in enumerate(orientations(cells))]
-            for name, cells in shapes.items()}
-        # per pose: (cells mask, touchable mask) as (height, width) int32 arrays
-        self.masks: dict[tuple[str, int], tuple[np.ndarray, np.ndarray]] = {
-            (p.shape, p.index): (_mask(p, p.cells), _mask(p, p.touchable))
-            for ps in self.poses.values() for p in ps}
+        # what the library is, as a key: names and cells, in order
+        self.key = tuple((name, tuple((x, y) for x, y in cells))
+                         for name, cells in shapes.items())
+        self.poses: dict[str, list[Pose]] = {name: list(_shape(name, cells))
+                                             for name, cells in self.key}
 
     @classmethod
     def builtin(cls, known: Mapping[str, Iterable[Cell]] | None = None) -> "Library":
@@ -115,6 +132,13 @@ class Library:
             for p in sc.pieces():
                 known.setdefault(p.name, list(p.cells))
         return cls.builtin(known)
+
+    def masks(self) -> tuple[int, int, np.ndarray, np.ndarray]:
+        """(H, W, touchable, cells): every pose as a column of an (H x W, poses)
+        0/1 matrix, its cells from the top left of an H x W box (H, W: the
+        tallest and widest pose), poses in the order of `names` and `poses`.
+        Built once per process per library (read-only, shared)."""
+        return _masks(self.key)
 
     def extent(self) -> int:
         """The largest width or height of any pose."""

@@ -31,6 +31,7 @@ import hashlib
 import importlib
 import importlib.metadata
 import importlib.util
+import os
 import re
 import sys
 from dataclasses import dataclass
@@ -64,11 +65,13 @@ class Behaviour:
     def folder(self) -> Path:
         return Path(self.package.__file__).resolve().parent
 
-    @property
+    # robot_module and robot_class are per behaviour, not per robot: looked
+    # up once per Behaviour (an engine builds one robot per node through them)
+    @functools.cached_property
     def robot_module(self) -> ModuleType:
         return importlib.import_module(self.module_name + "." + self.package.ROBOT.split(":")[0])
 
-    @property
+    @functools.cached_property
     def robot_class(self) -> type:
         return getattr(self.robot_module, self.package.ROBOT.split(":")[1])
 
@@ -194,9 +197,14 @@ def active() -> Behaviour:
 def builtin() -> dict[str, str]:
     """The packages in firmware_logic/behaviours/ (a new folder there is found
     without any registration)."""
-    return {p.name: "firmware_logic.behaviours." + p.name
-            for p in sorted(BEHAVIOURS_DIR.iterdir())
-            if (p / "__init__.py").is_file() and (p / "spec.py").is_file()}
+    # plain os calls, not pathlib: every scenario and world loads its
+    # behaviour (six times a sweep's run), and this listing was most of it
+    where = str(BEHAVIOURS_DIR)
+    with os.scandir(where) as it:
+        found = sorted(e.name for e in it if e.is_dir())
+    return {name: "firmware_logic.behaviours." + name for name in found
+            if os.path.isfile(os.path.join(where, name, "__init__.py"))
+            and os.path.isfile(os.path.join(where, name, "spec.py"))}
 
 
 @functools.lru_cache(maxsize=1)
