@@ -1,4 +1,4 @@
-"""Issue 31's four Appendix A options, each against the current default.
+"""The four Appendix A options, each against the current default.
 
 Each option alone on the default scenario (probeSelf, firstMove,
 uphillHeading "netlogo"; wrap true, NetLogo's wrapping world), all four

@@ -1,4 +1,4 @@
-"""The kernel's shape (issue 27): the world's rules take the world state
+"""The kernel's shape: the world's rules take the world state
 (kernel.Grid, Robots, Run) and a run index, not dozens of positional
 arguments, and every rule of the tick is written there once."""
 
