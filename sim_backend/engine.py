@@ -8,8 +8,10 @@ Tick semantics (docs/tick-semantics.md):
      (a robot may not enter a patch that held a robot at the tick's start,
      holds the object, is off the arena, or that a lower node entered this
      tick; moving within its own patch is always allowed);
-  3. messages robots sent travel over the link to the host coordinator,
-     whose commands reach the robots' inboxes before the next tick.
+  3. messages robots sent travel over the link to the host coordinator
+     (but those it declared muted: they would change nothing), whose
+     commands reach the robots' inboxes before the next tick
+     (sim_backend/exchange.py).
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from sim_backend.link import Link
 from sim_backend import kernel
 from sim_backend.body import SimBody
 from sim_backend.errors import EngineError
+from sim_backend.exchange import exchange
 from sim_backend.measures import polygon_iou, power_held, shape_iou
 from sim_backend.scenario import Scenario
 from sim_backend.world import World
@@ -265,11 +268,11 @@ class Engine:
         return self.world.run.steps[0]
 
     def exchange(self) -> None:
-        c = self.coordinator
+        """This tick's messages to the coordinator, its commands to the link
+        (sim_backend/exchange.py: the rule both engines follow)."""
         up = self.link.host_recv()
-        for node, kind, fields in up:
-            c.on_message(node, kind, fields, self.tick)
-        down = c.tick(self.tick)
+        down = exchange(self.coordinator, up, self.tick)
+        assert down is not None          # asked every tick
         for node, kind, fields in down:
             self.link.host_send(node, kind, fields)
         self.msgs_up = len(up)

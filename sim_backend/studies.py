@@ -26,10 +26,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Sequence
 
+from sim_backend.engine import UNTIL
 from sim_backend.errors import ScenarioError
 from sim_backend.sweep import Point
 
-UNTIL = ("delivered", "converged")
 # key -> (types, what it holds); name, about and figures are required, and
 # points or grids (or both)
 STUDY_KEYS: dict[str, tuple[tuple[type, ...], str]] = {
@@ -157,7 +157,7 @@ def _study(behaviour: str, raw: Any, kinds: dict[str, str]) -> Study:
     if "points" not in raw and "grids" not in raw:
         raise StudyError(f"{where}: no points and no grids; expected at least one")
     if raw.get("until", "delivered") not in UNTIL:
-        raise StudyError(f"{where}: until = {raw['until']!r}; expected delivered or converged")
+        raise StudyError(f"{where}: until = {raw['until']!r}; expected {' or '.join(UNTIL)}")
     if raw.get("seeds", 20) < 1:
         raise StudyError(f"{where}: seeds = {raw['seeds']}; expected a count of seeds, 1..")
     from sim_backend.sweep import grid_points

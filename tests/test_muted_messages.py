@@ -1,8 +1,9 @@
 """A coordinator's `muted()` (firmware_logic/behaviours/thesis/coordinator.py)
-lets the batch engine drop messages that would change nothing; these check
-the promise on whole runs of the reference engine (every message it
-declared muted, taken anyway, leaves the coordinator as it was) and that
-the soa engine, which drops them, ends every run as the reference does."""
+lets both engines drop messages that would change nothing
+(sim_backend/exchange.py); these check the promise on whole runs of the
+reference engine told to hear everything (every message declared muted,
+taken anyway, leaves the coordinator as it was) and that the soa engine
+drops them and ends every run as the reference does."""
 
 from firmware_logic import messages as msg
 from sim_backend.batch.soa import SoaEngine
@@ -12,7 +13,7 @@ from sim_backend.scenario import validate
 
 def state(c):
     """Everything a coordinator holds, comparable across a call."""
-    return {k: repr(v) for k, v in vars(c).items() if k != "on_message"}
+    return {k: repr(v) for k, v in vars(c).items() if k not in ("on_message", "tick", "muted")}
 
 
 def run_checking_muted(sc, seed):
@@ -21,7 +22,9 @@ def run_checking_muted(sc, seed):
     leader HEARTBEATs not muted during the transport)."""
     eng = Engine(sc, seed)
     c = eng.coordinator
-    declared = [c.muted()]
+    muted = c.muted
+    declared = [muted()]
+    c.muted = lambda: None           # the engine hands every message over
     counts = {"muted": 0, "leader": 0}
     hear, tick = c.on_message, c.tick
 
@@ -39,7 +42,7 @@ def run_checking_muted(sc, seed):
 
     def on_tick(t):
         out = tick(t)
-        declared[0] = c.muted()
+        declared[0] = muted()
         return out
 
     c.on_message, c.tick = on_message, on_tick
@@ -63,15 +66,20 @@ def test_liveness_and_recognition_mute_nothing():
     assert c.muted() is None
 
 
-def test_the_soa_engine_drops_them_and_ends_as_the_reference():
+def counting(c, handed):
+    """c's on_message, counting the messages handed to it in handed[0]."""
+    def counted(node, kind, f, t, hear=c.on_message):
+        handed[0] += 1
+        hear(node, kind, f, t)
+    c.on_message = counted
+
+
+def test_both_engines_drop_them_alike_and_end_alike():
     sc = validate({"maxTicks": 3000})
     eng = SoaEngine([(sc, 1), (sc, 2)])
     handed = [0]
-    for r, hear in enumerate(eng._hear):
-        def counted(node, kind, f, t, hear=hear):
-            handed[0] += 1
-            hear(node, kind, f, t)
-        eng._hear[r] = counted
+    for c in eng.coords:
+        counting(c, handed)
     sent = [0]
     step = eng._exchange
 
@@ -81,5 +89,12 @@ def test_the_soa_engine_drops_them_and_ends_as_the_reference():
 
     eng._exchange = exchange
     got = [r.summary() for r in eng.run()]
-    assert got == [Engine(sc, s).run().summary() for s in (1, 2)]
+    ref_handed, want = [0], []
+    for s in (1, 2):
+        ref = Engine(sc, s)
+        counting(ref.coordinator, ref_handed)
+        res = ref.run()
+        want.append(res.summary())
+    assert got == want
     assert 0 < handed[0] < sent[0] // 2
+    assert ref_handed == handed           # the same messages reach the coordinators

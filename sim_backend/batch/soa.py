@@ -17,7 +17,8 @@ the behaviour's Python objects, fed the same messages in the same order as
 the reference engine's in-process link feeds them, and asked to tick when
 they received a message or are not `quiet()` (a coordinator without `quiet`
 is asked every tick); a message the coordinator declared `muted()` (one
-that would change nothing) is not handed to it. A run stops where `Engine.run` stops it: delivered
+that would change nothing) is not handed to it, as in the reference
+(sim_backend/exchange.py, the rule both follow). A run stops where `Engine.run` stops it: delivered
 (or, with until="converged", converged) or at its maxTicks. At a run's end
 the robots' fields are written back into their CPython objects and the
 run's final state into a World, so a RunResult holds the very robots and
@@ -52,6 +53,7 @@ from sim_backend.batch import body as B
 from sim_backend.batch import transform as T
 from sim_backend.engine import UNTIL, RunResult, run_ended
 from sim_backend.errors import EngineError
+from sim_backend.exchange import exchange, muting, quiet
 from sim_backend.scenario import Scenario
 from sim_backend.world import World
 
@@ -366,18 +368,13 @@ class SoaEngine:
         from perception import host_coordinator
         self.coords = [host_coordinator(beh, sc, cells=list(w.object_cells))
                        for (sc, _), w in zip(runs, self.worlds)]
-        self.busy = np.array([not _quiet(c) for c in self.coords], dtype=bool)
+        self.busy = np.array([not quiet(c) for c in self.coords], dtype=bool)
         self.lo = starts[:-1].tolist()
         self.agents = np.diff(starts).tolist()
         self.run_of = rb[B.RUN].tolist()
         self.node_of = (np.arange(len(self.run_of)) - starts[rb[B.RUN]] + 1).tolist()
-        self._hear = [c.on_message for c in self.coords]
-        # messages a coordinator declared to change nothing (`_muted`): bit
-        # `kind` of a robot's word set drops its messages of that kind
-        self.mute = np.zeros(len(self.run_of), dtype=np.int64)
-        self.muted: list[Any] = [None] * nr
-        for r, c in enumerate(self.coords):
-            self._mute(r, c)
+        # what each coordinator declared muted at its last tick
+        self.mutes = [muting(c) for c in self.coords]
         self.max_ticks = np.array([sc.maxTicks for sc, _ in runs], dtype=np.int64)
         self.first_cap = int(self.max_ticks.min())    # no run ends at its cap before
         self.conv_steps = [-1] * nr      # rt[STEPS] when the run converged
@@ -438,51 +435,36 @@ class SoaEngine:
 
     def _exchange(self, t: int) -> set[int]:
         """This tick's messages to their coordinators in the order they were
-        sent, then a tick of every coordinator that got one or is busy (in
-        run order); their commands reach the robots' inboxes together."""
+        sent and a tick of every coordinator that heard one or is busy (in
+        run order; sim_backend/exchange.py); their commands reach the
+        robots' inboxes together. Returns the runs whose coordinator ticked."""
         n = int(self.out_n[0])
-        called: set[int] = set()
+        ups: dict[int, list[tuple[int, int, tuple]]] = defaultdict(list)
         if n:
-            senders, kinds = self.out_i[:n], self.out_kind[:n]
-            keep = np.flatnonzero(((self.mute[senders] >> kinds) & 1) == 0)
-            senders, kinds = senders[keep], kinds[keep]
-            hear, run_of, node_of, nfields = self._hear, self.run_of, self.node_of, self.nfields
-            fields = self.out_f[keep].tolist()
-            for i, kind, f in zip(senders.tolist(), kinds.tolist(), fields):
-                hear[run_of[i]](node_of[i], kind, tuple(f[:nfields[kind]]), t)
-            called.update(self.rb[B.RUN][senders].tolist())
+            run_of, node_of, nfields = self.run_of, self.node_of, self.nfields
+            for i, kind, f in zip(self.out_i[:n].tolist(), self.out_kind[:n].tolist(),
+                                  self.out_f[:n].tolist()):
+                ups[run_of[i]].append((node_of[i], kind, tuple(f[:nfields[kind]])))
         busy = self.busy
-        called.update(np.flatnonzero(busy & (self.rt[B.LIVE] == 1)).tolist())
-        coords, conv = self.coords, self.conv_steps
+        asked = set(np.flatnonzero(busy & (self.rt[B.LIVE] == 1)).tolist())
+        coords, conv, mutes = self.coords, self.conv_steps, self.mutes
+        called: set[int] = set()
         sends = []
-        for r in sorted(called):
+        for r in sorted(asked.union(ups)):
             c = coords[r]
-            out = c.tick(t)
+            out = exchange(c, ups.get(r, ()), t, r in asked, mutes[r])
+            if out is None:
+                continue
+            called.add(r)
             if out:
                 sends.append((r, out))
-            busy[r] = not _quiet(c)
-            self._mute(r, c)
+            busy[r] = not quiet(c)
+            mutes[r] = muting(c, mutes[r])
             if conv[r] < 0 and c.converged_tick >= 0:
                 conv[r] = int(self.rt[B.STEPS, r])
         if sends:
             self._deliver(sends)
         return called
-
-    def _mute(self, r: int, c: Any) -> None:
-        """Run r's robots' mute words from what its coordinator declares
-        (`_muted`), rewritten only when that changed."""
-        m = _muted(c)
-        key = None if m is None else (m[0], len(m[1]), m[2])
-        if key == self.muted[r]:
-            return
-        self.muted[r] = key
-        lo, agents = self.lo[r], self.agents[r]
-        self.mute[lo:lo + agents] = 0
-        if m is not None:
-            kind, nodes, but = m
-            for node in nodes:
-                if node != but and 1 <= node <= agents:
-                    self.mute[lo + node - 1] |= 1 << kind
 
     def _deliver(self, sends: list[tuple[int, Iterable[tuple[int, int, tuple]]]]) -> None:
         """Commands (run, [(node, kind, fields), ...]) into the robots'
@@ -583,20 +565,6 @@ class SoaEngine:
             if progress is not None:
                 progress(int((self.rt[B.LIVE] == 0).sum()))
         return list(self.results)  # type: ignore[arg-type]
-
-
-def _quiet(c: Any) -> bool:
-    q = getattr(c, "quiet", None)
-    return bool(q()) if q is not None else False
-
-
-def _muted(c: Any) -> tuple[int, Any, int] | None:
-    """c.muted(): (kind, nodes, but), the messages of that kind from the
-    nodes in `nodes` (a collection that only grows) other than `but` change
-    nothing until c's next tick() (the engine drops them), or None; a
-    coordinator without `muted` hears every message."""
-    m = getattr(c, "muted", None)
-    return m() if m is not None else None
 
 
 def _pairs(scenarios: Scenario | Sequence[Scenario], seeds: Iterable[int]

@@ -1,0 +1,73 @@
+"""sim_backend/exchange.py, the host's side of a tick boundary both engines
+follow, on a stand-in coordinator: messages in the order sent but the
+muted ones, a tick when heard or asked, a declaration kept while unchanged."""
+
+from sim_backend.exchange import HEARS_ALL, exchange, muting, quiet
+
+
+class Host:
+    def __init__(self, muted=None, quiet=None):
+        self.heard = []
+        self.ticks = []
+        self.nodes = {1, 2, 3}
+        if muted is not None:
+            self.muted = muted
+        if quiet is not None:
+            self.quiet = quiet
+
+    def on_message(self, node, kind, f, t):
+        self.heard.append((node, kind, f, t))
+
+    def tick(self, t):
+        self.ticks.append(t)
+        return [(0, 9, (t,))]
+
+
+UP = [(2, 5, (1,)), (1, 4, ()), (3, 5, (2,)), (4, 5, (3,))]
+
+
+def test_without_muted_every_message_in_order_then_a_tick():
+    c = Host()
+    assert exchange(c, UP, 7) == [(0, 9, (7,))]
+    assert c.heard == [(n, k, f, 7) for n, k, f in UP] and c.ticks == [7]
+    assert muting(c) is HEARS_ALL and not quiet(c)
+
+
+def test_muted_kind_from_the_nodes_but_one_is_dropped():
+    c = Host()
+    c.muted = lambda: (5, c.nodes, 3)
+    exchange(c, UP, 2)
+    assert [m[0] for m in c.heard] == [1, 3, 4]      # node 2's kind 5 dropped
+
+
+def test_not_asked_and_nothing_heard_means_no_tick():
+    c = Host(muted=lambda: (5, {2, 3, 4}, 0), quiet=lambda: True)
+    assert exchange(c, [m for m in UP if m[1] == 5], 3, asked=False) is None
+    assert c.heard == [] and c.ticks == [] and quiet(c)
+    assert exchange(c, UP, 4, asked=False) == [(0, 9, (4,))]   # node 1's kind 4 heard
+
+
+def test_a_declaration_is_kept_until_it_changes():
+    c = Host()
+    c.muted = lambda: (5, c.nodes, 0)
+    first = muting(c)
+    assert muting(c, first) is first
+    c.nodes.add(4)                                    # the collection grew
+    grown = muting(c, first)
+    assert grown is not first and 4 in grown.drop
+
+
+def test_the_declaration_is_read_before_the_messages():
+    """A node the coordinator takes in while hearing this tick's messages
+    is not muted until its next tick (muted() holds from one tick() on)."""
+    c = Host()
+    c.nodes = {1}
+    c.muted = lambda: (5, c.nodes, 0)
+    hear = c.on_message
+
+    def announcing(node, kind, f, t):
+        c.nodes.add(node)
+        hear(node, kind, f, t)
+    c.on_message = announcing
+    exchange(c, [(2, 4, ()), (2, 5, ()), (1, 5, ())], 1)
+    assert [m[:2] for m in c.heard] == [(2, 4), (2, 5)]
