@@ -55,7 +55,7 @@ def mixed_scenarios(n=24, seed=11):
              "agents": rnd.choice([3, 8, 20, 40]),
              "robotVisionSpan": rnd.choice([0, 10, 45, 180]),
              "worldSize": rnd.choice([15, 18, 25]),
-             "maxTicks": 1000}
+             "maxTicks": 700}
         try:
             sc = validate(d)
         except ScenarioError:
