@@ -107,7 +107,10 @@ def test_a_warm_build_reads_the_kept_text_and_an_edit_transforms_again(tmp_path,
     from sim_backend.batch import soa
     monkeypatch.setenv("TOUCHSWARM_CACHE", str(tmp_path / "cache"))
     anchor = "    def step(self, hal):\n"
-    sc, robot = _mutated_aggregate(tmp_path, "aggregate_kept", anchor, "")
+    # a no-op line: the copy's text is not aggregate's own, whose module (loaded
+    # from this test's cache folder) the next aggregate batch would compile again
+    sc, robot = _mutated_aggregate(tmp_path, "aggregate_kept", anchor,
+                                   "        self.ticks -= 0\n")
     n = soa.transforms
     first = SoaEngine([(sc, 1)])
     assert soa.transforms == n + 1
