@@ -15,13 +15,17 @@ def reference(sc, seed, until="delivered"):
     return Engine(sc, seed, record_trajectories=True, until=until).run()
 
 
-def assert_same(scs, seeds, until="delivered", states=True):
+def assert_same(scs, seeds, until="delivered", states=True, refs=None):
     """Run the batch in the batch engine and compare every run with the
-    reference; return the batch's RunResults."""
+    reference; return the batch's RunResults. refs: the reference runs
+    already made (`reference`, e.g. under a counter that proves a rule ran),
+    so none is run twice."""
     got = run_batch_results(scs, seeds, record_trajectories=True, until=until)
     assert len(got) == len(seeds)
-    for sc, seed, b in zip(scs, seeds, got):
-        r = reference(sc, seed, until)
+    if refs is None:
+        refs = [reference(sc, seed, until) for sc, seed in zip(scs, seeds)]
+    assert len(refs) == len(seeds)
+    for sc, seed, b, r in zip(scs, seeds, got, refs):
         rs, bs = r.summary(), b.summary()
         assert bs == rs, (sc.behaviour, seed, {k: (rs[k], bs[k]) for k in rs if rs[k] != bs[k]})
         assert len(b.trajectories) == len(r.trajectories) == r.ticks
@@ -51,7 +55,7 @@ def mixed_scenarios(n=24, seed=11):
              "agents": rnd.choice([3, 8, 20, 40]),
              "robotVisionSpan": rnd.choice([0, 10, 45, 180]),
              "worldSize": rnd.choice([15, 18, 25]),
-             "maxTicks": 1500}
+             "maxTicks": 700}
         try:
             sc = validate(d)
         except ScenarioError:
@@ -108,3 +112,31 @@ def count_pushes(monkeypatch) -> list[int]:
         return k
     monkeypatch.setattr(kernel, "_chain", counted)
     return pushes
+
+
+def count_crowding(monkeypatch) -> dict[str, int]:
+    """Count, from now on in the Python kernel, the robots that stepped
+    aside for the carried group ("aside", crowd "yield", kernel._aside) and
+    the steps of the group a robot blocked ("blocked", crowd "block",
+    kernel._blocked on a free patch a non-holder stands on). Patch only
+    around Python runs, as count_pushes."""
+    from sim_backend import kernel
+    seen = {"aside": 0, "blocked": 0}
+    aside, blocked = kernel._aside, kernel._blocked
+
+    def counted_aside(*a):
+        k = aside(*a)
+        seen["aside"] += k >= 0
+        return k
+
+    def counted_blocked(g, rb, run, r, px, py):
+        b = blocked(g, rb, run, r, px, py)
+        if b and kernel.inside(run.w[r], px, py):
+            k = kernel.cell(run.w[r], run.n[r], px, py)
+            if g.occ[run.base[r] + k] > 0 and not kernel._holder_at(g, rb, run, r, k) and \
+                    (g.obj[run.base[r] + k] == kernel.FREE or kernel._carried(g, run, r, k)):
+                seen["blocked"] += 1
+        return b
+    monkeypatch.setattr(kernel, "_aside", counted_aside)
+    monkeypatch.setattr(kernel, "_blocked", counted_blocked)
+    return seen

@@ -124,11 +124,11 @@ def test_a_push_along_the_crowd_identical(monkeypatch):
     """300 robots in the default arena: robots in the carried object's way
     with no free neighbour are pushed along the crowd (kernel._chain, crowd
     "yield"); the batch engine pushes them as the reference does."""
-    from sim_backend.engine import Engine
     sc = validate({"agents": 300, "maxTicks": 400})
+    scs, seeds = [sc, sc], [5, 6]
     with monkeypatch.context() as m:             # the transform reads the real kernel
         pushes = count_pushes(m)
-        Engine(sc, 5).run()
+        refs = [reference(s, seed) for s, seed in zip(scs, seeds)]
     assert any(k >= 0 for k in pushes)             # the reference pushed
-    got = assert_same([sc, sc], [5, 6])
+    got = assert_same(scs, seeds, refs=refs)
     assert all(r.delivered for r in got)

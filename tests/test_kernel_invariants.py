@@ -15,9 +15,9 @@ from sim_backend.scenario import load, validate
 
 RUNS = [
     ({"agents": 150, "maxTicks": 1200}, 1),                                  # crowd yield
-    ({"agents": 150, "crowd": "block", "maxTicks": 1200}, 2),
+    ({"agents": 150, "crowd": "block", "maxTicks": 400}, 2),
     ({"agents": 300, "maxTicks": 400, "movementModel": "ant"}, 6),          # pushes along
-    ({"agents": 120, "maxTicks": 1500, "deathRate": 0.3, "deadlockRate": 0.2,
+    ({"agents": 120, "maxTicks": 800, "deathRate": 0.3, "deadlockRate": 0.2,
       "ignoreHostRate": 0.1, "randomRate": 0.1}, 3),                        # holders die
     ({"agents": 120, "maxTicks": 1500, "wrap": True}, 4),
     ({"agents": 120, "maxTicks": 1500, "activation": "netlogo"}, 7),

@@ -278,7 +278,7 @@ def test_batch_engine_equals_reference_with_the_netlogo_options(model):
         # the first: the netlogo scenario's world too (wrapping), the same compile
         opts = {**every, "wrap": j == 0} if j < 2 else {k: rnd.choice(CHOICES[k]) for k in CHOICES}
         scs.append(validate({"movementModel": model, "fieldDefiance": rnd.choice([0, 1, 2]),
-                             "sigRadius": rnd.choice([2, 5, 8]), "maxTicks": 2500,
+                             "sigRadius": rnd.choice([2, 5, 8]), "maxTicks": 1200,
                              "object": rnd.choice(["bar", "L", "X"]), **opts}))
         seeds.append(rnd.randrange(10 ** 6))
     got = assert_same(scs, seeds)

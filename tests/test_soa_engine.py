@@ -20,7 +20,7 @@ from sim_backend import registry
 from sim_backend.batch.soa import SoaEngine
 from sim_backend.errors import CompileError
 from sim_backend.scenario import validate
-from tests.harness import assert_same, reference
+from tests.harness import assert_same, count_crowding, reference
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -33,20 +33,29 @@ def test_faults_identical():
 
 
 @pytest.mark.parametrize("crowd", ["yield", "block"])
-def test_both_crowd_rules_identical_in_a_dense_swarm(crowd):
+def test_both_crowd_rules_identical_in_a_dense_swarm(crowd, monkeypatch):
     """crowd "yield" (the default) and "block": 150 robots crowd the object,
-    so robots stand in the carried group's way and (yield) step aside."""
-    sc = validate({"agents": 150, "crowd": crowd, "maxTicks": 1500})
-    got = assert_same([sc, sc.replace(movementModel="ant")], [1, 2])
+    so robots stand in the carried group's way and (yield) step aside or
+    (block) stop it; 400 ticks show the blocks (the yielding runs deliver
+    sooner)."""
+    sc = validate({"agents": 150, "crowd": crowd, "maxTicks": 1500 if crowd == "yield" else 400})
+    scs, seeds = [sc, sc.replace(movementModel="ant")], [1, 2]
+    with monkeypatch.context() as m:             # the transform reads the real kernel
+        seen = count_crowding(m)
+        refs = [reference(s, seed) for s, seed in zip(scs, seeds)]
+    got = assert_same(scs, seeds, refs=refs)
     if crowd == "yield":
         assert all(r.delivered for r in got)
+        assert seen["aside"] > 0, "no robot stepped aside: a weak comparison"
+    else:
+        assert seen["blocked"] > 0, "no robot blocked the group: a weak comparison"
 
 
 def test_final_robots_are_the_reference_robots():
     """At a run's end the arrays are written back into the CPython robots."""
     sc = validate({"maxTicks": 600})
-    got = assert_same([sc], [4])[0]
     ref = reference(sc, 4)
+    got = assert_same([sc], [4], refs=[ref])[0]
     for a, b in zip(ref.robots, got.robots):
         va, vb = dict(vars(a)), dict(vars(b))
         assert vars(va.pop("rng")) == vars(vb.pop("rng"))
@@ -98,7 +107,10 @@ def test_a_warm_build_reads_the_kept_text_and_an_edit_transforms_again(tmp_path,
     from sim_backend.batch import soa
     monkeypatch.setenv("TOUCHSWARM_CACHE", str(tmp_path / "cache"))
     anchor = "    def step(self, hal):\n"
-    sc, robot = _mutated_aggregate(tmp_path, "aggregate_kept", anchor, "")
+    # a no-op line: the copy's text is not aggregate's own, whose module (loaded
+    # from this test's cache folder) the next aggregate batch would compile again
+    sc, robot = _mutated_aggregate(tmp_path, "aggregate_kept", anchor,
+                                   "        self.ticks -= 0\n")
     n = soa.transforms
     first = SoaEngine([(sc, 1)])
     assert soa.transforms == n + 1
