@@ -617,12 +617,7 @@ def shapes_plot(rows: Sequence[dict], fig: dict, path: Path) -> Path | None:
                         yerr=[1.96 * p[2] for p in est], marker="s", capsize=3, color="C2",
                         label="host's estimate")
             ax.legend(fontsize=6)
-        ax.set_ylim(0, 1)
-        ax.set_xlabel("touching robots", fontsize=7)
-        ax.set_ylabel("mean IoU", fontsize=7)
-        ax.tick_params(labelsize=6)
-        ax.grid(alpha=0.3)
-        ax.set_title(f"{obj}: n={min(p[4] for p in pts)}/point", fontsize=7)
+        _iou_axes(ax, obj, pts, "mean IoU")
     f.suptitle(fig.get("title", "extracted shape vs touching robots"), fontsize=9)
     f.tight_layout()
     return _save(f, path)
@@ -691,13 +686,8 @@ def touchmap_plot(rows: Sequence[dict], fig: dict, path: Path) -> Path | None:
         pts = shape_table(rows, fig, col).get(obj, [])
         ax.errorbar([p[0] for p in pts], [p[1] for p in pts], yerr=[1.96 * p[2] for p in pts],
                     marker="o", capsize=3, color="#c0392b", label=col)
-        ax.set_ylim(0, 1)
-        ax.set_xlabel("touching robots", fontsize=7)
-        ax.set_ylabel("mean IoU (95% CI)", fontsize=7)
-        ax.tick_params(labelsize=6)
-        ax.grid(alpha=0.3)
         ax.legend(fontsize=5)
-        ax.set_title(f"{obj}: n={min((p[4] for p in pts), default=0)}/point", fontsize=7)
+        _iou_axes(ax, obj, pts, "mean IoU (95% CI)")
     f.suptitle(fig.get("title", "touches and the polygon through them"), fontsize=9)
     f.tight_layout()
     return _save(f, path)
@@ -739,6 +729,17 @@ def rates_plot(rows: Sequence[dict], fig: dict, path: Path) -> Path | None:
     f.suptitle(fig.get("title", "delivery against each fault's rate"))
     f.tight_layout()
     return _save(f, path, dpi=110)
+
+
+def _iou_axes(ax, obj: str, pts: list, ylabel: str) -> None:
+    """One object's panel of an IoU-against-touching-robots figure: axes,
+    grid and a title with the fewest runs behind a point (p[4])."""
+    ax.set_ylim(0, 1)
+    ax.set_xlabel("touching robots", fontsize=7)
+    ax.set_ylabel(ylabel, fontsize=7)
+    ax.tick_params(labelsize=6)
+    ax.grid(alpha=0.3)
+    ax.set_title(f"{obj}: n={min((p[4] for p in pts), default=0)}/point", fontsize=7)
 
 
 def levels_plot(rows: Sequence[dict], fig: dict, path: Path) -> Path | None:

@@ -480,12 +480,8 @@ class Sealer:
                                     "as the host")
                 raise LinkError(f"robot {node}'s MAC fails with this key file: host and "
                                 "robots have different key files")
-        elif k >= HELLO_LOCKOUT and node not in self.locked:
-            self.locked.add(node)
-            log.warning("robot %d: %d HELLOs failed authentication after its key was "
-                        "confirmed (forgery or brute force on its identifier): node locked "
-                        "out, its frames are dropped from now on", node, k)
-        return None
+        elif k >= HELLO_LOCKOUT:
+            self._lock_out(node, k, "HELLOs failed authentication after its key was confirmed")
 
     def _next_fv(self, node: int) -> int:
         fv = self.fv[node] + 1
@@ -626,12 +622,16 @@ class Sealer:
         self._count(fault, frame)
         if node in self.report_at:       # only once the node's reports verified
             k = self.report_failed[node] = self.report_failed.get(node, 0) + 1
-            if k >= LOCKOUT and node not in self.locked:
-                self.locked.add(node)
-                log.warning("robot %d: %d reports failed authentication (forgery "
-                            "or brute force on its identifier): node locked out, its "
-                            "frames are dropped from now on", node, k)
-        return None
+            if k >= LOCKOUT:
+                self._lock_out(node, k, "reports failed authentication")
+
+    def _lock_out(self, node: int, k: int, what: str) -> None:
+        """Past a lockout threshold: the node's frames are dropped from now on
+        (said once)."""
+        if node not in self.locked:
+            self.locked.add(node)
+            log.warning("robot %d: %d %s (forgery or brute force on its identifier): node "
+                        "locked out, its frames are dropped from now on", node, k, what)
 
 
 class Opener:
