@@ -65,6 +65,10 @@ class Model:
             self.bots.append({"x": wrapc(d * math.sin(math.radians(h))),
                               "y": wrapc(d * math.cos(math.radians(h))), "h": h,
                               "obj": False, "fld": False, "mob": True})
+        self.occ = {}                                           # turtles-on: robots a patch holds
+        for b in self.bots:
+            b["p"] = self.here(b)
+            self.occ[b["p"]] = self.occ.get(b["p"], 0) + 1
         self.found = False
         self.loc = (0.0, 0.0)
         self.power = 0.0
@@ -78,13 +82,15 @@ class Model:
 
     def head_carefully(self, b):
         p = self.ahead(b)
-        occupied = any(self.here(o) == p for o in self.bots)    # the caller counts too
-        if occupied or self.color.get(p, WHITE) != WHITE:
+        if self.occ.get(p, 0) > 0 or self.color.get(p, WHITE) != WHITE:   # the caller counts too
             b["h"] = self.r.randrange(360)
         else:
             step = 1.0 if self.firefly else 0.25
             b["x"] = wrapc(b["x"] + step * math.sin(math.radians(b["h"])))
             b["y"] = wrapc(b["y"] + step * math.cos(math.radians(b["h"])))
+            self.occ[b["p"]] -= 1
+            b["p"] = self.here(b)
+            self.occ[b["p"]] = self.occ.get(b["p"], 0) + 1
 
     def random_head(self, b):
         if self.firefly:
