@@ -163,3 +163,40 @@ def test_the_appendix_script_runs_and_prints_the_docs_tables_rows(capsys) -> Non
     assert [r[:2] for r in tiny] == [r[:2] for r in docs]
     assert all(len(r) == len(docs[0]) for r in docs + tiny)
     assert app.binomial_range(18, 50) == (12, 25)
+
+
+def test_the_smaller_tables_are_what_the_script_renders_from_their_statistics() -> None:
+    tables = _bench("thesis_tables")
+    data = json.loads((ROOT / "bench" / "thesis_tables.json").read_text())
+    text = DOC.read_text()
+    assert tables.put(text, data) == text
+    for t in tables.TABLES:
+        begin, end = tables.markers(t)
+        assert text.split(begin, 1)[1].split(end, 1)[0].strip() == tables.render(data, t)
+    # every run the tables read, with the command that made it
+    assert set(data["meta"]["runs"]) == set(tables.RUNS)
+    for name, meta in data["meta"]["runs"].items():
+        assert meta["command"] == tables.RUNS[name][0]
+
+
+def test_the_tables_script_reduces_a_sweep_csv(tmp_path: Path, capsys) -> None:
+    tables = _bench("thesis_tables")
+    path = tmp_path / "sweep.csv"
+    rows = [{"movementModel": "ant", "robotVisionSpan": "45.0", "seed": s,
+             "converged_tick": "" if s == 3 else 10 * s, "converged_moves": "" if s == 3 else 10 * s,
+             "delivered": "True" if s == 1 else "False", "home_tick": 30 if s == 1 else ""}
+            for s in (1, 2, 3)]
+    with path.open("w", newline="") as f:
+        w = csv.DictWriter(f, list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    out = tmp_path / "t.json"
+    assert tables.main([f"Sens-span={path}", "--json", str(out)]) == 2     # a table lacks points
+    assert "no such point" in capsys.readouterr().err
+    data = json.loads(out.read_text())
+    p = data["points"][0]
+    assert (p["robotVisionSpan"], p["n"], p["stalled"], p["delivered"]) == ("45", 3, 1, 1)
+    assert (p["it_median"], p["transport_median"]) == (15.0, 20.0)
+    assert tables.main(["nonsense=" + str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "must be one of" in err
