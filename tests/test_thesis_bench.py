@@ -200,3 +200,24 @@ def test_the_tables_script_reduces_a_sweep_csv(tmp_path: Path, capsys) -> None:
     assert tables.main(["nonsense=" + str(path)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "must be one of" in err
+
+
+def test_the_extension_docs_seed_runs_are_what_they_say() -> None:
+    """The single-seed delivery ticks the extension docs quote (reference
+    engine, a few hundred ticks each), and the crate's cells and weight."""
+    from sim_backend.engine import Engine
+    from sim_backend.scenario import load
+
+    def home(name: str, seed: int, **over) -> int:
+        sc = load(name)
+        return Engine(sc.replace(**over) if over else sc, seed).run().summary()["home_tick"]
+
+    moth = (home("default", 1, movementModel="moth"), home("default", 2, movementModel="moth"))
+    quoted = f"seeds 1 and 2 at ticks {moth[0]} and {moth[1]}"
+    for doc in ("movement-models.md", "extensions.md"):
+        assert quoted in " ".join((ROOT / "docs" / doc).read_text().split()), doc
+    scen = " ".join((ROOT / "docs" / "scenarios.md").read_text().split())
+    assert (f"Seed 1 of each: `crate` delivered at tick {home('crate', 1)}, `decoy` "
+            f"{home('decoy', 1)}, `wall` {home('wall', 1)}") in scen
+    crate = load("crate")
+    assert f"{len(crate.objects[0].cells)} cells: weight {crate.objectWeight:g}" in scen
