@@ -1,6 +1,7 @@
 """The smaller-sample tables of docs/thesis-reproduction.md (Graph 1 and
 Graphs 2-4 under three rule sets, the fieldDefiance-0 stalls, the
-sensitivity of the unsourced base values, the two activations), each
+sensitivity of the unsourced base values, the two activations) and the
+option effects of docs/tick-semantics.md, each
 rendered from a committed JSON of per-point statistics, so a changed
 default cannot leave a stale figure in the text: a test checks that each
 table between its markers is what this script renders from
@@ -13,12 +14,12 @@ convergence in go iterations, `converged_tick`, and in robot moves,
 converged_tick`, over the delivered runs) and writes them as JSON:
 
     .venv/bin/python bench/thesis_tables.py T-sync=DIR/sweep.csv T-ask=... \
-        --json bench/thesis_tables.json [--wall NAME=SECONDS ...]
-    .venv/bin/python bench/thesis_tables.py --from-json bench/thesis_tables.json \
-        [--docs docs/thesis-reproduction.md]
+        --json bench/thesis_tables.json [--wall NAME=SECONDS ...] [--docs]
+    .venv/bin/python bench/thesis_tables.py --from-json bench/thesis_tables.json [--docs]
 
---docs FILE puts every table between its markers in FILE; without it the
-tables are printed. The stall table's last row is the 150-seed reproduction
+--docs puts every table between its markers in its doc (TABLES: the
+options table is docs/tick-semantics.md's); without it the tables are
+printed. The stall table's last row is the 150-seed reproduction
 of record, read from bench/thesis_claims.json.
 """
 
@@ -59,9 +60,24 @@ RUNS = {
     "S-thesis": ("touchswarm sweep --scenario netlogo --grid fieldDefiance=0,2 "
                  "--grid movementModel=firefly,ant --seeds 30 --set maxTicks=5000",
                  ("activation", "movementModel", "fieldDefiance")),
+    "O-three": ("touchswarm sweep --grid signalMode=patch,netlogo --grid uphillTies=ordered,netlogo "
+                "--grid leaderField=off,netlogo --grid fieldDefiance=0,2 "
+                "--grid movementModel=firefly,ant --seeds 30 --set maxTicks=5000",
+                ("signalMode", "uphillTies", "leaderField", "movementModel", "fieldDefiance")),
+    "O-two": ("touchswarm sweep --grid starts=redraw,netlogo --grid arrival=within4,netlogo "
+              "--grid fieldDefiance=0,2 --grid movementModel=firefly,ant --seeds 30 "
+              "--set maxTicks=5000",
+              ("starts", "arrival", "movementModel", "fieldDefiance")),
+    "O-five": ("touchswarm sweep --set signalMode=netlogo --set uphillTies=netlogo "
+               "--set leaderField=netlogo --set starts=netlogo --set arrival=netlogo "
+               "--grid fieldDefiance=0,2 --grid movementModel=firefly,ant --seeds 30 "
+               "--set maxTicks=5000", ("movementModel", "fieldDefiance")),
 }
 MODELS = ("firefly", "ant")
-TABLES = ("runs", "sensitivity", "graph1", "stalls", "graphs234", "activation")
+# each table and the doc that carries it
+TABLES = {t: "docs/thesis-reproduction.md" for t in ("runs", "sensitivity", "graph1", "stalls",
+                                                      "graphs234", "activation")}
+TABLES["options"] = "docs/tick-semantics.md"
 
 
 def _f(v):
@@ -236,11 +252,33 @@ def _activation(pts: list[dict]) -> list[str]:
     return out
 
 
+def _options(pts: list[dict]) -> list[str]:
+    out = ["| option on | model | fD 0: stalled / delivered (of 30) | fD 0: median ticks | "
+           "fD 2: stalled / delivered | fD 2: median (mean) ticks |",
+           "|---|---|---|---|---|---|"]
+    three = {"signalMode": "patch", "uphillTies": "ordered", "leaderField": "off"}
+    rows = [("none (defaults)", "O-three", three)]
+    rows += [(f"`{k}`", "O-three", {**three, k: "netlogo"}) for k in three]
+    rows += [("the three above", "O-three", {k: "netlogo" for k in three}),
+             ("`starts`", "O-two", {"starts": "netlogo", "arrival": "within4"}),
+             ("`arrival`", "O-two", {"starts": "redraw", "arrival": "netlogo"}),
+             ("all five", "O-five", {})]
+    for label, run, kv in rows:
+        for m in MODELS:
+            z = _find(pts, run, movementModel=m, fieldDefiance="0", **kv)
+            t = _find(pts, run, movementModel=m, fieldDefiance="2", **kv)
+            out.append(f"| {label} | {m} | {z['stalled']} / {z['delivered']} | "
+                       f"{_m(z['it_median'])} | {t['stalled']} / {t['delivered']} | "
+                       f"{_m(t['it_median'])} ({_n(t['it_mean'])}) |")
+    return out
+
+
 def render(data: dict, table: str) -> str:
     pts = data["points"]
     lines = {"runs": lambda: _runs(data), "sensitivity": lambda: _sensitivity(pts),
              "graph1": lambda: _graph1(pts), "stalls": lambda: _stalls(pts),
-             "graphs234": lambda: _graphs234(pts), "activation": lambda: _activation(pts)}[table]()
+             "graphs234": lambda: _graphs234(pts), "activation": lambda: _activation(pts),
+             "options": lambda: _options(pts)}[table]()
     return "\n".join(lines)
 
 
@@ -249,9 +287,10 @@ def markers(table: str) -> tuple[str, str]:
             f"<!-- bench/thesis_tables.py {table}: end -->")
 
 
-def put(doc: str, data: dict) -> str:
-    """The doc with every table between its markers replaced by its rendering."""
-    for t in TABLES:
+def put(doc: str, data: dict, path: str) -> str:
+    """The doc at `path` with each of its tables between their markers
+    replaced by the rendering."""
+    for t in (t for t, d in TABLES.items() if d == path):
         begin, end = markers(t)
         if doc.count(begin) != 1 or doc.count(end) != 1:
             raise ValueError(f"{t}: the doc needs exactly one {begin} and one {end}")
@@ -267,7 +306,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", type=Path, help="write the statistics here")
     ap.add_argument("--from-json", type=Path, help="render the tables from such a file")
     ap.add_argument("--wall", action="append", default=[], help="NAME=SECONDS of a run")
-    ap.add_argument("--docs", type=Path, help="put the tables between this file's markers")
+    ap.add_argument("--docs", action="store_true",
+                    help="put each table between its markers in its doc (TABLES)")
     a = ap.parse_args(argv)
     try:
         if a.from_json:
@@ -292,7 +332,8 @@ def main(argv: list[str] | None = None) -> int:
             if a.json:
                 a.json.write_text(json.dumps(data, indent=1) + "\n")
         if a.docs:
-            a.docs.write_text(put(a.docs.read_text(), data))
+            for path in dict.fromkeys(TABLES.values()):
+                (ROOT / path).write_text(put((ROOT / path).read_text(), data, path))
         else:
             for t in TABLES:
                 print(render(data, t) + "\n")
