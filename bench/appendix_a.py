@@ -6,8 +6,9 @@ convergence). Compared with `--scenario netlogo` (the soa engine) at
 fieldDefiance 0, 1, 4, both movement models: stalls and Mann-Whitney U on
 the go iterations to convergence, whether the appendix model's stall
 count lies in the binomial 95% range of the project's, and Fisher's exact
-test of the two stall counts (the range check alone fails one point in
-twenty or so for two identical models). Prints JSON; with
+test of the two stall counts (the range is drawn round the project's
+own noisy count, so two identical models fail it at one of the two
+stalling points about one time in four). Prints JSON; with
 --markdown also the table docs/thesis-reproduction.md carries (between its
 markers; a test runs this script in a tiny mode and checks its rows).
 
