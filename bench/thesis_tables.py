@@ -1,7 +1,7 @@
 """The smaller-sample tables of docs/thesis-reproduction.md (Graph 1 and
 Graphs 2-4 under three rule sets, the fieldDefiance-0 stalls, the
 sensitivity of the unsourced base values, the two activations) and the
-option effects of docs/tick-semantics.md, each
+option effects and world edges of docs/tick-semantics.md, each
 rendered from a committed JSON of per-point statistics, so a changed
 default cannot leave a stale figure in the text: a test checks that each
 table between its markers is what this script renders from
@@ -60,6 +60,9 @@ RUNS = {
     "S-thesis": ("touchswarm sweep --scenario netlogo --grid fieldDefiance=0,2 "
                  "--grid movementModel=firefly,ant --seeds 30 --set maxTicks=5000",
                  ("activation", "movementModel", "fieldDefiance")),
+    "S-wrap": ("touchswarm sweep --grid wrap=false,true --grid movementModel=firefly,ant "
+               "--grid activation=sync,netlogo --seeds 20 --set maxTicks=5000",
+               ("movementModel", "activation", "wrap")),
     "O-three": ("touchswarm sweep --grid signalMode=patch,netlogo --grid uphillTies=ordered,netlogo "
                 "--grid leaderField=off,netlogo --grid fieldDefiance=0,2 "
                 "--grid movementModel=firefly,ant --seeds 30 --set maxTicks=5000",
@@ -77,7 +80,7 @@ MODELS = ("firefly", "ant")
 # each table and the doc that carries it
 TABLES = {t: "docs/thesis-reproduction.md" for t in ("runs", "sensitivity", "graph1", "stalls",
                                                       "graphs234", "activation")}
-TABLES["options"] = "docs/tick-semantics.md"
+TABLES["options"] = TABLES["wrap"] = "docs/tick-semantics.md"
 
 
 def _f(v):
@@ -112,8 +115,11 @@ def reduce(name: str, rows: list[dict]) -> list[dict]:
         mv_med, mv_mean = _stat([_f(r["converged_moves"]) for r in conv])
         tr_med, tr_mean = _stat([_f(r["home_tick"]) - _f(r["converged_tick"]) for r in home
                                  if _f(r["home_tick"]) is not None])
+        found = [_f(r["found_tick"]) for r in rs if _f(r["found_tick"]) is not None]
+        homes = [_f(r["home_tick"]) for r in home if _f(r["home_tick"]) is not None]
         out.append({"run": name, **dict(zip(keys, key)), "n": len(rs),
                     "stalled": len(rs) - len(conv), "delivered": len(home),
+                    "found_median": _stat(found)[0], "home_median": _stat(homes)[0],
                     "it_median": it_med, "it_mean": it_mean,
                     "mv_median": mv_med, "mv_mean": mv_mean,
                     "transport_median": tr_med, "transport_mean": tr_mean})
@@ -273,12 +279,26 @@ def _options(pts: list[dict]) -> list[str]:
     return out
 
 
+def _wrap(pts: list[dict]) -> list[str]:
+    out = ["| model | activation | wrap | first touch: median tick | converged (of 20) | "
+           "convergence: median tick (mean) | delivered (of 20) | delivery: median tick |",
+           "|---|---|---|---|---|---|---|---|"]
+    for m in MODELS:
+        for act in ("sync", "netlogo"):
+            for wrap, label in (("False", "off"), ("True", "on")):
+                p = _find(pts, "S-wrap", movementModel=m, activation=act, wrap=wrap)
+                out.append(f"| {m} | {act} | {label} | {_m(p['found_median'])} | "
+                           f"{p['n'] - p['stalled']} | {_m(p['it_median'])} ({_n(p['it_mean'])}) | "
+                           f"{p['delivered']} | {_m(p['home_median'])} |")
+    return out
+
+
 def render(data: dict, table: str) -> str:
     pts = data["points"]
     lines = {"runs": lambda: _runs(data), "sensitivity": lambda: _sensitivity(pts),
              "graph1": lambda: _graph1(pts), "stalls": lambda: _stalls(pts),
              "graphs234": lambda: _graphs234(pts), "activation": lambda: _activation(pts),
-             "options": lambda: _options(pts)}[table]()
+             "options": lambda: _options(pts), "wrap": lambda: _wrap(pts)}[table]()
     return "\n".join(lines)
 
 
