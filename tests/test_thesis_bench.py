@@ -184,7 +184,8 @@ def test_the_tables_script_reduces_a_sweep_csv(tmp_path: Path, capsys) -> None:
     path = tmp_path / "sweep.csv"
     rows = [{"movementModel": "ant", "robotVisionSpan": "45.0", "seed": s,
              "converged_tick": "" if s == 3 else 10 * s, "converged_moves": "" if s == 3 else 10 * s,
-             "delivered": "True" if s == 1 else "False", "home_tick": 30 if s == 1 else ""}
+             "delivered": "True" if s == 1 else "False", "home_tick": 30 if s == 1 else "",
+             "found_tick": s}
             for s in (1, 2, 3)]
     with path.open("w", newline="") as f:
         w = csv.DictWriter(f, list(rows[0]))
