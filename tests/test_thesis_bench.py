@@ -197,7 +197,7 @@ def test_the_tables_script_reduces_a_sweep_csv(tmp_path: Path, capsys) -> None:
     data = json.loads(out.read_text())
     p = data["points"][0]
     assert (p["robotVisionSpan"], p["n"], p["stalled"], p["delivered"]) == ("45", 3, 1, 1)
-    assert (p["it_median"], p["transport_median"]) == (15.0, 20.0)
+    assert (p["it_median"], p["transport_median"], p["found_median"]) == (15.0, 20.0, 2.0)
     assert tables.main(["nonsense=" + str(path)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "must be one of" in err
