@@ -1,7 +1,8 @@
 """The smaller-sample tables of docs/thesis-reproduction.md (Graph 1 and
 Graphs 2-4 under three rule sets, the fieldDefiance-0 stalls, the
 sensitivity of the unsourced base values, the two activations) and the
-option effects and world edges of docs/tick-semantics.md, each
+option effects and world edges of docs/tick-semantics.md and the
+movement models' convergence of docs/movement-models.md, each
 rendered from a committed JSON of per-point statistics, so a changed
 default cannot leave a stale figure in the text: a test checks that each
 table between its markers is what this script renders from
@@ -63,6 +64,10 @@ RUNS = {
     "S-wrap": ("touchswarm sweep --grid wrap=false,true --grid movementModel=firefly,ant "
                "--grid activation=sync,netlogo --seeds 20 --set maxTicks=5000",
                ("movementModel", "activation", "wrap")),
+    "Models": ("touchswarm sweep --grid movementModel=firefly,ant,levy,moth,frog --seeds 50 "
+               "--until converged --set maxTicks=5000", ("movementModel",)),
+    "Moth": ("touchswarm sweep --grid movementModel=moth --seeds 50 --set maxTicks=5000",
+             ("movementModel",)),
     "O-three": ("touchswarm sweep --grid signalMode=patch,netlogo --grid uphillTies=ordered,netlogo "
                 "--grid leaderField=off,netlogo --grid fieldDefiance=0,2 "
                 "--grid movementModel=firefly,ant --seeds 30 --set maxTicks=5000",
@@ -81,6 +86,7 @@ MODELS = ("firefly", "ant")
 TABLES = {t: "docs/thesis-reproduction.md" for t in ("runs", "sensitivity", "graph1", "stalls",
                                                       "graphs234", "activation")}
 TABLES["options"] = TABLES["wrap"] = "docs/tick-semantics.md"
+TABLES["models"] = "docs/movement-models.md"
 
 
 def _f(v):
@@ -119,7 +125,8 @@ def reduce(name: str, rows: list[dict]) -> list[dict]:
         homes = [_f(r["home_tick"]) for r in home if _f(r["home_tick"]) is not None]
         out.append({"run": name, **dict(zip(keys, key)), "n": len(rs),
                     "stalled": len(rs) - len(conv), "delivered": len(home),
-                    "found_median": _stat(found)[0], "home_median": _stat(homes)[0],
+                    "found_median": _stat(found)[0], "found_mean": _stat(found)[1],
+                    "home_median": _stat(homes)[0],
                     "it_median": it_med, "it_mean": it_mean,
                     "mv_median": mv_med, "mv_mean": mv_mean,
                     "transport_median": tr_med, "transport_mean": tr_mean})
@@ -293,12 +300,26 @@ def _wrap(pts: list[dict]) -> list[str]:
     return out
 
 
+def _models(pts: list[dict]) -> list[str]:
+    out = ["| model | converged | first touch median (mean) | convergence median (mean) |",
+           "|---|---|---|---|"]
+    for m in ("firefly", "ant", "levy", "moth", "frog"):
+        p = _find(pts, "Models", movementModel=m)
+        out.append(f"| {m} | {p['n'] - p['stalled']}/{p['n']} | {_m(p['found_median'])} "
+                   f"({p['found_mean']:.1f}) | {_m(p['it_median'])} ({p['it_mean']:.1f}) |")
+    p = _find(pts, "Moth", movementModel="moth")
+    out += ["", "| model (until delivered) | delivered | delivery: median tick |", "|---|---|---|",
+            f"| moth | {p['delivered']}/{p['n']} | {_m(p['home_median'])} |"]
+    return out
+
+
 def render(data: dict, table: str) -> str:
     pts = data["points"]
     lines = {"runs": lambda: _runs(data), "sensitivity": lambda: _sensitivity(pts),
              "graph1": lambda: _graph1(pts), "stalls": lambda: _stalls(pts),
              "graphs234": lambda: _graphs234(pts), "activation": lambda: _activation(pts),
-             "options": lambda: _options(pts), "wrap": lambda: _wrap(pts)}[table]()
+             "options": lambda: _options(pts), "wrap": lambda: _wrap(pts),
+             "models": lambda: _models(pts)}[table]()
     return "\n".join(lines)
 
 
