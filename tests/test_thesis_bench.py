@@ -25,9 +25,9 @@ def _bench(name: str):
     return mod
 
 
-def _block(script: str) -> str:
+def _block(script: str, args: str = "") -> str:
     text = DOC.read_text()
-    begin, end = f"<!-- bench/{script}.py: begin -->", f"<!-- bench/{script}.py: end -->"
+    begin, end = f"<!-- bench/{script}.py{args}: begin -->", f"<!-- bench/{script}.py{args}: end -->"
     assert text.count(begin) == 1 and text.count(end) == 1, script
     return text.split(begin, 1)[1].split(end, 1)[0].strip()
 
@@ -163,6 +163,11 @@ def test_the_appendix_script_runs_and_prints_the_docs_tables_rows(capsys) -> Non
     assert [r[:2] for r in tiny] == [r[:2] for r in docs]
     assert all(len(r) == len(docs[0]) for r in docs + tiny)
     assert app.binomial_range(18, 50) == (12, 25)
+    # the 200-seed run at fieldDefiance 0 has the same columns, its rows those points
+    more = _table(_block("appendix_a", " --seeds 200 --defiance 0"))
+    assert more[0] == tiny[0] and [r[:2] for r in more[1:]] == [["firefly", "0"], ["ant", "0"]]
+    assert all(len(r) == len(more[0]) for r in more)
+    assert round(app.fisher_exact(17, 50, 10, 50), 3) == 0.176
 
 
 def test_the_smaller_tables_are_what_the_script_renders_from_their_statistics() -> None:
