@@ -25,9 +25,9 @@ def _bench(name: str):
     return mod
 
 
-def _block(script: str) -> str:
+def _block(script: str, args: str = "") -> str:
     text = DOC.read_text()
-    begin, end = f"<!-- bench/{script}.py: begin -->", f"<!-- bench/{script}.py: end -->"
+    begin, end = f"<!-- bench/{script}.py{args}: begin -->", f"<!-- bench/{script}.py{args}: end -->"
     assert text.count(begin) == 1 and text.count(end) == 1, script
     return text.split(begin, 1)[1].split(end, 1)[0].strip()
 
@@ -163,3 +163,67 @@ def test_the_appendix_script_runs_and_prints_the_docs_tables_rows(capsys) -> Non
     assert [r[:2] for r in tiny] == [r[:2] for r in docs]
     assert all(len(r) == len(docs[0]) for r in docs + tiny)
     assert app.binomial_range(18, 50) == (12, 25)
+    # the 200-seed run at fieldDefiance 0 has the same columns, its rows those points
+    more = _table(_block("appendix_a", " --seeds 200 --defiance 0"))
+    assert more[0] == tiny[0] and [r[:2] for r in more[1:]] == [["firefly", "0"], ["ant", "0"]]
+    assert all(len(r) == len(more[0]) for r in more)
+    assert round(app.fisher_exact(17, 50, 10, 50), 3) == 0.176
+
+
+def test_the_smaller_tables_are_what_the_script_renders_from_their_statistics() -> None:
+    tables = _bench("thesis_tables")
+    data = json.loads((ROOT / "bench" / "thesis_tables.json").read_text())
+    for t, path in tables.TABLES.items():
+        text = (ROOT / path).read_text()
+        assert tables.put(text, data, path) == text
+        begin, end = tables.markers(t)
+        assert text.split(begin, 1)[1].split(end, 1)[0].strip() == tables.render(data, t)
+    # every run the tables read, with the command that made it
+    assert set(data["meta"]["runs"]) == set(tables.RUNS)
+    for name, meta in data["meta"]["runs"].items():
+        assert meta["command"] == tables.RUNS[name][0]
+
+
+def test_the_tables_script_reduces_a_sweep_csv(tmp_path: Path, capsys) -> None:
+    tables = _bench("thesis_tables")
+    path = tmp_path / "sweep.csv"
+    rows = [{"movementModel": "ant", "robotVisionSpan": "45.0", "seed": s,
+             "converged_tick": "" if s == 3 else 10 * s, "converged_moves": "" if s == 3 else 10 * s,
+             "delivered": "True" if s == 1 else "False", "home_tick": 30 if s == 1 else "",
+             "found_tick": s}
+            for s in (1, 2, 3)]
+    with path.open("w", newline="") as f:
+        w = csv.DictWriter(f, list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    out = tmp_path / "t.json"
+    assert tables.main([f"Sens-span={path}", "--json", str(out)]) == 2     # a table lacks points
+    assert "no such point" in capsys.readouterr().err
+    data = json.loads(out.read_text())
+    p = data["points"][0]
+    assert (p["robotVisionSpan"], p["n"], p["stalled"], p["delivered"]) == ("45", 3, 1, 1)
+    assert (p["it_median"], p["transport_median"], p["found_median"]) == (15.0, 20.0, 2.0)
+    assert tables.main(["nonsense=" + str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "must be one of" in err
+
+
+def test_the_extension_docs_seed_runs_are_what_they_say() -> None:
+    """The single-seed delivery ticks the extension docs quote (reference
+    engine, a few hundred ticks each), and the crate's cells and weight."""
+    from sim_backend.engine import Engine
+    from sim_backend.scenario import load
+
+    def home(name: str, seed: int, **over) -> int:
+        sc = load(name)
+        return Engine(sc.replace(**over) if over else sc, seed).run().summary()["home_tick"]
+
+    moth = (home("default", 1, movementModel="moth"), home("default", 2, movementModel="moth"))
+    quoted = f"seeds 1 and 2 at ticks {moth[0]} and {moth[1]}"
+    for doc in ("movement-models.md", "extensions.md"):
+        assert quoted in " ".join((ROOT / "docs" / doc).read_text().split()), doc
+    scen = " ".join((ROOT / "docs" / "scenarios.md").read_text().split())
+    assert (f"Seed 1 of each: `crate` delivered at tick {home('crate', 1)}, `decoy` "
+            f"{home('decoy', 1)}, `wall` {home('wall', 1)}") in scen
+    crate = load("crate")
+    assert f"{len(crate.objects[0].cells)} cells: weight {crate.objectWeight:g}" in scen
