@@ -97,6 +97,11 @@ def _masks(key: tuple) -> tuple[int, int, np.ndarray, np.ndarray]:
     return h, w, out[0], out[1]
 
 
+# Library.of's libraries by the shapes a scenario adds (read-only once built:
+# a sweep's every run asks for its scenario's, and the poses took ~0.2 ms)
+_OF: dict[tuple, "Library"] = {}
+
+
 class Library:
     """Candidate shapes by name, each with its distinct orientations."""
 
@@ -131,7 +136,11 @@ class Library:
         if pieces:
             for p in sc.pieces():
                 known.setdefault(p.name, list(p.cells))
-        return cls.builtin(known)
+        key = tuple((name, tuple(tuple(c) for c in cells)) for name, cells in known.items())
+        lib = _OF.get(key)
+        if lib is None or type(lib) is not cls:
+            lib = _OF[key] = cls.builtin(known)
+        return lib
 
     def masks(self) -> tuple[int, int, np.ndarray, np.ndarray]:
         """(H, W, touchable, cells): every pose as a column of an (H x W, poses)

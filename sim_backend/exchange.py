@@ -10,7 +10,7 @@ message or is not `quiet()`; the reference asks every tick.
 
 from __future__ import annotations
 
-from typing import Any, Iterable, NamedTuple
+from typing import Any, Iterable, NamedTuple, Sequence
 
 
 class Muting(NamedTuple):
@@ -39,6 +39,41 @@ def muting(c: Any, prev: Muting | None = None) -> Muting:
     if prev is not None and prev.key == key:
         return prev
     return Muting(kind, frozenset(nodes) - {but}, key)
+
+
+class BatchMutes:
+    """The muted() declarations of a batch's coordinators (one per run, robots
+    lo[r] .. lo[r] + agents[r] - 1 of the batch nodes 1..agents[r]) held as
+    arrays, so a batch engine drops the messages they mute in bulk, before
+    decoding any (`keep`), by the rule `exchange` follows one by one;
+    `update(r, c)` after each tick() of run r's coordinator c."""
+
+    def __init__(self, coords: Sequence[Any], lo: Sequence[int], agents: Sequence[int],
+                 run_of: Any) -> None:
+        import numpy as np
+        self.lo, self.agents, self.run_of = lo, agents, run_of
+        self.mutes = [HEARS_ALL] * len(coords)
+        self.kind = np.full(len(coords), HEARS_ALL.kind, dtype=np.int64)
+        self.robot = np.zeros(len(run_of), dtype=bool)     # muted sender
+        for r, c in enumerate(coords):
+            self.update(r, c)
+
+    def update(self, r: int, c: Any) -> None:
+        prev = self.mutes[r]
+        m = muting(c, prev)
+        if m is prev:
+            return
+        self.mutes[r] = m
+        lo, n = self.lo[r], self.agents[r]
+        self.kind[r] = m.kind
+        self.robot[lo:lo + n] = False
+        for node in m.drop:
+            if 1 <= node <= n:
+                self.robot[lo + node - 1] = True
+
+    def keep(self, robot: Any, kind: Any) -> Any:
+        """Which messages (sender robot, kind: arrays) reach their coordinators."""
+        return ~(self.robot[robot] & (kind == self.kind[self.run_of[robot]]))
 
 
 def quiet(c: Any) -> bool:

@@ -300,9 +300,32 @@ def named_by_data(ref: Any, source: str) -> None:
         f"--behaviour {ref} or --trust-behaviour {ref}")
 
 
+# load()'s answers, by the reference, the working folder and the built-in
+# folder's mtime (a folder added or removed there changes it): a sweep's run
+# loads its behaviour some six times (scenario, world, engine, summary, row),
+# and the folder listing and imports checked each time were most of it
+_LOADS: dict[tuple[str, str, int], Behaviour] = {}
+
+
 def load(ref: str | Path | None = None) -> Behaviour:
     """A behaviour by registered name (default "thesis") or folder path."""
     ref = "thesis" if ref is None else ref
+    try:
+        key = (str(ref), os.getcwd(), os.stat(BEHAVIOURS_DIR).st_mtime_ns)
+    except OSError:
+        key = None
+    kept = _LOADS.get(key) if key is not None else None
+    # the same modules still imported: a reloaded (edited) behaviour is loaded afresh
+    if kept is not None and sys.modules.get(kept.module_name) is kept.package \
+            and sys.modules.get(kept.spec.__name__) is kept.spec:
+        return kept
+    b = _load(ref)
+    if key is not None:
+        _LOADS[key] = b
+    return b
+
+
+def _load(ref: str | Path) -> Behaviour:
     known = names()
     if str(ref) in known:
         modname = known[str(ref)]

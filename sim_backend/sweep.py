@@ -358,7 +358,7 @@ def run_chunk(jobs: Sequence[tuple[dict, dict, int]], engine: str = "auto",
     """
     if report is None and progress_queue is not None:
         report = _queue_reporter(progress_queue, chunk_id)
-    scs = [_scenario(b, p) for b, p, _ in jobs]
+    scs = _scenarios(jobs)
     seeds = [s for _, _, s in jobs]
     engine = pick_engine(engine)
     if engine == "soa":     # the struct-of-arrays transform, cached on disk
@@ -372,6 +372,20 @@ def run_chunk(jobs: Sequence[tuple[dict, dict, int]], engine: str = "auto",
         out.append(Engine(sc, seed, until=until).run().summary())
         if report is not None:
             report(len(out))
+    return out
+
+
+def _scenarios(jobs: Sequence[tuple[dict, dict, int]]) -> list[Scenario]:
+    """The scenario of every job, validated once per run of jobs with the same
+    base and point (a chunk is mostly one point's seeds; a Scenario is frozen,
+    so they share it)."""
+    out: list[Scenario] = []
+    last: tuple[dict, dict] | None = None
+    for b, p, _ in jobs:
+        if last is None or not (last[0] is b or last[0] == b) or last[1] != p:
+            sc = _scenario(b, p)
+            last = (b, p)
+        out.append(sc)
     return out
 
 

@@ -9,6 +9,8 @@ the vectorised engine keeps the same grids as numpy arrays.
 
 from __future__ import annotations
 
+import functools
+
 from firmware_logic import fixedpoint as fx
 from firmware_logic.rng import Rng
 from sim_backend import arena, faults, kernel, objects
@@ -19,6 +21,12 @@ from sim_backend.scenario import CHOICES, Scenario
 def signal_table(radius: int) -> list[tuple[int, int, int]]:
     """(dx, dy, increment) of Signal (kernel.signal_value) on every patch
     within sigRadius of the source patch, by patch centres."""
+    return list(_signal_table(radius))
+
+
+@functools.lru_cache(maxsize=None)
+def _signal_table(radius: int) -> tuple[tuple[int, int, int], ...]:
+    # every world of a sweep builds it (fixed-point square roots per patch)
     out = []
     for ddy in range(-radius, radius + 1):
         for ddx in range(-radius, radius + 1):
@@ -27,7 +35,7 @@ def signal_table(radius: int) -> list[tuple[int, int, int]]:
                 v = kernel.signal_value(d2 * fx.ONE * fx.ONE)
                 if v:
                     out.append((ddx, ddy, v))
-    return out
+    return tuple(out)
 
 
 def multi_step(sc: Scenario) -> tuple[int, int]:

@@ -71,3 +71,21 @@ def test_the_declaration_is_read_before_the_messages():
     c.on_message = announcing
     exchange(c, [(2, 4, ()), (2, 5, ()), (1, 5, ())], 1)
     assert [m[:2] for m in c.heard] == [(2, 4), (2, 5)]
+
+
+def test_a_batch_drops_in_bulk_what_each_run_muted_and_follows_a_change():
+    """BatchMutes: run 0 (robots 0-3, nodes 1-4) mutes kind 5 but from its
+    node 3, run 1 (robots 4-5) hears all; the same messages exchange would
+    drop, and a grown declaration is picked up by update()."""
+    import numpy as np
+    from sim_backend.exchange import BatchMutes
+    a, b = Host(), Host()
+    a.nodes = {1, 2, 3}
+    a.muted = lambda: (5, a.nodes, 3)
+    mutes = BatchMutes([a, b], [0, 4], [4, 2], np.array([0, 0, 0, 0, 1, 1]))
+    robot = np.array([0, 1, 2, 3, 0, 4, 5])
+    kind = np.array([5, 5, 5, 5, 4, 5, 5])
+    assert mutes.keep(robot, kind).tolist() == [False, False, True, True, True, True, True]
+    a.nodes.add(4)
+    mutes.update(0, a)
+    assert mutes.keep(robot, kind).tolist() == [False, False, True, False, True, True, True]

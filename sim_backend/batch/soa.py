@@ -53,7 +53,7 @@ from sim_backend.batch import body as B
 from sim_backend.batch import transform as T
 from sim_backend.engine import UNTIL, RunResult, run_ended
 from sim_backend.errors import EngineError
-from sim_backend.exchange import exchange, muting, quiet
+from sim_backend.exchange import HEARS_ALL, BatchMutes, exchange, quiet
 from sim_backend.scenario import Scenario
 from sim_backend.world import World
 
@@ -374,7 +374,7 @@ class SoaEngine:
         self.run_of = rb[B.RUN].tolist()
         self.node_of = (np.arange(len(self.run_of)) - starts[rb[B.RUN]] + 1).tolist()
         # what each coordinator declared muted at its last tick
-        self.mutes = [muting(c) for c in self.coords]
+        self.mutes = BatchMutes(self.coords, self.lo, self.agents, rb[B.RUN])
         self.max_ticks = np.array([sc.maxTicks for sc, _ in runs], dtype=np.int64)
         self.first_cap = int(self.max_ticks.min())    # no run ends at its cap before
         self.conv_steps = [-1] * nr      # rt[STEPS] when the run converged
@@ -440,26 +440,29 @@ class SoaEngine:
         robots' inboxes together. Returns the runs whose coordinator ticked."""
         n = int(self.out_n[0])
         ups: dict[int, list[tuple[int, int, tuple]]] = defaultdict(list)
+        mutes = self.mutes
         if n:
             run_of, node_of, nfields = self.run_of, self.node_of, self.nfields
-            for i, kind, f in zip(self.out_i[:n].tolist(), self.out_kind[:n].tolist(),
-                                  self.out_f[:n].tolist()):
+            ii, kk = self.out_i[:n], self.out_kind[:n]
+            kept = np.flatnonzero(mutes.keep(ii, kk))
+            for i, kind, f in zip(ii[kept].tolist(), kk[kept].tolist(),
+                                  self.out_f[kept].tolist()):
                 ups[run_of[i]].append((node_of[i], kind, tuple(f[:nfields[kind]])))
         busy = self.busy
         asked = set(np.flatnonzero(busy & (self.rt[B.LIVE] == 1)).tolist())
-        coords, conv, mutes = self.coords, self.conv_steps, self.mutes
+        coords, conv = self.coords, self.conv_steps
         called: set[int] = set()
         sends = []
         for r in sorted(asked.union(ups)):
             c = coords[r]
-            out = exchange(c, ups.get(r, ()), t, r in asked, mutes[r])
+            out = exchange(c, ups.get(r, ()), t, r in asked, HEARS_ALL)
             if out is None:
                 continue
             called.add(r)
             if out:
                 sends.append((r, out))
             busy[r] = not quiet(c)
-            mutes[r] = muting(c, mutes[r])
+            mutes.update(r, c)
             if conv[r] < 0 and c.converged_tick >= 0:
                 conv[r] = int(self.rt[B.STEPS, r])
         if sends:
@@ -468,50 +471,40 @@ class SoaEngine:
 
     def _deliver(self, sends: list[tuple[int, Iterable[tuple[int, int, tuple]]]]) -> None:
         """Commands (run, [(node, kind, fields), ...]) into the robots'
-        inbox rings, each robot's in the order given; a few array writes per
-        tick, not one per message."""
-        to: list[int] = []            # robot of each message, kind, its fields
-        kinds: list[int] = []
-        fields: list[tuple] = []
+        inbox rings, each robot's in the order given. Element writes, not
+        numpy's fancy indexing: a tick sends a few dozen messages, and a
+        fancy write costs more to set up than tens of element writes."""
+        head, tail = self.rb[B.IN_HEAD], self.rb[B.IN_TAIL]
+        in_kind, in_nf, in_f = self.in_kind, self.in_nf, self.in_f
+        at: dict[int, list[int]] = {}       # robot -> [next slot, its head]
         lo_of, agents_of = self.lo, self.agents
         for r, out in sends:
             lo, agents = lo_of[r], agents_of[r]
             for node, kind, f in out:
                 if node == msg.HOST:
-                    to.extend(range(lo, lo + agents))
-                    kinds.extend([kind] * agents)
-                    fields.extend([f] * agents)
+                    to: Iterable[int] = range(lo, lo + agents)
                 elif 1 <= node <= agents:
-                    to.append(lo + node - 1)
-                    kinds.append(kind)
-                    fields.append(f)
+                    to = (lo + node - 1,)
                 else:
                     raise EngineError(f"run {r}: the coordinator addressed node {node}, "
                                       f"which is not one of its {agents} robots")
-        seen: dict[int, int] = {}      # messages to each robot so far this tick
-        nth = []                       # each message's place among them
-        for i in to:
-            k = seen.get(i, 0)
-            nth.append(k)
-            seen[i] = k + 1
-        idx = np.array(to, dtype=np.int64)
-        m = len(to)
-        head, tail = self.rb[B.IN_HEAD], self.rb[B.IN_TAIL]
-        pos = tail[idx] + nth
-        full = pos - head[idx] >= INBOX
-        if full.any():
-            i = to[int(np.argmax(full))]
-            r = self.run_of[i]
-            raise EngineError(f"run {r}: robot {i - self.lo[r] + 1} has {INBOX} unread messages")
-        slot = pos % INBOX
-        self.in_kind[idx, slot] = kinds
-        nf = np.fromiter(map(len, fields), dtype=np.int64, count=m)
-        self.in_nf[idx, slot] = nf
-        for width in set(nf.tolist()):
-            if width:
-                pick = np.flatnonzero(nf == width)
-                self.in_f[idx[pick], slot[pick], :width] = [fields[j] for j in pick.tolist()]
-        tail[list(seen)] += list(seen.values())
+                nf = len(f)
+                for i in to:
+                    ring = at.get(i)
+                    if ring is None:
+                        ring = at[i] = [int(tail[i]), int(head[i])]
+                    pos = ring[0]
+                    if pos - ring[1] >= INBOX:
+                        raise EngineError(f"run {r}: robot {i - lo + 1} has {INBOX} "
+                                          "unread messages")
+                    ring[0] = pos + 1
+                    slot = pos % INBOX
+                    in_kind[i, slot] = kind
+                    in_nf[i, slot] = nf
+                    if nf:
+                        in_f[i, slot, :nf] = f
+        for i, ring in at.items():
+            tail[i] = ring[0]
 
     # -- run ends -----------------------------------------------------------------------------
 

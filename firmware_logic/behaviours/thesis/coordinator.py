@@ -29,7 +29,7 @@ NO_PATH = 1
 STALLED = 2
 STOP_REASONS = ("", "no path home", "stalled")
 # host-side logic: portable, but allowed to allocate
-SUBSET_SETUP = ("Touch", "Coordinator", "way_home", "_free", "_box_of", "_grow")
+SUBSET_SETUP = ("Touch", "Coordinator", "way_home", "_free", "_nearest", "_box_of", "_grow")
 STEPS = ((-1, -1), (-1, 0), (0, -1), (1, -1), (-1, 1), (1, 0), (0, 1), (1, 1))
 
 
@@ -124,6 +124,29 @@ def _free(d, box, footprint, blocked, ok):
                     break
         ok[d] = v
     return v
+
+
+def _nearest(rel):
+    """The points of `rel` (less home) that can be nearest home after a step
+    of at most one patch each way: every point whose least possible squared
+    distance after any such step, |p|^2 - 2(|x| + |y|), is within the
+    largest possible one of some point, |p|^2 + 2(|x| + |y|) + 2. The least
+    distance after each step is the same over these as over all (the plan
+    asks it for nine steps, of up to every holder's point)."""
+    if len(rel) < 4:
+        return rel
+    top = -1
+    for x, y in rel:
+        a = (x if x >= 0 else -x) + (y if y >= 0 else -y)
+        u = x * x + y * y + 2 * a + 2
+        if top < 0 or u < top:
+            top = u
+    out = []
+    for x, y in rel:
+        a = (x if x >= 0 else -x) + (y if y >= 0 else -y)
+        if x * x + y * y - 2 * a <= top:
+            out.append((x, y))
+    return out
 
 
 def _box_of(pts):
@@ -629,7 +652,7 @@ class Coordinator(Recognising, Roster):
             return
         down = []
         side = []
-        rel = self._from_home()
+        rel = _nearest(self._from_home())
         for ddx, ddy in STEPS:
             d = way.get((here[0] + ddx, here[1] + ddy))
             if d is None:
@@ -649,7 +672,7 @@ class Coordinator(Recognising, Roster):
             return
         # Every step that brings the object's nearest segment closer to home,
         # best first; each blocked attempt moves on to the next candidate.
-        rel = self._from_home()       # once: the 9 distances below share it
+        rel = _nearest(self._from_home())     # once: the 9 distances below share it
         here = self._home_d2(0, 0, rel)
         ranked = []
         for ddx, ddy in STEPS:
