@@ -8,7 +8,7 @@ from typing import Any
 
 from sim_backend.api import Result, run, sweep, version
 
-__all__ = ["Result", "run", "sweep", "__version__"]
+__all__ = ["Result", "run", "sweep", "__version__"]   # noqa: F822 - __version__: __getattr__
 
 
 def __getattr__(name: str) -> Any:
