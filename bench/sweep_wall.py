@@ -165,6 +165,7 @@ def main(argv: list[str] | None = None) -> int:
                  "activation": act}
     with tempfile.TemporaryDirectory() as tmp:
         tmpd = Path(tmp)
+        ENV.clear()
         ENV.update(user_env(tmpd / "pycache"))
         if not (a.run_only or a.skip_fresh):
             rows = []
