@@ -5,7 +5,9 @@ the floors `python -c pass` and `python -c "import numpy"`, plus what
 
 Each figure is the median of --reps fresh interpreters (wall clock, and
 CPU from the child's rusage, as /usr/bin/time reports them), the commands
-interleaved so a busy machine slows them alike. `--tree DIR` (repeatable) times another source
+interleaved so a busy machine slows them alike, after one untimed call of
+each. Every child reads and writes bytecode as a user's install does
+(user_env), even where PYTHONDONTWRITEBYTECODE is set. `--tree DIR` (repeatable) times another source
 tree too, e.g. an export of an older commit
 (`git archive COMMIT | tar -x -C /tmp/old`), run as `python -c "from
 bridge.cli import main; ..."` from that folder with this interpreter.
@@ -22,6 +24,7 @@ import resource
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -31,11 +34,27 @@ COMMANDS = {"--version": ["--version"], "--help": ["--help"], "run --json": ["ru
 FLOORS = {"python -c pass": "pass", "python -c 'import numpy'": "import numpy"}
 
 
+def user_env(pycache: Path) -> dict[str, str]:
+    """The environment of a user's process: bytecode read and written (a
+    wheel's install compiles it; an editable one writes it on the first
+    run). With PYTHONDONTWRITEBYTECODE set (as in this project's sessions)
+    every call compiled the project's sources again, 0.1-0.2 s, while
+    numpy's wheel brings its bytecode: a command paid what its floor did not.
+    The bytecode goes under `pycache` (PYTHONPYCACHEPREFIX): no source
+    tree is written to."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    env["PYTHONPYCACHEPREFIX"] = str(pycache)
+    return env
+
+
+ENV: dict[str, str] = dict(os.environ)       # every child's (main sets user_env)
+
+
 def timed(argv: list[str], cwd: Path) -> tuple[float, float]:
     """(wall, user + system CPU) seconds of one child process."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
-    subprocess.run(argv, cwd=cwd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    subprocess.run(argv, cwd=cwd, env=ENV, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
@@ -45,7 +64,7 @@ def import_time(args: list[str], cwd: Path) -> dict:
     """Modules imported and the seconds spent importing them (the top-level
     cumulative figures of -X importtime)."""
     err = subprocess.run([sys.executable, "-X", "importtime", "-c", CLI, *args], cwd=cwd,
-                         capture_output=True, text=True).stderr
+                         env=ENV, capture_output=True, text=True).stderr
     rows = [line.split("|") for line in err.splitlines()
             if line.startswith("import time:") and not line.endswith("package")]
     top = [int(r[1]) for r in rows if not r[2].startswith("  ")]
@@ -64,20 +83,30 @@ def main(argv: list[str] | None = None) -> int:
                     help="another source tree to time beside this one")
     a = ap.parse_args(argv)
     trees = {"this": ROOT, **{str(t): t.resolve() for t in a.tree}}
-    times: dict[str, list] = {}
-    for _ in range(a.reps):
-        for name, args in COMMANDS.items():
-            for label, tree in trees.items():
-                times.setdefault(f"{label}: touchswarm {name}", []).append(
-                    timed([sys.executable, "-c", CLI, *args], tree))
-        for name, code in FLOORS.items():
-            times.setdefault(name, []).append(timed([sys.executable, "-c", code], Path("/")))
-    out = {"reps": a.reps, "cpus": os.cpu_count(), "load": os.getloadavg()[0],
-           "seconds": {k: median(v) for k, v in times.items()},
-           "imports": {f"{label}: touchswarm {name}": import_time(args, tree)
-                       for name, args in COMMANDS.items() for label, tree in trees.items()}}
+    with tempfile.TemporaryDirectory() as pycache:
+        ENV.clear()
+        ENV.update(user_env(Path(pycache)))
+        out = measure(trees, a.reps)
     print(json.dumps(out, indent=1))
     return 0
+
+
+def measure(trees: dict[str, Path], reps: int) -> dict:
+    times: dict[str, list] = {}
+    for k in range(reps + 1):           # the first round writes the bytecode, untimed
+        for name, args in COMMANDS.items():
+            for label, tree in trees.items():
+                t = timed([sys.executable, "-c", CLI, *args], tree)
+                if k:
+                    times.setdefault(f"{label}: touchswarm {name}", []).append(t)
+        for name, code in FLOORS.items():
+            t = timed([sys.executable, "-c", code], Path("/"))
+            if k:
+                times.setdefault(name, []).append(t)
+    return {"reps": reps, "cpus": os.cpu_count(), "load": os.getloadavg()[0],
+            "seconds": {k: median(v) for k, v in times.items()},
+            "imports": {f"{label}: touchswarm {name}": import_time(args, tree)
+                        for name, args in COMMANDS.items() for label, tree in trees.items()}}
 
 
 if __name__ == "__main__":

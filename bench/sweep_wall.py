@@ -18,12 +18,21 @@ against its floor. Every figure is a fresh interpreter timed from outside
   many processes as the sweep used (its wall time divided by them, the best
   a process pool could do).
 - "run": `touchswarm run --json` (the default scenario, seed 1, reference
-  engine) against its floor, `python -c "import numpy"` plus the same run
-  timed inside a process that has everything imported already.
+  engine) against its floor, `python -c "import numpy"` plus the same
+  `main(["run", "--json"])` timed inside a process that ran it once already
+  (every module imported, every per-process cache filled): what the command
+  adds to its floor is its start-up alone. Each of the three timed after one
+  untimed call; `--tree DIR` (repeatable) times another source tree's
+  command and in-process run beside this one's (e.g. an export of an older
+  commit: `git archive COMMIT | tar -x -C /tmp/old`).
 
-Medians of --reps (the sweeps: one each unless --reps). Prints one JSON.
+Every child reads and writes bytecode as a user's install does
+(cli_startup.user_env), even where PYTHONDONTWRITEBYTECODE is set. Medians
+of --reps (the sweeps: one each unless --reps; the run: at least 3).
+Prints one JSON.
 
     .venv/bin/python bench/sweep_wall.py [--reps N] [--mesa-runs N] [--sweep-runs N] [--skip-fresh]
+    .venv/bin/python bench/sweep_wall.py --run-only [--reps N] [--tree DIR]
 """
 
 from __future__ import annotations
@@ -40,6 +49,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+from cli_startup import user_env
 
 ROOT = Path(__file__).resolve().parents[1]
 BENCH = Path(__file__).resolve().parent
@@ -62,10 +73,10 @@ import contextlib, io, sys, time
 from bridge.cli import main
 with contextlib.redirect_stdout(io.StringIO()):
     main(["run", "--json"])                      # everything imported, once
-t = time.perf_counter()
+t, c = time.perf_counter(), time.process_time()
 with contextlib.redirect_stdout(io.StringIO()):
     main(["run", "--json"])
-print(time.perf_counter() - t)
+print(time.perf_counter() - t, time.process_time() - c)
 """
 
 
@@ -81,6 +92,7 @@ def scenario_args(activation: str) -> list[str]:
     return out
 
 
+ENV: dict[str, str] = dict(os.environ)     # every child's (main sets user_env)
 CPU = [0.0]        # the CPU seconds of the last child (and the children it waited for)
 
 
@@ -90,7 +102,7 @@ def wall(argv: list[str], env: dict | None = None, cwd: Path = ROOT
     seconds (user + system, its worker processes included) in CPU[0]."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t = time.perf_counter()
-    p = subprocess.run(argv, cwd=cwd, env=env, stdout=subprocess.PIPE,
+    p = subprocess.run(argv, cwd=cwd, env=ENV if env is None else env, stdout=subprocess.PIPE,
                        stderr=subprocess.PIPE, text=True)
     w = time.perf_counter() - t
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -144,16 +156,21 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sweep-runs", type=int, default=500,
                     help="runs of the warm-cache sweep (default: 500)")
     ap.add_argument("--skip-fresh", action="store_true", help="no fresh-cache sweep")
+    ap.add_argument("--run-only", action="store_true", help="no sweep: the run against its floor")
+    ap.add_argument("--tree", action="append", default=[], type=Path,
+                    help="another source tree whose run to time beside this one's")
     a = ap.parse_args(argv)
     act = a.activation
     out: dict = {"cpus": os.cpu_count(), "workers": workers(), "load_before": os.getloadavg()[0],
                  "activation": act}
     with tempfile.TemporaryDirectory() as tmp:
         tmpd = Path(tmp)
-        if not a.skip_fresh:
+        ENV.clear()
+        ENV.update(user_env(tmpd / "pycache"))
+        if not (a.run_only or a.skip_fresh):
             rows = []
             for k in range(a.reps):
-                env = {**os.environ, "TOUCHSWARM_CACHE": str(tmpd / f"cache{k}")}
+                env = {**ENV, "TOUCHSWARM_CACHE": str(tmpd / f"cache{k}")}
                 w, err = sweep(20, act, tmpd / f"fresh{k}", env)
                 cpu = CPU[0]
                 end_background_compile(err)
@@ -165,34 +182,60 @@ def main(argv: list[str] | None = None) -> int:
                 "sweep_cpu_s": round(sc, 2), "mesa_cpu_s": round(mc, 2),
                 "sweep_over_mesa": round(s / m, 2), "sweep_over_mesa_cpu": round(sc / mc, 2),
                 "target": "<= 1.5"}
-        sweep(1, act, tmpd / "warmup")                       # the step loaded, text kept
-        rows = []
-        for k in range(a.reps):
-            w = sweep(a.sweep_runs, act, tmpd / f"big{k}")[0]
-            rows.append((w, CPU[0]) + mesa(a.mesa_runs, act, scale_to=a.sweep_runs))
-        s, sc, m1, mc = (statistics.median(r[j] for r in rows) for j in range(4))
-        out["sweep_500"] = {
-            "runs": a.sweep_runs, "cache": "warm", "sweep_wall_s": round(s, 2),
-            "sweep_cpu_s": round(sc, 2), "mesa_cpu_s": round(mc, 1),
-            "speedup_cpu": round(mc / sc, 1),
-            "mesa_runs_timed": a.mesa_runs, "mesa_wall_s_one_process": round(m1, 1),
-            "mesa_wall_s_per_worker": round(m1 / out["workers"], 1),
-            "speedup_one_process": round(m1 / s, 1),
-            "speedup_per_worker": round(m1 / out["workers"] / s, 1), "target": ">= 10"}
-    rows = []
-    for _ in range(max(3, a.reps)):
-        run = wall([sys.executable, "-c", CLI, "run", "--json"])[0]
-        numpy = wall([sys.executable, "-c", "import numpy"], cwd=Path("/"))[0]
-        inside = float(subprocess.run([sys.executable, "-c", RUN_FLOOR], cwd=ROOT,
-                                      capture_output=True, text=True, check=True).stdout)
-        rows.append((run, numpy, inside))
-    run, numpy, inside = (statistics.median(r[k] for r in rows) for k in range(3))
-    out["run"] = {"touchswarm_run_wall_s": round(run, 3), "import_numpy_wall_s": round(numpy, 3),
-                  "run_in_process_s": round(inside, 3), "floor_s": round(numpy + inside, 3),
-                  "over_floor": round(run / (numpy + inside), 2), "target": "<= 1.2"}
+        if not a.run_only:
+            sweep_500(a, out, tmpd)
+        trees = {"this": ROOT, **{str(t): t.resolve() for t in a.tree}}
+        out.update(run_vs_floor(trees, max(3, a.reps)))
     out["load_after"] = os.getloadavg()[0]
     print(json.dumps(out, indent=1))
     return 0
+
+
+def sweep_500(a: argparse.Namespace, out: dict, tmpd: Path) -> None:
+    """out["sweep_500"]: the warm-cache sweep against the Mesa port."""
+    act = a.activation
+    sweep(1, act, tmpd / "warmup")                       # the step loaded, text kept
+    rows = []
+    for k in range(a.reps):
+        w = sweep(a.sweep_runs, act, tmpd / f"big{k}")[0]
+        rows.append((w, CPU[0]) + mesa(a.mesa_runs, act, scale_to=a.sweep_runs))
+    s, sc, m1, mc = (statistics.median(r[j] for r in rows) for j in range(4))
+    out["sweep_500"] = {
+        "runs": a.sweep_runs, "cache": "warm", "sweep_wall_s": round(s, 2),
+        "sweep_cpu_s": round(sc, 2), "mesa_cpu_s": round(mc, 1),
+        "speedup_cpu": round(mc / sc, 1),
+        "mesa_runs_timed": a.mesa_runs, "mesa_wall_s_one_process": round(m1, 1),
+        "mesa_wall_s_per_worker": round(m1 / out["workers"], 1),
+        "speedup_one_process": round(m1 / s, 1),
+        "speedup_per_worker": round(m1 / out["workers"] / s, 1), "target": ">= 10"}
+
+
+def run_vs_floor(trees: dict[str, Path], reps: int) -> dict:
+    """"run" (and "run TREE" for each other tree): the command's wall time
+    against its floor's, the three interleaved, the first round untimed (it
+    writes the bytecode); the same in CPU seconds, which a loaded machine
+    blurs less."""
+    rows: dict[str, list] = {label: [] for label in trees}
+    for k in range(reps + 1):
+        for label, tree in trees.items():
+            run = wall([sys.executable, "-c", CLI, "run", "--json"], cwd=tree)[0], CPU[0]
+            numpy = wall([sys.executable, "-c", "import numpy"], cwd=Path("/"))[0], CPU[0]
+            inside = tuple(map(float, wall([sys.executable, "-c", RUN_FLOOR], cwd=tree)[1]
+                                .split()))
+            if k:
+                rows[label].append(run + numpy + inside)
+    out = {}
+    for label, got in rows.items():
+        run, run_cpu, numpy, numpy_cpu, inside, inside_cpu = (
+            statistics.median(r[k] for r in got) for k in range(6))
+        out["run" if label == "this" else f"run {label}"] = {
+            "touchswarm_run_wall_s": round(run, 3), "import_numpy_wall_s": round(numpy, 3),
+            "run_in_process_s": round(inside, 3), "floor_s": round(numpy + inside, 3),
+            "over_floor": round(run / (numpy + inside), 2), "target": "<= 1.2",
+            "touchswarm_run_cpu_s": round(run_cpu, 3), "import_numpy_cpu_s": round(numpy_cpu, 3),
+            "run_in_process_cpu_s": round(inside_cpu, 3),
+            "over_floor_cpu": round(run_cpu / (numpy_cpu + inside_cpu), 2)}
+    return out
 
 
 if __name__ == "__main__":

@@ -15,8 +15,6 @@ from __future__ import annotations
 
 import contextlib
 import math
-import shutil
-import subprocess
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterator
@@ -27,7 +25,9 @@ from sim_backend.observe import OutputFormatError, Snapshot, Trails, output_form
 
 # matplotlib (and sim_backend.render, which draws with it) is imported by
 # write() only: the command line reads MAX_FRAMES and checks --animate's
-# suffix before a run, and a run without --animate never draws
+# suffix before a run, and a run without --animate never draws; shutil and
+# subprocess (ffmpeg) likewise where they are used: every `touchswarm run`
+# imports this module
 
 SUFFIXES = (".gif", ".mp4")
 MAX_FRAMES = 120
@@ -39,6 +39,7 @@ DPI = 100                 # is 8 pt or more, legible at 100 %
 
 def animation_format(path: Path) -> str:
     """"gif" or "mp4" from the suffix; mp4 needs ffmpeg on PATH."""
+    import shutil
     fmt = output_format(path, SUFFIXES, "animation")
     if fmt == "mp4" and shutil.which("ffmpeg") is None:
         raise OutputFormatError(f"{path}: .mp4 needs ffmpeg on PATH, which is not there; "
@@ -230,6 +231,8 @@ def _sink(fmt: str, path: Path, size: tuple[int, int]) -> Iterator[Callable[[np.
         images[0].save(path, save_all=True, append_images=images[1:],
                        duration=1000 // FPS, loop=0)
         return
+    import shutil
+    import subprocess
     width, height = size
     proc = subprocess.Popen(
         [shutil.which("ffmpeg") or "ffmpeg", "-loglevel", "error", "-y", "-f", "rawvideo",

@@ -27,9 +27,7 @@ by path to a folder holding such a package.
 from __future__ import annotations
 
 import functools
-import hashlib
 import importlib
-import importlib.metadata
 import importlib.util
 import os
 import re
@@ -78,7 +76,7 @@ class Behaviour:
     @property
     def ref(self) -> str:
         """How a scenario names this behaviour: its installed name, or its folder."""
-        return self.name if names().get(self.name) == self.module_name else str(self.folder)
+        return self.name if module_of(self.name) == self.module_name else str(self.folder)
 
     def robot_args(self, node: int, seed: int, sc: Any) -> tuple:
         """The FSM's constructor arguments for robot `node`, read off the
@@ -212,7 +210,11 @@ def _entry_points() -> tuple[tuple[str, str], ...]:
     """The behaviours installed packages declare, read once per process:
     importlib.metadata reads every installed distribution's metadata on
     each call (13 ms in this venv), and every scenario and world loads its
-    behaviour (a 512-run sweep chunk spent 13.6 of its 19.6 s here)."""
+    behaviour (a 512-run sweep chunk spent 13.6 of its 19.6 s here).
+    Imported here: importlib.metadata (and the email, zipfile and csv
+    modules under it) is most of a built-in behaviour's import cost, and a
+    built-in is found without it (module_of)."""
+    import importlib.metadata
     return tuple((ep.name, ep.value) for ep in importlib.metadata.entry_points(group=GROUP))
 
 
@@ -222,6 +224,16 @@ def names() -> dict[str, str]:
     for name, value in _entry_points():
         out.setdefault(name, value)
     return out
+
+
+def module_of(ref: str) -> str | None:
+    """names().get(ref), reading the installed packages' entry points only
+    for a name no built-in has (a built-in wins either way): `touchswarm
+    run` of a built-in never imports importlib.metadata."""
+    found = builtin().get(ref)
+    if found is None:
+        found = next((value for name, value in _entry_points() if name == ref), None)
+    return found
 
 
 def _check(mod: ModuleType, spec: ModuleType, where: str) -> None:
@@ -241,6 +253,7 @@ def folder_module_name(path: Path) -> str:
     plus a digest of its full path, so that it never shadows an installed
     behaviour (or another folder) of the same name in one process, and a
     worker process that loads the same folder gets the same name."""
+    import hashlib      # only a folder behaviour needs it
     digest = hashlib.sha1(str(path).encode()).hexdigest()[:12]
     return "_touchswarm_folder_%s_%s" % (re.sub(r"\W", "_", path.name), digest)
 
@@ -274,7 +287,7 @@ _TRUSTED: set[Path] = set()
 def trust(ref: str | Path | None) -> None:
     """The user named `ref` on the command line: a folder it names may be
     named by data files too (named_by_data)."""
-    if ref is not None and str(ref) not in names():
+    if ref is not None and module_of(str(ref)) is None:
         _TRUSTED.add(Path(ref).resolve())
 
 
@@ -289,7 +302,7 @@ def named_by_data(ref: Any, source: str) -> None:
     code that would run on import, so only one the user trusted on the
     command line (`trust`). BehaviourError (one line) otherwise, before any
     import."""
-    if ref is None or str(ref) in names():
+    if ref is None or module_of(str(ref)) is not None:
         return
     if Path(str(ref)).resolve() in _TRUSTED:
         return
@@ -326,9 +339,8 @@ def load(ref: str | Path | None = None) -> Behaviour:
 
 
 def _load(ref: str | Path) -> Behaviour:
-    known = names()
-    if str(ref) in known:
-        modname = known[str(ref)]
+    modname = module_of(str(ref))
+    if modname is not None:
         try:
             mod = importlib.import_module(modname)
         except ImportError as err:
@@ -338,7 +350,7 @@ def _load(ref: str | Path) -> Behaviour:
         path = Path(ref)
         if not path.is_dir():
             raise BehaviourError(f"behaviour {str(ref)!r}: not an installed behaviour "
-                                 f"({', '.join(sorted(known))}) nor a folder")
+                                 f"({', '.join(sorted(names()))}) nor a folder")
         mod = _import_folder(path.resolve())
         where = repr(str(path))
     try:

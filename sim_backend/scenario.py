@@ -14,7 +14,6 @@ from __future__ import annotations
 import dataclasses
 import tomllib
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -462,9 +461,14 @@ def _check_consistency(sc: Scenario) -> None:
     arena.check_crowd(sc, len(cells))
 
 
+# the package's own folder, not importlib.resources: that module imports
+# tempfile, zipfile and shutil, a tenth of `touchswarm run`'s imports, and the
+# package is always installed as files (wheel or editable)
+SCENARIOS_DIR = Path(__file__).resolve().parent / "scenarios"
+
+
 def builtin_names() -> list[str]:
-    folder = resources.files("sim_backend") / "scenarios"
-    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml"))
+    return sorted(p.name[:-5] for p in SCENARIOS_DIR.iterdir() if p.name.endswith(".toml"))
 
 
 def load(spec: str | Path | None = None) -> Scenario:
@@ -476,7 +480,7 @@ def load(spec: str | Path | None = None) -> Scenario:
                             f"({', '.join(builtin_names())}) or a .toml file")
     path = Path(spec)
     if str(spec) in builtin_names():
-        text = (resources.files("sim_backend") / "scenarios" / f"{spec}.toml").read_text()
+        text = (SCENARIOS_DIR / f"{spec}.toml").read_text(encoding="utf-8")
         source = f"scenario {spec!r}"
     elif path.suffix == ".toml" or path.exists():
         from sim_backend.textfile import TextFileError, read_small_text

@@ -19,6 +19,13 @@ HEAVY = ("numpy", "matplotlib", "numba", "can", "cantools", "serial", "pyarrow",
 # what `touchswarm run` may never need (numpy it does need: the engine)
 NOT_FOR_RUN = ("matplotlib", "numba", "llvmlite", "can", "cantools", "serial", "pyarrow",
                "pandas", "PIL")
+# standard modules a run of a built-in behaviour without output files never
+# uses (whole modules, not packages): installed packages' metadata (their
+# entry points; a built-in is found without them) and the email and zipfile
+# modules it loads, package resources, temporary files, child processes,
+# digests, sockets
+STDLIB_NOT_FOR_RUN = ("importlib.metadata", "importlib.resources", "email", "zipfile",
+                      "tempfile", "subprocess", "hashlib", "socket")
 
 PROBE = """
 import contextlib, io, json, sys
@@ -81,6 +88,28 @@ def test_a_run_loads_no_can_compiler_serial_plot_or_parquet_package():
     assert json.loads(got["out"])["ticks"] <= 40
     assert loaded(got["modules"], NOT_FOR_RUN) == []
     assert commands(got["modules"]) == ["bridge.commands.run"]
+    assert sorted(set(got["modules"]) & set(STDLIB_NOT_FOR_RUN)) == []
+
+
+def test_a_sweep_without_a_preset_loads_no_plotting_module(tmp_path):
+    """--no-plots on the reference engine: no figure module, no compiler."""
+    got = probe("sweep", "--seeds", "2", "--engine", "reference", "--executor", "inline",
+                "--no-plots", "--json", "--set", "maxTicks=30", "--out", str(tmp_path / "s"))
+    assert got["code"] == 0
+    assert [m for m in got["modules"] if m in ("sim_backend.plots", "sim_backend.arena_presets",
+                                              "sim_backend.robustness")] == []
+    assert loaded(got["modules"], NOT_FOR_RUN) == []
+
+
+def test_importing_the_facade_reads_the_version_only_when_asked():
+    code = ("import importlib, json, sys, touchswarm; "
+            "before = 'importlib.metadata' in sys.modules; "
+            "print(json.dumps([before, touchswarm.__version__, "
+            "importlib.import_module('importlib.metadata').version('touchswarm')]))")
+    done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True,
+                          text=True, timeout=300, check=True)
+    before, version, installed = json.loads(done.stdout)
+    assert before is False and version == installed
 
 
 def test_no_command_parser_needs_a_heavy_package():

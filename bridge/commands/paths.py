@@ -9,7 +9,6 @@ behind, so a refused command creates no file and no directory.
 from __future__ import annotations
 
 import os
-import tempfile
 from pathlib import Path
 
 from bridge.errors import UsageError
@@ -21,6 +20,9 @@ def _why(err: OSError) -> str:
 
 def _probe_dir(path: Path, option: str) -> None:
     """Write and delete a temporary file in an existing directory."""
+    # imported here: tempfile brings shutil and random, which a run without
+    # output paths never needs
+    import tempfile
     try:
         with tempfile.TemporaryFile(dir=path, prefix=".touchswarm-probe-"):
             pass

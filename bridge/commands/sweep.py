@@ -287,7 +287,9 @@ def _plan(args: argparse.Namespace, cfg: dict) -> Plan:
     if flag and args.save_experiment:
         raise UsageError(f"--save-experiment saves a --grid sweep; {flag} is its own "
                          "experiment already")
-    if args.preset in _world_presets():
+    # a sweep without --preset never imports the presets (and the plotting
+    # modules they import)
+    if args.preset and args.preset in _world_presets():
         return _preset_plan(args, cfg, base, overrides)
     if flag:
         return _study_plan(args, cfg, base, overrides)
