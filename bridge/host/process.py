@@ -38,11 +38,11 @@ from bridge.errors import UsageError
 from bridge.links.codec import UNANNOUNCED, BadFrames, Message
 from bridge.links.errors import LinkTimeoutError
 from bridge.host.journal import REJECTED_KEPT, Journal, JournalError, Report
-from bridge.transport import RobotTransport
 from firmware_logic import messages as msg
 from firmware_logic import roster
 from sim_backend import registry
 from sim_backend.coordinator import HostCoordinator, lacks
+from sim_backend.link import HostEnd
 from sim_backend.scenario import CHOICES
 
 # A coordinator is any behaviour's that meets the host contract
@@ -87,7 +87,7 @@ def host_behaviour(name: str | None, sc: Any = None) -> registry.Behaviour:
 
 
 class HostProcess:
-    def __init__(self, transport: RobotTransport, weight: int, home_x: int = -15,
+    def __init__(self, transport: HostEnd, weight: int, home_x: int = -15,
                  home_y: int = -15, journal: Journal | None = None,
                  tick_seconds: float = 0.01,
                  on_event: Callable[[str], None] | None = None,

@@ -248,7 +248,7 @@ class CanLink:
         self.down: list[can.Message] = []
         self.frames_up = 0
         self.frames_down = 0
-        self.tick = 0          # host_recv calls: the link's clock for delayed frames
+        self.tick = 0          # polls (one per engine tick): the link's clock for delayed frames
 
     # robots' side
     def robot_send(self, node: int, kind: int, fields: tuple) -> None:
@@ -270,7 +270,9 @@ class CanLink:
         self.gateway.drain(len(frames))
 
     # host's side
-    def host_recv(self) -> list[Message]:
+    def poll(self, timeout: float) -> list[Message]:
+        # the robots' frames of this tick are flushed onto the bus here, so
+        # each is waited for (RECV_TIMEOUT), not `timeout`: an engine polls 0
         self.tick += 1
         n = self.gateway.flush()
         self.frames_up += n
@@ -286,7 +288,7 @@ class CanLink:
                     out.append(m)
         return out
 
-    def host_send(self, node: int, kind: int, fields: tuple) -> None:
+    def send(self, node: int, kind: int, fields: tuple) -> None:
         self.down.append(encode(node, kind, fields))
 
     def bad_frames(self) -> dict[str, int]:
