@@ -212,7 +212,8 @@ class Engine:
         # the behaviour seam: robots and coordinator come from the registry
         self.behaviour = registry.load(sc.behaviour).activate()   # its message kinds in use
         self.robots = [self.behaviour.make_robot(n, seed, sc) for n in nodes]
-        self.bodies = [SimBody(self.world, i, n, self.link) for i, n in enumerate(nodes)]
+        # any HAL: a mixed mission seats real bodies here (bridge/mission.py)
+        self.bodies: list[Any] = [SimBody(self.world, i, n, self.link) for i, n in enumerate(nodes)]
         from perception import host_coordinator
         self.coordinator = host_coordinator(self.behaviour, sc, cells=list(self.world.object_cells))
         self.tick = 0
