@@ -336,7 +336,7 @@ def _check_weight(sc: Any, target: Piece, tname: str, taken: dict) -> None:
 
         n = objects.surround(list(cs), free)
         fewest = n if fewest is None else min(fewest, n)
-    if needed > fewest:
+    if fewest is not None and needed > fewest:
         raise ScenarioError(
             f"{key}: weight {target.weight:g} needs {needed} robots holding, but only "
             f"{fewest} can surround {target.name!r} (reachable segments with a free patch "

@@ -35,7 +35,7 @@ import secrets
 import stat
 import tomllib
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import can
 from cryptography.hazmat.primitives.ciphers import Cipher
@@ -829,9 +829,9 @@ class ReportLayout:
             checks.append("    if h is None:\n        return None\n")
         src = ("def open(data, h):\n    g = unpack(data)\n" + "".join(checks)
                + f"    return ({', '.join(parts)},)\n")
-        space = {"N": msg.NEAR, "unpack": self.st.unpack_from}
+        space: dict[str, Any] = {"N": msg.NEAR, "unpack": self.st.unpack_from}
         exec(compile(src, f"<sealed {self.name}>", "exec"), space)
-        self.open = space["open"]
+        self.open: Callable[[bytes, tuple | None], tuple | None] = space["open"]
 
 
 def report_layout(row: tuple) -> ReportLayout:
