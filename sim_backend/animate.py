@@ -219,7 +219,7 @@ class Animation:
 
 
 @contextlib.contextmanager
-def _sink(fmt: str, path: Path, size: tuple[int, int]) -> Iterator[Callable[[np.ndarray], None]]:
+def _sink(fmt: str, path: Path, size: tuple[int, int]) -> Iterator[Callable[[np.ndarray], object]]:
     """A function taking RGB frames (h, w, 3) that end up in path as a GIF
     (Pillow, one adaptive palette per frame) or an MP4 (ffmpeg, H.264)."""
     if fmt == "gif":

@@ -366,6 +366,7 @@ def _outside(sc: Any, closed: set) -> set:
 def _check_path(sc: Any, target: Piece, tname: str, taken: dict) -> None:
     """The target's own cells have a way home round the obstacles and other
     objects (the carriers beside it are planned for at convergence)."""
+    assert target.at is not None         # called for a target placed at a given anchor
     cs = target.placed(*target.at)
     dist = way_home(sc.worldSize, cs, set(taken), cs, sc.homeX, sc.homeY, 16, (0, 0))
     if (0, 0) not in dist:
