@@ -174,14 +174,14 @@ class Animation:
         if has_object:
             handles.append(Line2D([], [], ls="--", color="darkcyan", label="object's path"))
         # below the arena, not over it
-        ax.legend(handles=[*handles, *rd.state_legend(self.names, colours)],
-                  loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=4, fontsize=9,
-                  framealpha=0.9)
+        legend = ax.legend(handles=[*handles, *rd.state_legend(self.names, colours)],
+                           loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=4, fontsize=9,
+                           framealpha=0.9)
         fig.tight_layout()
         # blitting: the axes' tick labels and the colour bar are drawn once;
         # each frame redraws only the artists inside the axes (a full redraw
         # lays out every text again and costs several times more)
-        dynamic = [*ax.images, *ax.collections, *ax.lines, *ax.patches, ax.get_legend(),
+        dynamic = [*ax.images, *ax.collections, *ax.lines, *ax.patches, legend,
                    title, *ax.spines.values()]
         for a in dynamic:
             a.set_animated(True)
@@ -236,9 +236,11 @@ def _sink(fmt: str, path: Path, size: tuple[int, int]) -> Iterator[Callable[[np.
          "-pix_fmt", "rgb24", "-s", f"{width}x{height}", "-r", str(FPS), "-i", "-",
          "-pix_fmt", "yuv420p", "-vf", "pad=ceil(iw/2)*2:ceil(ih/2)*2", str(path)],
         stdin=subprocess.PIPE)
+    stdin = proc.stdin
+    assert stdin is not None             # opened with stdin=PIPE
     try:
-        yield lambda rgb: proc.stdin.write(np.ascontiguousarray(rgb).tobytes())
+        yield lambda rgb: stdin.write(np.ascontiguousarray(rgb).tobytes())
     finally:
-        proc.stdin.close()
+        stdin.close()
         if proc.wait() != 0:
             raise OSError(f"ffmpeg failed writing {path} (exit status {proc.returncode})")

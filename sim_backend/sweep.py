@@ -544,7 +544,7 @@ def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None =
             jobs.append((base_d, pt.as_dict(), s))
             meta.append((pt, sc, s))
     scenarios = [sc for _, sc, _ in meta]
-    bg = None
+    bg: Any = None           # a compile started, watched or refused (_Engines' bg)
     if jobs and engine == "auto" and _local(executor):
         from sim_backend.batch.soa import cold
         try:
