@@ -71,7 +71,8 @@ class Frame:
 def _frame(s: Snapshot, engine: Any, load: tuple | None, instruments: Any = ()) -> Frame:
     from sim_backend import render as rd
     c = engine.coordinator
-    est, verdict = (), ""
+    est: tuple = ()
+    verdict = ""
     view = rd.estimate_of(instruments)
     if view is not None:
         dx, dy = rd.displacement(s._world)

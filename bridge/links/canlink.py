@@ -144,9 +144,10 @@ class Gateway:
             else:
                 # a report is sealed too; before the robot took a host
                 # command it is held back (secoc.Opener.seal_report)
-                frame = self.opener.seal_report(node, kind, fields)
-                if frame is None:
+                sealed = self.opener.seal_report(node, kind, fields)
+                if sealed is None:
                     return
+                frame = sealed
         self.up.append(frame)
 
     def robot_recv(self, node: int) -> tuple[int, tuple] | None:
@@ -183,9 +184,10 @@ class Gateway:
 
     def deliver(self, frame: can.Message) -> None:
         if self.opener is not None:
-            frame = self.opener.open(frame)
-            if frame is None:
+            opened = self.opener.open(frame)
+            if opened is None:
                 return
+            frame = opened
         m = self.decoder.decode(frame)
         if m is None:
             return
