@@ -285,6 +285,13 @@ class MixedLink:
                 self.inner.down[n].clear()      # nobody here reads a board's queue
                 t.send(node, kind, fields)
 
+    def bad_frames(self) -> dict[str, int]:
+        out: dict[str, int] = {}
+        for t in self.tethers.values():
+            for k, v in t.bad_frames().items():
+                out[k] = out.get(k, 0) + v
+        return out
+
     def close(self) -> None:
         pass                            # the tethers' ports belong to their bodies
 

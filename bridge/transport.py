@@ -10,6 +10,7 @@ kind once, and drops them.
 from __future__ import annotations
 
 import logging
+from typing import Sequence
 
 from bridge.errors import BridgeError
 from sim_backend.link import HostEnd, Message
@@ -22,7 +23,7 @@ class FanIn:
     that node was heard on (node 0, or a node never heard: every transport).
     Lets one host serve robots on a CAN bus and on serial ports at once."""
 
-    def __init__(self, parts: list[HostEnd]) -> None:
+    def __init__(self, parts: Sequence[HostEnd]) -> None:
         self.parts = list(parts)
         self.heard_on: dict[int, HostEnd] = {}
 

@@ -19,17 +19,28 @@ from __future__ import annotations
 
 import logging
 from types import TracebackType
+from typing import Any, Protocol
 
 from firmware_logic import board, hal
 from firmware_logic import messages as msg
-from sim_backend.engine import Engine
 from sim_backend.link import HostEnd, Message
 
 log = logging.getLogger(__name__)
 
 
+class Stepper(Protocol):
+    """What the tether serves the boards from: an engine's bodies and its
+    rule that applies their intents (sim_backend.engine.Engine, or a mixed
+    mission's link, bridge/mission.py MixedLink, which applies the boards' only)."""
+
+    @property
+    def bodies(self) -> list[Any]: ...
+
+    def _apply(self) -> None: ...
+
+
 class TetherTransport:
-    def __init__(self, inner: HostEnd, engine: Engine, nodes: list[int]) -> None:
+    def __init__(self, inner: HostEnd, engine: Stepper, nodes: list[int]) -> None:
         self.inner = inner
         self.engine = engine
         self.bodies = {b.node: b for b in engine.bodies if b.node in nodes}
