@@ -158,7 +158,7 @@ class Animation:
         title = ax.set_title(self.title(frames[0]), fontsize=10)
         shape = self.words.shape is not None
         has_object = bool(self.trails.centre)
-        handles = []
+        handles: list[Patch | Line2D] = []
         if has_object:
             handles += [Patch(color=rd.OBJECT_RGB,
                               label="object or decoy" if w.decoy_cells else "object"),

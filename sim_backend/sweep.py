@@ -20,7 +20,7 @@ import socket
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Iterable, Sequence
+from typing import Any, Callable, Iterable, Mapping, Sequence
 
 from sim_backend import params
 from sim_backend.errors import ScenarioError
@@ -73,7 +73,7 @@ class Point:
         return dict(self.params)
 
 
-def grid_points(grid: dict[str, Sequence[Any]], experiment: str = "grid") -> list[Point]:
+def grid_points(grid: Mapping[str, Sequence[Any]], experiment: str = "grid") -> list[Point]:
     """The cartesian product of a grid {key: [values]}, in the grid's key order."""
     # a key is checked with the point's scenario (the behaviour's own
     # parameters are keys too): validate_points

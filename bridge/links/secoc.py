@@ -832,7 +832,7 @@ class ReportLayout:
                + f"    return ({', '.join(parts)},)\n")
         space: dict[str, Any] = {"N": msg.NEAR, "unpack": self.st.unpack_from}
         exec(compile(src, f"<sealed {self.name}>", "exec"), space)
-        self.open: Callable[[bytes, tuple | None], tuple | None] = space["open"]
+        self.open: Callable[[bytes | bytearray, tuple | None], tuple | None] = space["open"]
 
 
 def report_layout(row: tuple) -> ReportLayout:
