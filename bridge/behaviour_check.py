@@ -139,6 +139,7 @@ class Checker:
         path = self.work / "behaviour.dbc"
         cli("dbc", "--behaviour", str(self.folder), "--out", str(path))
         db = cantools.database.load_file(str(path))
+        assert isinstance(db, cantools.database.can.Database)    # a .dbc file: CAN messages
         from sim_backend import registry
         own = [row[1] for row in getattr(registry.load(str(self.folder)).spec, "MESSAGES", ())]
         names = {m.name for m in db.messages}

@@ -104,7 +104,7 @@ class LazyCommands(argparse._SubParsersAction):
 class LazyVersion(argparse._VersionAction):
     """--version reads the installed version only when it is asked for."""
 
-    def __call__(self, parser, namespace, values, option_string=None) -> NoReturn:
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
         from sim_backend.api import version
         self.version = f"%(prog)s {version()}"
         super().__call__(parser, namespace, values, option_string)

@@ -270,20 +270,27 @@ class MixedLink:
         for t in self.tethers.values():
             self.inbox += t.poll(timeout / max(1, len(self.tethers)))
 
-    def host_recv(self) -> list[tuple[int, int, tuple]]:
-        self.pump(0.0)
-        out, self.inbox = self.inner.host_recv() + self.inbox, []
+    def poll(self, timeout: float) -> list[tuple[int, int, tuple]]:
+        self.pump(timeout)
+        out, self.inbox = self.inner.poll(0) + self.inbox, []
         return out
 
-    def host_send(self, node: int, kind: int, fields: tuple) -> None:
+    def send(self, node: int, kind: int, fields: tuple) -> None:
         if node in self.tethers:
             self.tethers[node].send(node, kind, fields)
             return
-        self.inner.host_send(node, kind, fields)
+        self.inner.send(node, kind, fields)
         if node == 0:
             for n, t in self.tethers.items():
                 self.inner.down[n].clear()      # nobody here reads a board's queue
                 t.send(node, kind, fields)
+
+    def bad_frames(self) -> dict[str, int]:
+        out: dict[str, int] = {}
+        for t in self.tethers.values():
+            for k, v in t.bad_frames().items():
+                out[k] = out.get(k, 0) + v
+        return out
 
     def close(self) -> None:
         pass                            # the tethers' ports belong to their bodies

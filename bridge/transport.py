@@ -1,22 +1,21 @@
-"""What the host process needs from anything that carries robot messages.
+"""Transports joined for the host process.
 
 A CAN bus (bridge/links), a serial port with framed messages (bridge/serial)
-or the in-process link all look the same to the host: decoded messages in,
-messages out. Bad frames never reach the host: a transport counts them by
-kind, logs each kind once, and drops them.
+or the in-process link all look the same to the host: the host's end of a
+link (sim_backend/link.py HostEnd), decoded messages in, messages out. Bad
+frames never reach the host: a transport counts them by kind, logs each
+kind once, and drops them.
 """
 
 from __future__ import annotations
 
 import logging
+from typing import Sequence
 
 from bridge.errors import BridgeError
 from sim_backend.link import HostEnd, Message
 
 log = logging.getLogger(__name__)
-
-# the host's end of a link, declared once with the engine's (sim_backend/link.py)
-RobotTransport = HostEnd
 
 
 class FanIn:
@@ -24,9 +23,9 @@ class FanIn:
     that node was heard on (node 0, or a node never heard: every transport).
     Lets one host serve robots on a CAN bus and on serial ports at once."""
 
-    def __init__(self, parts: list) -> None:
+    def __init__(self, parts: Sequence[HostEnd]) -> None:
         self.parts = list(parts)
-        self.heard_on: dict[int, object] = {}
+        self.heard_on: dict[int, HostEnd] = {}
 
     def __enter__(self) -> "FanIn":
         return self

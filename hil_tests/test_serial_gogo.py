@@ -283,7 +283,7 @@ def test_firmware_on_a_gogo_robot_touches_and_reports() -> None:
         assert steps == 2 and ticks > steps       # the claim's turn took ticks of its own
         assert emu.led == 1 and emu.beacon_src == (0, 0)
         assert abs((emu.theta - 90 + 180) % 360 - 180) < 1e-6  # turned to face the bar
-        sent = link.host_recv()
+        sent = link.poll(0)
         touches = [f for n, k, f in sent if k == msg.TOUCH]
         assert touches and touches[0][:5] == (1, 0, 0, 1, 0)  # seq, robot (0,0), bar (1,0)
 

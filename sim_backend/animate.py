@@ -72,7 +72,8 @@ class Frame:
 def _frame(s: Snapshot, engine: Any, load: tuple | None, instruments: Any = ()) -> Frame:
     from sim_backend import render as rd
     c = engine.coordinator
-    est, verdict = (), ""
+    est: tuple = ()
+    verdict = ""
     view = rd.estimate_of(instruments)
     if view is not None:
         dx, dy = rd.displacement(s._world)
@@ -158,7 +159,7 @@ class Animation:
         title = ax.set_title(self.title(frames[0]), fontsize=10)
         shape = self.words.shape is not None
         has_object = bool(self.trails.centre)
-        handles = []
+        handles: list[Patch | Line2D] = []
         if has_object:
             handles += [Patch(color=rd.OBJECT_RGB,
                               label="object or decoy" if w.decoy_cells else "object"),
@@ -175,14 +176,14 @@ class Animation:
         if has_object:
             handles.append(Line2D([], [], ls="--", color="darkcyan", label="object's path"))
         # below the arena, not over it
-        ax.legend(handles=[*handles, *rd.state_legend(self.names, colours)],
-                  loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=4, fontsize=9,
-                  framealpha=0.9)
+        legend = ax.legend(handles=[*handles, *rd.state_legend(self.names, colours)],
+                           loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=4, fontsize=9,
+                           framealpha=0.9)
         fig.tight_layout()
         # blitting: the axes' tick labels and the colour bar are drawn once;
         # each frame redraws only the artists inside the axes (a full redraw
         # lays out every text again and costs several times more)
-        dynamic = [*ax.images, *ax.collections, *ax.lines, *ax.patches, ax.get_legend(),
+        dynamic = [*ax.images, *ax.collections, *ax.lines, *ax.patches, legend,
                    title, *ax.spines.values()]
         for a in dynamic:
             a.set_animated(True)
@@ -220,7 +221,7 @@ class Animation:
 
 
 @contextlib.contextmanager
-def _sink(fmt: str, path: Path, size: tuple[int, int]) -> Iterator[Callable[[np.ndarray], None]]:
+def _sink(fmt: str, path: Path, size: tuple[int, int]) -> Iterator[Callable[[np.ndarray], object]]:
     """A function taking RGB frames (h, w, 3) that end up in path as a GIF
     (Pillow, one adaptive palette per frame) or an MP4 (ffmpeg, H.264)."""
     if fmt == "gif":
@@ -239,9 +240,11 @@ def _sink(fmt: str, path: Path, size: tuple[int, int]) -> Iterator[Callable[[np.
          "-pix_fmt", "rgb24", "-s", f"{width}x{height}", "-r", str(FPS), "-i", "-",
          "-pix_fmt", "yuv420p", "-vf", "pad=ceil(iw/2)*2:ceil(ih/2)*2", str(path)],
         stdin=subprocess.PIPE)
+    stdin = proc.stdin
+    assert stdin is not None             # opened with stdin=PIPE
     try:
-        yield lambda rgb: proc.stdin.write(np.ascontiguousarray(rgb).tobytes())
+        yield lambda rgb: stdin.write(np.ascontiguousarray(rgb).tobytes())
     finally:
-        proc.stdin.close()
+        stdin.close()
         if proc.wait() != 0:
             raise OSError(f"ffmpeg failed writing {path} (exit status {proc.returncode})")

@@ -138,6 +138,7 @@ def sweep(grid: Mapping[str, Iterable[Any]], seeds: int | Iterable[int] = 20,
         grid_lists[key] = list(values)
     base = scenario_of(scenario, overrides)
     points = sw.grid_points(grid_lists)
+    emit: Callable[[str], None] | None
     if progress is True:
         import sys
 

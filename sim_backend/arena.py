@@ -336,7 +336,7 @@ def _check_weight(sc: Any, target: Piece, tname: str, taken: dict) -> None:
 
         n = objects.surround(list(cs), free)
         fewest = n if fewest is None else min(fewest, n)
-    if needed > fewest:
+    if fewest is not None and needed > fewest:
         raise ScenarioError(
             f"{key}: weight {target.weight:g} needs {needed} robots holding, but only "
             f"{fewest} can surround {target.name!r} (reachable segments with a free patch "
@@ -366,6 +366,7 @@ def _outside(sc: Any, closed: set) -> set:
 def _check_path(sc: Any, target: Piece, tname: str, taken: dict) -> None:
     """The target's own cells have a way home round the obstacles and other
     objects (the carriers beside it are planned for at convergence)."""
+    assert target.at is not None         # called for a target placed at a given anchor
     cs = target.placed(*target.at)
     dist = way_home(sc.worldSize, cs, set(taken), cs, sc.homeX, sc.homeY, 16, (0, 0))
     if (0, 0) not in dist:

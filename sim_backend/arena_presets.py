@@ -78,9 +78,10 @@ def summarise(rows: Sequence[dict]) -> list[dict]:
     for p in order:
         rs = by[p]
         home = [_num(r["home_tick"]) for r in rs if _delivered(r)]
+        ticks = [h for h in home if h is not None]     # a delivered run has its home tick
         ious = [v for v in (_num(r["shape_iou"]) for r in rs) if v is not None]
         out.append({"point": label(p), "n": len(rs), "delivered": len(home),
-                    "median_home_tick": statistics.median(home) if home else None,
+                    "median_home_tick": statistics.median(ticks) if ticks else None,
                     "mean_iou": round(statistics.fmean(ious), 3) if ious else None})
     return out
 

@@ -49,14 +49,18 @@ class InprocLink:
         q = self.down[node]
         return q.popleft() if q else None
 
-    def host_recv(self) -> list[tuple[int, int, tuple]]:
+    def poll(self, timeout: float) -> list[tuple[int, int, tuple]]:
+        # every message is here already: nothing to wait for
         out, self.up = self.up, []
         return out
 
-    def host_send(self, node: int, kind: int, fields: tuple) -> None:
+    def send(self, node: int, kind: int, fields: tuple) -> None:
         targets = self.down.values() if node == 0 else (self.down[node],)
         for q in targets:
             q.append((kind, tuple(fields)))
+
+    def bad_frames(self) -> dict[str, int]:
+        return {}                        # lists drop no frame
 
     def close(self) -> None:
         pass
@@ -208,7 +212,8 @@ class Engine:
         # the behaviour seam: robots and coordinator come from the registry
         self.behaviour = registry.load(sc.behaviour).activate()   # its message kinds in use
         self.robots = [self.behaviour.make_robot(n, seed, sc) for n in nodes]
-        self.bodies = [SimBody(self.world, i, n, self.link) for i, n in enumerate(nodes)]
+        # any HAL: a mixed mission seats real bodies here (bridge/mission.py)
+        self.bodies: list[Any] = [SimBody(self.world, i, n, self.link) for i, n in enumerate(nodes)]
         from perception import host_coordinator
         self.coordinator = host_coordinator(self.behaviour, sc, cells=list(self.world.object_cells))
         self.tick = 0
@@ -270,11 +275,11 @@ class Engine:
     def exchange(self) -> None:
         """This tick's messages to the coordinator, its commands to the link
         (sim_backend/exchange.py: the rule both engines follow)."""
-        up = self.link.host_recv()
+        up = self.link.poll(0)
         down = exchange(self.coordinator, up, self.tick)
         assert down is not None          # asked every tick
         for node, kind, fields in down:
-            self.link.host_send(node, kind, fields)
+            self.link.send(node, kind, fields)
         self.msgs_up = len(up)
         self.msgs_down = len(down)
 

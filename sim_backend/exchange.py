@@ -89,6 +89,17 @@ def exchange(c: Any, up: Iterable[tuple[int, int, tuple]], tick: int, asked: boo
     coordinator c but the muted ones (`mute`, read from c now when not
     given), then c.tick(tick): its commands [(node, kind, fields), ...].
     None, and no tick, when c heard nothing and was not `asked`."""
+    if not (deliver(c, up, tick, mute) or asked):
+        return None
+    return c.tick(tick)
+
+
+def deliver(c: Any, up: Iterable[tuple[int, int, tuple]], tick: int,
+            mute: Muting | None = None) -> bool:
+    """The first half of `exchange`, for a driver that ticks c on its own
+    (the host process): the messages `up` to c.on_message in the order sent
+    but the muted ones (`mute`, read from c now when not given); whether c
+    heard any."""
     kind_m, drop = (mute if mute is not None else muting(c))[:2]
     heard = False
     for node, kind, fields in up:
@@ -96,6 +107,4 @@ def exchange(c: Any, up: Iterable[tuple[int, int, tuple]], tick: int, asked: boo
             continue
         c.on_message(node, kind, fields, tick)
         heard = True
-    if not (heard or asked):
-        return None
-    return c.tick(tick)
+    return heard

@@ -74,10 +74,10 @@ def plan(sc, seed: int) -> tuple[list[int], list[int], list[int], list[int]]:
     for rate, what in ((sc.deathRate, "die"), (sc.ignoreFieldRate, IGNORE_FIELD),
                        (sc.ignoreHostRate, IGNORE_HOST), (sc.randomRate, RANDOM)):
         for i in order[j:j + round(rate * n)]:
-            if what == "die":
-                die[i] = 1 + rnd.randrange(sc.faultWindow)
-            else:
+            if isinstance(what, int):
                 flags[i] |= what
+            else:                       # "die"
+                die[i] = 1 + rnd.randrange(sc.faultWindow)
         j += round(rate * n)
     stuck = list(range(n))
     rnd.shuffle(stuck)

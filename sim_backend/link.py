@@ -2,13 +2,15 @@
 messages travel between the robots and the host coordinator.
 
 A link has two ends. The robots' end (`robot_send`, `robot_recv`) is what a
-robot's body uses inside an engine. The host's end (`HostEnd`) is what the
-host coordinator's driver uses: messages in, messages out, dropped frames
-counted, the port closed. The engine's in-process links (`Link`: InprocLink,
-the CAN link, the recorder) carry both ends in one process and are read at
-the tick boundary, so their host end takes no deadline: `host_recv()` is a
-`poll(0)` and `host_send` a `send`. The host process's transports (CAN bus,
-serial ports, bridge/transport.py) carry the host's end only.
+robot's body uses inside an engine. The host's end (`HostEnd`) is what every
+host coordinator's driver uses, in an engine or in the host process: messages
+in (`poll`), messages out (`send`), dropped frames counted, the port closed.
+The host process's transports (CAN bus, serial ports, bridge/transport.py)
+carry the host's end only and wait up to the poll's deadline for frames. An
+engine's links (`Link`: InprocLink, the CAN link, the recorder, the mixed
+mission's) carry both ends in one process; the engine polls once per tick,
+at the tick boundary, with no deadline (`poll(0)`): what the robots sent
+this tick.
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ Message = tuple[int, int, tuple]   # (node, kind, fields) as in firmware_logic.m
 
 
 class HostEnd(Protocol):
-    """The host's end of a link as the host process drives it."""
+    """The host's end of a link, as the host process and the engines drive it."""
 
     def poll(self, timeout: float) -> list[Message]:
         """Messages received within `timeout` seconds (may be empty); returns by
@@ -44,10 +46,8 @@ class RobotEnd(Protocol):
     def robot_recv(self, node: int) -> tuple[int, tuple] | None: ...
 
 
-class Link(RobotEnd, Protocol):
-    """A link inside an engine: both ends in one process, the host's read at
-    the tick boundary (host_recv: everything the robots sent this tick)."""
-
-    def host_recv(self) -> list[Message]: ...
-
-    def host_send(self, node: int, kind: int, fields: tuple) -> None: ...
+class Link(RobotEnd, HostEnd, Protocol):
+    """A link inside an engine: both ends in one process. The engine polls the
+    host's end once per tick with `poll(0)` (everything the robots sent this
+    tick; an engine link may count its ticks by these polls) and `send`s the
+    coordinator's commands, which reach the robots before their next tick."""

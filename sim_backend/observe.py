@@ -79,9 +79,8 @@ class Snapshot:
 
 
 def bad_frames_total(link: Any) -> int:
-    """Every frame the link has refused so far (links without a count: 0)."""
-    counter = getattr(link, "bad_frames", None)
-    return sum(counter().values()) if counter is not None else 0
+    """Every frame the link (sim_backend/link.py) has refused so far."""
+    return sum(link.bad_frames().values())
 
 
 def snapshot(engine: Any) -> Snapshot:

@@ -219,6 +219,7 @@ def factor_figure(rows: Sequence[dict], factor: str, others: Sequence[str]):
                 # a rate's interval is the Wilson score interval: inside [0, 1]
                 rates = [_rate_ci(_panel_values(by_x[x], panel)) for x in xs]
                 ys = [p for p, _, _ in rates]
+                yerr: list[float] | list[list[float]]     # one per point, or [lows, highs]
                 yerr = [[lo for _, lo, _ in rates], [hi for _, _, hi in rates]]
             else:
                 stats = [_mean_ci(_panel_values(by_x[x], panel)) for x in xs]

@@ -126,7 +126,7 @@ def figure(result: RunResult, trails: Any = None) -> Any:
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(13, 6), width_ratios=(1.15, 1))
     _, objimg = draw_base(ax1, w, snap_field, snap_field.max())
     objimg.set_data(object_rgba(np.array(w.obj).reshape(w.n, w.n)))
-    handles = [Patch(color="c", label="home")]
+    handles: list[Patch | Line2D] = [Patch(color="c", label="home")]
     if w.object_cells:
         handles[:0] = [Patch(color=OBJECT_RGB, label="object at the end"),
                        Patch(color=HELD_RGB, label="held segment")]

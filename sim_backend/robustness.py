@@ -79,7 +79,7 @@ def fault_table(rows: Sequence[dict], reference: str | None = None
         for rate in sorted(by):
             rs = [r for r in by[rate] if r["feasible"]]
             got = [r for r in rs if str(r["delivered"]) in ("True", "true", "1")]
-            homes = [_num(r["home_tick"]) for r in got]
+            homes = [h for h in (_num(r["home_tick"]) for r in got) if h is not None]
             med = statistics.median(homes) if homes else None
             out.setdefault(exp, []).append((rate, len(rs), len(got), med))
     return out

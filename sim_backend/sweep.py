@@ -20,7 +20,7 @@ import socket
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Iterable, Sequence
+from typing import Any, Callable, Iterable, Mapping, Sequence
 
 from sim_backend import params
 from sim_backend.errors import ScenarioError
@@ -73,7 +73,7 @@ class Point:
         return dict(self.params)
 
 
-def grid_points(grid: dict[str, Sequence[Any]], experiment: str = "grid") -> list[Point]:
+def grid_points(grid: Mapping[str, Sequence[Any]], experiment: str = "grid") -> list[Point]:
     """The cartesian product of a grid {key: [values]}, in the grid's key order."""
     # a key is checked with the point's scenario (the behaviour's own
     # parameters are keys too): validate_points
@@ -558,7 +558,7 @@ def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None =
             jobs.append((base_d, pt.as_dict(), s))
             meta.append((pt, sc, s))
     scenarios = [sc for _, sc, _ in meta]
-    bg = None
+    bg: Any = None           # a compile started, watched or refused (_Engines' bg)
     if jobs and engine == "auto" and _local(executor):
         from sim_backend.batch.soa import cold
         try:

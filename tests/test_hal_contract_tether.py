@@ -31,8 +31,8 @@ NODE = 1
 
 
 class HostEnd:
-    """The host's end of the line: a RobotTransport decoding what the board
-    wrote and queueing what the host sends for the board to read."""
+    """The host's end of the line (sim_backend/link.py HostEnd): decoding
+    what the board wrote and queueing what the host sends for the board to read."""
 
     def __init__(self, to_host: deque, to_board: deque) -> None:
         self.to_host = to_host

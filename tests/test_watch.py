@@ -163,13 +163,13 @@ class NoisyLink(InprocLink):
         self.exchanges = 0
         self.refused = {"wrong dlc": 0, "unknown id": 0}
 
-    def host_recv(self):
+    def poll(self, timeout: float):
         self.exchanges += 1
         if self.exchanges == 5:
             self.refused["wrong dlc"] += 2
         if self.exchanges == 9:
             self.refused["unknown id"] += 1
-        return super().host_recv()
+        return super().poll(timeout)
 
     def bad_frames(self) -> dict[str, int]:
         return dict(self.refused)

@@ -105,7 +105,7 @@ class OpenedBody(Protocol):
 
     kind "sim": the node stays simulated. kind "host": `hal` is a HostBody
     the mission steps the node's firmware on. kind "tether": `transport` is
-    a RobotTransport to a board running its own firmware, whose senses and
+    the host's end of a link (sim_backend.link.HostEnd) to a board running its own firmware, whose senses and
     actions the mission serves from the sim world."""
 
     kind: str

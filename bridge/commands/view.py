@@ -73,6 +73,7 @@ def cmd_view(args: argparse.Namespace) -> int:
         check_out_file(args.screenshot, "--screenshot", "live_view.png")
         if args.screenshot.suffix.lower() != ".png":
             raise UsageError(f"--screenshot {args.screenshot}: expected a .png file")
+    source: JournalSource | SimSource
     if args.journal is not None:
         source = JournalSource(args.journal, sc)
     else:

@@ -105,6 +105,7 @@ def _read_setup(tree: ast.Module) -> tuple[set[str], list[tuple[int, str]]]:
     names: set[str] = set()
     problems: list[tuple[int, str]] = []
     defined: set[str] = set()
+    node: ast.AST
     for node in tree.body:
         if isinstance(node, _Func):
             defined.add(node.name)

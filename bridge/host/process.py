@@ -38,11 +38,12 @@ from bridge.errors import UsageError
 from bridge.links.codec import UNANNOUNCED, BadFrames, Message
 from bridge.links.errors import LinkTimeoutError
 from bridge.host.journal import REJECTED_KEPT, Journal, JournalError, Report
-from bridge.transport import RobotTransport
 from firmware_logic import messages as msg
 from firmware_logic import roster
 from sim_backend import registry
 from sim_backend.coordinator import HostCoordinator, lacks
+from sim_backend.exchange import deliver, muting
+from sim_backend.link import HostEnd
 from sim_backend.scenario import CHOICES
 
 # A coordinator is any behaviour's that meets the host contract
@@ -87,7 +88,7 @@ def host_behaviour(name: str | None, sc: Any = None) -> registry.Behaviour:
 
 
 class HostProcess:
-    def __init__(self, transport: RobotTransport, weight: int, home_x: int = -15,
+    def __init__(self, transport: HostEnd, weight: int, home_x: int = -15,
                  home_y: int = -15, journal: Journal | None = None,
                  tick_seconds: float = 0.01,
                  on_event: Callable[[str], None] | None = None,
@@ -133,6 +134,7 @@ class HostProcess:
         self.live_written: dict[str, Any] | None = None
         self.kind_now = 0                     # the kind of the report being handled
         self.uncommitted: list[str] = []      # events of reports not yet committed
+        self.mute = muting(self.coord)        # what it declared muted at its last tick()
 
     # -- journal ----------------------------------------------------------------
 
@@ -170,6 +172,7 @@ class HostProcess:
             if after is not None:
                 after(e)
         self.tick = max(self.tick, journal.last_tick())
+        self.mute = muting(c)                 # the adopted state's declaration
         self.resumed = len(c.touches)
         dropped = sum(c.rejected.values()) - refused
         self._event(f"resumed {self.resumed} touches from {len(c.nodes)} nodes "
@@ -230,25 +233,34 @@ class HostProcess:
     # -- input ----------------------------------------------------------------------
 
     def handle(self, messages: list[Message]) -> None:
+        """Messages as they arrive, to the coordinator by the engines' rule
+        (sim_backend/exchange.py: in order, the muted ones dropped), one at
+        a time: whether a node is announced changes with each HELLO handed
+        over, and a rejected report is journalled with its kind."""
         c = self.coord
         nodes = c.nodes
-        on_message = c.on_message
         tick = self.tick
+        mute = self.mute
         self.messages += len(messages)
-        for node, kind, f in messages:
+        for m in messages:
+            node, kind, f = m
             if kind != msg.HELLO and node not in nodes:
                 self.bad.add(UNANNOUNCED, "%s from node %d" % (msg.SCHEMA[kind][0], node))
                 continue
             if kind == msg.HEARTBEAT:
                 self.poses[node] = [tick, *f]
             self.kind_now = kind
-            on_message(node, kind, f, tick)
+            deliver(c, (m,), tick, mute)
         self.kind_now = 0
 
     # -- ticks --------------------------------------------------------------------------
 
     def step(self) -> None:
-        """One host tick: decide, journal the decision, then send the commands."""
+        """One host tick: decide, journal the decision, then send the commands.
+        Not sim_backend/exchange.py's `exchange`, whose tick follows the
+        messages at once: here they were handed over as they arrived
+        (handle), the state before the tick is kept for the decision, and
+        the decision is journalled (committed) before any command is sent."""
         self.tick += 1
         c = self.coord
         repeat = c.done() and self.halts_sent < HALT_REPEATS
@@ -257,6 +269,7 @@ class HostProcess:
         quiet = c.quiet() and not repeat
         before = None if quiet else c.snapshot()
         out = c.tick(self.tick)
+        self.mute = muting(c, self.mute)
         if repeat:
             out.append((msg.HOST, msg.HALT, (0,)))          # a repeat: HALT is not ACKed
         self.halts_sent += sum(1 for m in out if m[1] == msg.HALT)

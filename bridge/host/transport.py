@@ -1,4 +1,4 @@
-"""RobotTransport (bridge/transport.py) over a python-can bus."""
+"""The host's end of a link (sim_backend/link.py HostEnd) over a python-can bus."""
 
 from __future__ import annotations
 

@@ -93,7 +93,7 @@ class SlcanBus(slcanBus):
     """
 
     def __init__(self, channel: str, **kw: Any) -> None:
-        self._lines: deque[bytes] = deque()
+        self._lines: deque[bytes | bytearray] = deque()      # split off a bytearray
         self._rx = bytearray()
         self._fd: int | None = None
         super().__init__(channel, **kw)
@@ -142,7 +142,7 @@ class SlcanBus(slcanBus):
         self._lines.extend(parts)
         return True
 
-    def _next_line(self, deadline: float | None) -> bytes | None:
+    def _next_line(self, deadline: float | None) -> bytes | bytearray | None:
         lines = self._lines
         while not lines:
             # always one read, even with no time left: a zero timeout still

@@ -144,9 +144,10 @@ class Gateway:
             else:
                 # a report is sealed too; before the robot took a host
                 # command it is held back (secoc.Opener.seal_report)
-                frame = self.opener.seal_report(node, kind, fields)
-                if frame is None:
+                sealed = self.opener.seal_report(node, kind, fields)
+                if sealed is None:
                     return
+                frame = sealed
         self.up.append(frame)
 
     def robot_recv(self, node: int) -> tuple[int, tuple] | None:
@@ -183,9 +184,10 @@ class Gateway:
 
     def deliver(self, frame: can.Message) -> None:
         if self.opener is not None:
-            frame = self.opener.open(frame)
-            if frame is None:
+            opened = self.opener.open(frame)
+            if opened is None:
                 return
+            frame = opened
         m = self.decoder.decode(frame)
         if m is None:
             return
@@ -248,7 +250,7 @@ class CanLink:
         self.down: list[can.Message] = []
         self.frames_up = 0
         self.frames_down = 0
-        self.tick = 0          # host_recv calls: the link's clock for delayed frames
+        self.tick = 0          # polls (one per engine tick): the link's clock for delayed frames
 
     # robots' side
     def robot_send(self, node: int, kind: int, fields: tuple) -> None:
@@ -270,7 +272,9 @@ class CanLink:
         self.gateway.drain(len(frames))
 
     # host's side
-    def host_recv(self) -> list[Message]:
+    def poll(self, timeout: float) -> list[Message]:
+        # the robots' frames of this tick are flushed onto the bus here, so
+        # each is waited for (RECV_TIMEOUT), not `timeout`: an engine polls 0
         self.tick += 1
         n = self.gateway.flush()
         self.frames_up += n
@@ -286,7 +290,7 @@ class CanLink:
                     out.append(m)
         return out
 
-    def host_send(self, node: int, kind: int, fields: tuple) -> None:
+    def send(self, node: int, kind: int, fields: tuple) -> None:
         self.down.append(encode(node, kind, fields))
 
     def bad_frames(self) -> dict[str, int]:

@@ -221,16 +221,17 @@ class Decoder:
         # follows the behaviour in use (a link is often made before the
         # engine that activates its behaviour)
         self.fixed = schema(behaviour) if behaviour is not None else None
-        self.schema: Schema | None = None
-        self.bound: Any = None      # the behaviour in use when it last bound
-        self.fast: dict[int, tuple] = {}
-        self._bind()
+        s = self.fixed if self.fixed is not None else current()
+        self.bound: Any = registry._ACTIVE      # the behaviour in use when it last bound
+        self._use(s)
 
     def _bind(self) -> None:
         s = self.fixed if self.fixed is not None else current()
         self.bound = registry._ACTIVE
-        if s is self.schema:
-            return
+        if s is not self.schema:
+            self._use(s)
+
+    def _use(self, s: Schema) -> None:
         self.schema = s
         self.accept = s.robot_kinds if self.side == "host" else s.host_kinds
         # fast path: id -> (node, kind, unpack, dlc, valid) for what this side accepts

@@ -35,7 +35,7 @@ import secrets
 import stat
 import tomllib
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import can
 from cryptography.hazmat.primitives.ciphers import Cipher
@@ -44,6 +44,7 @@ from cryptography.hazmat.primitives.ciphers.modes import ECB
 from cryptography.hazmat.primitives.cmac import CMAC
 
 from bridge.errors import BridgeError
+from bridge.links.codec import BadFrames
 from bridge.links.errors import LinkError
 from firmware_logic import messages as msg
 
@@ -387,7 +388,7 @@ class Sealer:
         self.hello_failed: dict[int, int] = {}
         self.searched: set[int] = set()         # nodes given the one full search
         self.locked: set[int] = set()
-        self.bad = None                         # the transport's BadFrames
+        self.bad: BadFrames | None = None       # the transport's
         # reports: per node the (H, r) last accepted, the lowest H this host
         # takes (its first counter for the node: nothing from an earlier run),
         # the HELLO fields (a sealed TOUCH's power), failures since confirmed
@@ -829,9 +830,9 @@ class ReportLayout:
             checks.append("    if h is None:\n        return None\n")
         src = ("def open(data, h):\n    g = unpack(data)\n" + "".join(checks)
                + f"    return ({', '.join(parts)},)\n")
-        space = {"N": msg.NEAR, "unpack": self.st.unpack_from}
+        space: dict[str, Any] = {"N": msg.NEAR, "unpack": self.st.unpack_from}
         exec(compile(src, f"<sealed {self.name}>", "exec"), space)
-        self.open = space["open"]
+        self.open: Callable[[bytes | bytearray, tuple | None], tuple | None] = space["open"]
 
 
 def report_layout(row: tuple) -> ReportLayout:

@@ -93,7 +93,7 @@ def join_parts(kind: int, parts: list[tuple[int, int]]) -> tuple:
 
 
 class RecordingLink:
-    """Wraps an engine Link and keeps this tick's messages: those the host
+    """Wraps an engine Link (sim_backend/link.py) and keeps this tick's messages: those the host
     received (after the link's faults) and those it sent (before them). What
     the robots sent and received their bodies tape (Recorder.attach)."""
 
@@ -108,19 +108,18 @@ class RecordingLink:
     def robot_recv(self, node: int) -> tuple[int, tuple] | None:
         return self.inner.robot_recv(node)
 
-    def host_recv(self) -> list[Message]:
-        got = self.inner.host_recv()
+    def poll(self, timeout: float) -> list[Message]:
+        got = self.inner.poll(timeout)
         self.up.extend((node, kind, tuple(fields)) for node, kind, fields in got)
         return got
 
-    def host_send(self, node: int, kind: int, fields: tuple) -> None:
+    def send(self, node: int, kind: int, fields: tuple) -> None:
         self.down.append((node, kind, tuple(fields)))
-        self.inner.host_send(node, kind, fields)
+        self.inner.send(node, kind, fields)
 
     def bad_frames(self) -> dict[str, int]:
         """The wrapped link's refused frames (the per-tick trace counts them)."""
-        counter = getattr(self.inner, "bad_frames", None)
-        return counter() if counter is not None else {}
+        return self.inner.bad_frames()
 
     def take(self) -> tuple[list[Message], list[Message]]:
         up, down = self.up, self.down

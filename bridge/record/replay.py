@@ -29,6 +29,7 @@ from bridge.record.recorder import HOST, Q_RECV, Q_RECV_FIELD, Q_X, Q_Y, join_pa
 from firmware_logic import messages as msg
 from firmware_logic import hal
 from sim_backend import registry
+from sim_backend.exchange import exchange
 from firmware_logic.hal import Hal
 from sim_backend.scenario import check_seed
 from sim_backend.world import World
@@ -450,9 +451,10 @@ class _Replayer:
         self.counts["host_commands"] += len(recorded_down)
         rec = self.rec
         host_in = rec.host_in[t] if t in rec.host_in else rec.up.get(t, [])
-        for node, kind, f in host_in:
-            self.coord.on_message(node, kind, f, t)
-        out = [(node, kind, tuple(f)) for node, kind, f in self.coord.tick(t)]
+        # the engine's own tick boundary, as the recorded run had it
+        down = exchange(self.coord, host_in, t)
+        assert down is not None          # asked every tick
+        out = [(node, kind, tuple(f)) for node, kind, f in down]
         if out != recorded_down:
             self.diverge(f"tick {t} host: sent {[_fmt(m) for m in out]}, "
                          f"recorded {[_fmt(m) for m in recorded_down]}")

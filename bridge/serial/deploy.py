@@ -385,8 +385,8 @@ class Deployer:
             if folder:
                 self._mpremote("fs", "cp", *local, ":%s/" % folder)
             else:
-                for p in local:
-                    self._mpremote("fs", "cp", p, ":" + Path(p).name)
+                for one in local:
+                    self._mpremote("fs", "cp", one, ":" + Path(one).name)
 
     def verify_import(self) -> str:
         """Import the deployed behaviour on the device and build its robot

@@ -1,4 +1,5 @@
-"""Framed robot messages over a serial port: bridge.transport.RobotTransport.
+"""Framed robot messages over a serial port: the host's end of a link
+(sim_backend/link.py HostEnd).
 
 One SerialTransport per port. A port is a device path (`/dev/ttyUSB0`), our
 own URL `serial:///dev/ttyUSB0?baud=115200`, or any pyserial URL
@@ -78,7 +79,7 @@ def open_serial(port: str, baud: int, timeout: float, **kw: object) -> serial.Se
 
 
 class SerialTransport:
-    """RobotTransport over one serial port carrying framed messages."""
+    """The host's end of a link over one serial port carrying framed messages."""
 
     def __init__(self, url: str, baud: int | None = None, timeout: float = 0.05,
                  reopen_every: float = 0.2) -> None:
@@ -170,7 +171,7 @@ class SerialTransport:
         log.info("%s: port is back", self.url)
         return True
 
-    # -- RobotTransport -----------------------------------------------------------
+    # -- HostEnd ------------------------------------------------------------------
 
     def poll(self, timeout: float) -> list[Message]:
         """Messages that arrive within `timeout` seconds (returns early once
@@ -244,7 +245,7 @@ class SerialTransport:
 
 
 class MultiSerialTransport(FanIn):
-    """Several serial ports as one RobotTransport (see bridge.transport.FanIn)."""
+    """Several serial ports as one host end (see bridge.transport.FanIn)."""
 
     def __init__(self, transports: list[SerialTransport]) -> None:
         super().__init__(transports)

@@ -36,6 +36,7 @@ def plots(behaviour: Any, colours: list[str], shape: bool = True,
     from sim_backend import words
     w = words.of(behaviour)
     names = tuple(behaviour.spec.STATES)
+    out: list[dict[str, Any]]
     out = [{"id": "states", "title": "robots per state", "unit": "robots",
             "series": [{"key": state_key(n), "label": n, "colour": c}
                        for n, c in zip(names, colours)]},

@@ -137,8 +137,8 @@ def watched_link(nodes: list[int], tick_of: Any) -> Any:
             super().robot_send(node, kind, fields)
             self.last[node].append((tick_of(), "sent", kind, tuple(fields)))
 
-        def host_send(self, node: int, kind: int, fields: tuple) -> None:
-            super().host_send(node, kind, fields)
+        def send(self, node: int, kind: int, fields: tuple) -> None:
+            super().send(node, kind, fields)
             for n in (self.last if node == 0 else (node,)):
                 self.last[n].append((tick_of(), "received", kind, tuple(fields)))
 

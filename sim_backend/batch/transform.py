@@ -598,7 +598,7 @@ class FunctionTransform:
         if isinstance(kind, Inst):
             cl = self.p.layout.classes.get(kind.cls)
             f = cl.fields.get(e.attr) if cl is not None else None
-            if f is None:
+            if cl is None or f is None:
                 raise _err(self.fn, e, f"the attribute {kind.cls.__name__}.{e.attr} (not a "
                                        "field of the live instances)")
             if f[0] == "row":

@@ -1,9 +1,10 @@
 """The sim world as the body of tethered robots (firmware_logic/board.py).
 
-`TetherTransport` wraps any RobotTransport (a SerialTransport per board,
-say): it answers the SENSOR queries and applies the ACTION intents of the
-tethered nodes from a sim Engine's world, and passes every other message
-(HELLO, TOUCH, HEARTBEAT) through to the host unchanged. Robots of the
+`TetherTransport` wraps the host's end of any link (sim_backend/link.py
+HostEnd; a SerialTransport per board, say) and is one itself: it answers
+the SENSOR queries and applies the ACTION intents of the tethered nodes
+from a sim Engine's world, and passes every other message (HELLO, TOUCH,
+HEARTBEAT) through to the host unchanged. Robots of the
 engine that are not tethered stand still (they are obstacles).
 
 A tick of a tethered robot ends when it sends ACTION END; the world then
@@ -18,18 +19,28 @@ from __future__ import annotations
 
 import logging
 from types import TracebackType
+from typing import Any, Protocol
 
 from firmware_logic import board, hal
 from firmware_logic import messages as msg
-from sim_backend.engine import Engine
+from sim_backend.link import HostEnd, Message
 
 log = logging.getLogger(__name__)
 
-Message = tuple[int, int, tuple]
+
+class Stepper(Protocol):
+    """What the tether serves the boards from: an engine's bodies and its
+    rule that applies their intents (sim_backend.engine.Engine, or a mixed
+    mission's link, bridge/mission.py MixedLink, which applies the boards' only)."""
+
+    @property
+    def bodies(self) -> list[Any]: ...
+
+    def _apply(self) -> None: ...
 
 
 class TetherTransport:
-    def __init__(self, inner, engine: Engine, nodes: list[int]) -> None:
+    def __init__(self, inner: HostEnd, engine: Stepper, nodes: list[int]) -> None:
         self.inner = inner
         self.engine = engine
         self.bodies = {b.node: b for b in engine.bodies if b.node in nodes}
