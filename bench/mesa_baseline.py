@@ -50,6 +50,7 @@ test dependency).
 from __future__ import annotations
 
 import argparse
+import gc
 import json
 import math
 import os
@@ -422,6 +423,12 @@ def big_run(agents, world, act, seed, ticks, rounds, runs=1, mesa_world=None):
     eng.step()                                    # the first tick apart on both sides
     m = Thesis(agents * runs, mesa_world or world, seed, act, ticks)
     m.step()
+    # Both sides share one heap: the collector's passes over objects built at
+    # set-up (the Mesa model's agents, the soa robots' CPython objects) would
+    # fall on whichever side allocates when one triggers; neither side's rate
+    # should carry the other's heap
+    gc.collect()
+    gc.freeze()
     soa, mes = Side(), Side()
     compiled = [0.0]              # the soa step's CPU in the compiled tick (the rest: the host's)
     tick = eng._tick
@@ -447,6 +454,7 @@ def big_run(agents, world, act, seed, ticks, rounds, runs=1, mesa_world=None):
                     mes.cpu += time.process_time() - t
                     mes.robot_ticks += agents * runs
         k += 1
+    gc.unfreeze()
     return soa, mes, {"soa_ticks": eng.tick, "mesa_ticks": m.tick,
                       "soa_compiled_share": round(compiled[0] / soa.cpu, 3) if soa.cpu else None}
 
