@@ -33,9 +33,15 @@ step is loaded (or compiled, minutes, once per machine) before timing.
 
 Prints one JSON: per case and activation, robot-ticks per CPU second of
 each side and the ratio soa / Mesa, and the median converged tick of both
-over seeds 1..20 (the check that the port is the same model, roughly).
+over seeds 1..20 (the check that the port is the same model, roughly). The
+many-robot cases (1,000, 10,000 and 100,000 robots) also give the share of
+the soa step spent in the compiled tick (the rest is the host's: messages
+to the coordinators, their ticks, commands to the inboxes). A soa run holds
+at most 20,000 robots, so its 100,000 are 10 runs of 10,000 in one batch
+(one compiled call steps them all); Mesa's are one model on an arena of
+the same robots per patch.
 
-    .venv/bin/python bench/mesa_baseline.py [--quick] [--activation sync|netlogo|both] [--batch-runs N]
+    .venv/bin/python bench/mesa_baseline.py [--quick] [--activation sync|netlogo|both] [--batch-runs N] [--sizes 10000,100000]
 
 Mesa is a bench-only package (`make bench` installs it; not a runtime or
 test dependency).
@@ -44,6 +50,7 @@ test dependency).
 from __future__ import annotations
 
 import argparse
+import gc
 import json
 import math
 import os
@@ -404,16 +411,33 @@ def batch_runs(agents, world, act, soa_seeds, mesa_seeds, max_ticks, chunk_ticks
     return soa, mes, setup
 
 
-def big_run(agents, world, act, seed, ticks, rounds):
-    """One run of many robots on each side, set-up apart, live ticks (at most
-    `ticks`) stepped in rounds, the sides in turn."""
+def big_run(agents, world, act, seed, ticks, rounds, runs=1, mesa_world=None):
+    """Many robots on each side, set-up apart, live ticks (at most `ticks`)
+    stepped in rounds, the sides in turn. soa: `runs` runs of `agents`
+    robots in one batch (one compiled call steps them all; a run holds at
+    most 20,000 robots); Mesa: one model of every robot (agents * runs) on
+    `mesa_world` (the same robots per patch)."""
     from sim_backend.batch.soa import SoaEngine
     sc = soa_scenario(agents, world, act, ticks)
-    eng = SoaEngine([(sc, seed)])
+    eng = SoaEngine([(sc, seed + k) for k in range(runs)])
     eng.step()                                    # the first tick apart on both sides
-    m = Thesis(agents, world, seed, act, ticks)
+    m = Thesis(agents * runs, mesa_world or world, seed, act, ticks)
     m.step()
+    # Both sides share one heap: the collector's passes over objects built at
+    # set-up (the Mesa model's agents, the soa robots' CPython objects) would
+    # fall on whichever side allocates when one triggers; neither side's rate
+    # should carry the other's heap
+    gc.collect()
+    gc.freeze()
     soa, mes = Side(), Side()
+    compiled = [0.0]              # the soa step's CPU in the compiled tick (the rest: the host's)
+    tick = eng._tick
+
+    def timed_tick(t: int) -> None:
+        c = time.process_time()
+        tick(t)
+        compiled[0] += time.process_time() - c
+    eng._tick = timed_tick
     share = max(1, (ticks - 1) // rounds)
     k = 0
     while (not eng.finished()) or m.live():
@@ -423,14 +447,16 @@ def big_run(agents, world, act, seed, ticks, rounds):
                     t = time.process_time()
                     eng.step()
                     soa.cpu += time.process_time() - t
-                    soa.robot_ticks += agents
+                    soa.robot_ticks += agents * runs
                 elif side == "mesa" and m.live():
                     t = time.process_time()
                     m.step()
                     mes.cpu += time.process_time() - t
-                    mes.robot_ticks += agents
+                    mes.robot_ticks += agents * runs
         k += 1
-    return soa, mes, {"soa_ticks": eng.tick, "mesa_ticks": m.tick}
+    gc.unfreeze()
+    return soa, mes, {"soa_ticks": eng.tick, "mesa_ticks": m.tick,
+                      "soa_compiled_share": round(compiled[0] / soa.cpu, 3) if soa.cpu else None}
 
 
 def median(xs):
@@ -444,6 +470,8 @@ def main() -> None:
     ap.add_argument("--activation", choices=("sync", "netlogo", "both"), default="both")
     ap.add_argument("--batch-runs", type=int, default=None,
                     help="soa runs in the batch case (default: 500, 40 with --quick)")
+    ap.add_argument("--sizes", default=None,
+                    help="only these many-robot cases, e.g. 10000,100000 (and no small ones)")
     a = ap.parse_args()
     from sim_backend.batch.soa import SoaEngine
     acts = ("sync", "netlogo") if a.activation == "both" else (a.activation,)
@@ -452,30 +480,40 @@ def main() -> None:
     batch_n, mesa_n = (40, 6) if q else (500, 60)
     if a.batch_runs is not None:
         batch_n = a.batch_runs
-    big = {"1000": (1000, 40, 30 if q else 120), "10000": (10000, 150, 6 if q else 40)}
+    # name: robots per soa run, worldSize, tick cap, soa runs, Mesa's worldSize
+    big = {"1000": (1000, 40, 30 if q else 120, 1, 40),
+           "10000": (10000, 150, 6 if q else 40, 1, 150),
+           "100000": (10000, 150, 4 if q else 12, 10, 475)}
+    if a.sizes:
+        big = {k: v for k, v in big.items() if k in a.sizes.split(",")}
     out = {"clock": "process CPU seconds, one pinned core, both sides in turn",
            "mesa": mesa.__version__, "params": PARAMS, "cases": {}}
     for act in acts:
         SoaEngine([(soa_scenario(20, 18, act, 5), 1)]).run()     # load (or compile) the step
         cases = out["cases"].setdefault(act, {})
-        s, m, conv = single_runs(20, 18, act, seeds, 20000, rounds=4)
-        cases["20 robots, single runs"] = {
-            "runs": len(seeds), "worldSize": 18, "setup": "counted",
-            "soa": round(s.rate()), "mesa": round(m.rate()),
-            "ratio": round(s.rate() / m.rate(), 2),
-            "median_converged_tick": {"soa": median(conv["soa"]), "mesa": median(conv["mesa"])},
-            "converged_runs": {k: sum(1 for x in v if x is not None and x >= 0)
-                               for k, v in conv.items()}}
-        s, m, setup = batch_runs(20, 18, act, list(range(1, batch_n + 1)),
-                                 list(range(1, mesa_n + 1)), 20000)
-        cases[f"20 robots x {batch_n} runs"] = {
-            "runs": {"soa": batch_n, "mesa": mesa_n}, "worldSize": 18,
-            "soa_setup_s": round(setup, 3),
-            "soa": round(s.rate()), "mesa": round(m.rate()), "ratio": round(s.rate() / m.rate(), 2)}
-        for name, (agents, world, ticks) in big.items():
-            s, m, t = big_run(agents, world, act, 1, ticks, rounds=6)
+        if not a.sizes:
+            s, m, conv = single_runs(20, 18, act, seeds, 20000, rounds=4)
+            cases["20 robots, single runs"] = {
+                "runs": len(seeds), "worldSize": 18, "setup": "counted",
+                "soa": round(s.rate()), "mesa": round(m.rate()),
+                "ratio": round(s.rate() / m.rate(), 2),
+                "median_converged_tick": {"soa": median(conv["soa"]), "mesa": median(conv["mesa"])},
+                "converged_runs": {k: sum(1 for x in v if x is not None and x >= 0)
+                                   for k, v in conv.items()}}
+            s, m, setup = batch_runs(20, 18, act, list(range(1, batch_n + 1)),
+                                     list(range(1, mesa_n + 1)), 20000)
+            cases[f"20 robots x {batch_n} runs"] = {
+                "runs": {"soa": batch_n, "mesa": mesa_n}, "worldSize": 18,
+                "soa_setup_s": round(setup, 3),
+                "soa": round(s.rate()), "mesa": round(m.rate()), "ratio": round(s.rate() / m.rate(), 2)}
+        for name, (agents, world, ticks, runs, mesa_world) in big.items():
+            s, m, t = big_run(agents, world, act, 1, ticks, rounds=min(6, ticks - 1),
+                              runs=runs, mesa_world=mesa_world)
+            shape = {"worldSize": world} if runs == 1 else {
+                "soa_shape": f"{runs} runs x {agents} robots, worldSize {world}, one batch",
+                "mesa_shape": f"one model, worldSize {mesa_world}"}
             cases[f"{name} robots"] = {
-                "worldSize": world, "tick_cap": ticks, **t, "setup": "apart",
+                **shape, "tick_cap": ticks, **t, "setup": "apart",
                 "soa": round(s.rate()), "mesa": round(m.rate()),
                 "ratio": round(s.rate() / m.rate(), 2)}
     out["load_avg"] = os.getloadavg()

@@ -527,8 +527,7 @@ class SoaEngine:
         sc, seed = self.runs[r]
         w = self.worlds[r]
         lo, hi = int(self.rt[B.LO, r]), int(self.rt[B.HI, r])
-        for robot in self.robot_objs[lo:hi]:
-            T.unpack(self.layout, self.arrays, robot)
+        T.unpack(self.layout, self.arrays, self.robot_objs[lo:hi])
         base, size = r * self.stride, w.n * w.n
         for row, name in ((B.OBJ, "obj"), (B.OWNER, "owner"), (B.FIELD, "field"),
                           (B.OCC, "occ"), (B.STAMP, "stamp")):
