@@ -203,6 +203,21 @@ def test_the_tables_script_reduces_a_sweep_csv(tmp_path: Path, capsys) -> None:
     p = data["points"][0]
     assert (p["robotVisionSpan"], p["n"], p["stalled"], p["delivered"]) == ("45", 3, 1, 1)
     assert (p["it_median"], p["transport_median"], p["found_median"]) == (15.0, 20.0, 2.0)
+    assert (p["it_min"], p["it_max"], p["home_min"], p["home_max"]) == (10.0, 20.0, 30.0, 30.0)
+    assert p["it_sd"] == 7.1 and p["iou_mean"] is None
+    # --update replaces the runs given and keeps the others
+    data["meta"]["runs"]["Models"] = {"command": tables.RUNS["Models"][0]}
+    data["points"].append({"run": "Models", "movementModel": "frog"})
+    data["points"][0]["n"] = 99
+    out.write_text(json.dumps(data))
+    assert tables.main([f"Sens-span={path}", "--json", str(out), "--update"]) == 2
+    capsys.readouterr()
+    again = json.loads(out.read_text())
+    assert set(again["meta"]["runs"]) == {"Sens-span", "Models"}
+    assert [q["run"] for q in again["points"]] == ["Models", "Sens-span"]
+    assert again["points"][1]["n"] == 3          # the stale Sens-span point replaced
+    assert tables.main([f"Sens-span={path}", "--update"]) == 2
+    assert "--update needs --json" in capsys.readouterr().err
     assert tables.main(["nonsense=" + str(path)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "must be one of" in err
