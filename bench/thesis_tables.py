@@ -400,8 +400,11 @@ def _wrap_notes(pts: list[dict]) -> list[str]:
         f = _m if key == "it_median" else _n
         return f"{f(p(m, act, 'True')[key])} against {f(p(m, act, 'False')[key])}"
 
-    def sd(m: str) -> str:
-        sds = [q["it_sd"] for on, off in pairs for q in (on, off)
+    def sd(m: str, of_median: bool = False) -> str:
+        """The sd over the rows of model m, or a median's standard error
+        (about 1.25 sd / sqrt(runs) for a roughly normal spread)."""
+        sds = [q["it_sd"] * (1.25 / (q["n"] - q["stalled"]) ** 0.5 if of_median else 1)
+               for on, off in pairs for q in (on, off)
                if q["movementModel"] == m and q.get("it_sd") is not None]
         return f"{min(sds):.0f}-{max(sds):.0f}" if sds else "-"
     return [
@@ -422,7 +425,10 @@ def _wrap_notes(pts: list[dict]) -> list[str]:
         "- **Delivery: " + ("every run delivered either way.**" if all_home else
                             "not every run delivered** (the delivered column)."),
         "- The run-to-run sd of convergence is "
-        f"{sd('firefly')} ticks (firefly) and {sd('ant')} (ant) over the rows.",
+        f"{sd('firefly')} ticks (firefly) and {sd('ant')} (ant) over the rows, so a",
+        "  median's standard error (1.25 sd / sqrt(runs)) is "
+        f"{sd('firefly', True)} ticks (firefly) and {sd('ant', True)} (ant):",
+        "  a difference of medians below about twice that is within the seed-to-seed spread.",
     ]
 
 
