@@ -432,6 +432,10 @@ def _wrap_notes(pts: list[dict]) -> list[str]:
     ]
 
 
+def _range(lo: float | None, hi: float | None) -> str:
+    return _n(lo) if lo == hi else f"{_n(lo)}-{_n(hi)}"
+
+
 def _sizes(data: dict) -> list[str]:
     pts = data["points"]
     out = ["| agents (arena) | crowd = yield (default): delivered | delivery: median tick "
@@ -441,9 +445,13 @@ def _sizes(data: dict) -> list[str]:
         side = 2 * int(float(p["worldSize"])) + 1
         b = _find(pts, "Sizes-block", agents=p["agents"], worldSize=p["worldSize"])
         out.append(f"| {int(float(p['agents'])):,} ({side} x {side}) | {p['delivered']}/{p['n']} | "
-                   f"{_m(p['home_median'])} ({_n(p['home_min'])}-{_n(p['home_max'])}) | "
-                   f"{_n(p['it_min'])}-{_n(p['it_max'])} | {_m(p['iou_mean'])} | "
-                   f"{b['delivered']}/{b['n']} | {_m(b['home_median'])} |")
+                   f"{_m(p['home_median'])} ({_range(p['home_min'], p['home_max'])}) | "
+                   f"{_range(p['it_min'], p['it_max'])} | {_m(p['iou_mean'])} | "
+                   f"{b['delivered']}/{b['n']}"
+                   + (f" ({b['n'] - b['delivered']} not delivered; "
+                      + (f"{b['stalled']} of them not converged)" if b["stalled"] else
+                         "all converged)") if b["n"] > b["delivered"] else "")
+                   + f" | {_m(b['home_median'])} |")
     runs = data["meta"]["runs"]
     wall = " and ".join(f"{runs[r].get('wall_s', '-')} s (`{runs[r]['command']}`)"
                         for r in SIZE_RUNS)
