@@ -242,3 +242,18 @@ def test_the_extension_docs_seed_runs_are_what_they_say() -> None:
             f"{home('decoy', 1)}, `wall` {home('wall', 1)}") in scen
     crate = load("crate")
     assert f"{len(crate.objects[0].cells)} cells: weight {crate.objectWeight:g}" in scen
+
+
+def test_the_size_table_has_every_point_of_the_preset() -> None:
+    """Both size runs hold the preset's points, so a changed preset cannot
+    leave the swarm-size table of docs/extensions.md on the old ones."""
+    from sim_backend.arena_presets import SEEDS, size_points
+    tables = _bench("thesis_tables")
+    data = json.loads((ROOT / "bench" / "thesis_tables.json").read_text())
+    want = [dict(p.params) for p in size_points()]
+    for run in tables.SIZE_RUNS:
+        got = [p for p in data["points"] if p["run"] == run]
+        assert [int(p["agents"]) for p in got] == [w["agents"] for w in want], run
+        assert all(p["n"] == SEEDS for p in got), run
+        assert {int(p["worldSize"]) for p in got if int(p["agents"]) > 300} == \
+            {w["worldSize"] for w in want if "worldSize" in w}, run
