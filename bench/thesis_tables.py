@@ -1,8 +1,9 @@
 """The smaller-sample tables of docs/thesis-reproduction.md (Graph 1 and
 Graphs 2-4 under three rule sets, the fieldDefiance-0 stalls, the
-sensitivity of the unsourced base values, the two activations) and the
-option effects and world edges of docs/tick-semantics.md and the
-movement models' convergence of docs/movement-models.md, each
+sensitivity of the unsourced base values, the two activations), the
+option effects and world edges of docs/tick-semantics.md (tables and the
+figures their notes quote), the movement models' convergence of
+docs/movement-models.md and the swarm sizes of docs/extensions.md, each
 rendered from a committed JSON of per-point statistics, so a changed
 default cannot leave a stale figure in the text: a test checks that each
 table between its markers is what this script renders from
@@ -16,6 +17,8 @@ converged_tick`, over the delivered runs) and writes them as JSON:
 
     .venv/bin/python bench/thesis_tables.py T-sync=DIR/sweep.csv T-ask=... \
         --json bench/thesis_tables.json [--wall NAME=SECONDS ...] [--docs]
+    .venv/bin/python bench/thesis_tables.py Sizes=DIR/sweep.csv --json bench/thesis_tables.json \
+        --update [--docs]     # replaces the runs given, keeps the others
     .venv/bin/python bench/thesis_tables.py --from-json bench/thesis_tables.json [--docs]
 
 --docs puts every table between its markers in its doc (TABLES: the
@@ -80,12 +83,19 @@ RUNS = {
                "--set leaderField=netlogo --set starts=netlogo --set arrival=netlogo "
                "--grid fieldDefiance=0,2 --grid movementModel=firefly,ant --seeds 30 "
                "--set maxTicks=5000", ("movementModel", "fieldDefiance")),
+    "Sizes": ("touchswarm sweep --preset sizes", ("agents", "worldSize")),
+    "Sizes-block": ("touchswarm sweep --preset sizes --set crowd=block", ("agents", "worldSize")),
 }
+# the runs docs/extensions.md's swarm-size table reads; they are not the
+# thesis study's, so the thesis runs table leaves them out
+SIZE_RUNS = ("Sizes", "Sizes-block")
 MODELS = ("firefly", "ant")
 # each table and the doc that carries it
 TABLES = {t: "docs/thesis-reproduction.md" for t in ("runs", "sensitivity", "graph1", "stalls",
                                                       "graphs234", "activation")}
-TABLES["options"] = TABLES["wrap"] = "docs/tick-semantics.md"
+TABLES["options"] = TABLES["options-notes"] = "docs/tick-semantics.md"
+TABLES["wrap"] = TABLES["wrap-notes"] = "docs/tick-semantics.md"
+TABLES["sizes"] = "docs/extensions.md"
 TABLES["models"] = "docs/movement-models.md"
 
 
@@ -107,6 +117,12 @@ def _stat(vals: list[float]) -> tuple[float | None, float | None]:
     return float(statistics.median(vals)), round(statistics.fmean(vals), 3)
 
 
+def _spread(vals: list[float]) -> dict:
+    """The least, the greatest and the sample sd (None below two values)."""
+    return {"min": min(vals) if vals else None, "max": max(vals) if vals else None,
+            "sd": round(statistics.stdev(vals), 1) if len(vals) > 1 else None}
+
+
 def reduce(name: str, rows: list[dict]) -> list[dict]:
     """One entry per point of run `name`, in the sweep's order."""
     keys = RUNS[name][1]
@@ -123,13 +139,19 @@ def reduce(name: str, rows: list[dict]) -> list[dict]:
                                  if _f(r["home_tick"]) is not None])
         found = [_f(r["found_tick"]) for r in rs if _f(r["found_tick"]) is not None]
         homes = [_f(r["home_tick"]) for r in home if _f(r["home_tick"]) is not None]
+        its = _spread([_f(r["converged_tick"]) for r in conv])
+        hs = _spread(homes)
+        ious = [v for v in (_f(r.get("shape_iou")) for r in rs) if v is not None]
         out.append({"run": name, **dict(zip(keys, key)), "n": len(rs),
                     "stalled": len(rs) - len(conv), "delivered": len(home),
                     "found_median": _stat(found)[0], "found_mean": _stat(found)[1],
                     "home_median": _stat(homes)[0],
                     "it_median": it_med, "it_mean": it_mean,
                     "mv_median": mv_med, "mv_mean": mv_mean,
-                    "transport_median": tr_med, "transport_mean": tr_mean})
+                    "transport_median": tr_med, "transport_mean": tr_mean,
+                    "it_min": its["min"], "it_max": its["max"], "it_sd": its["sd"],
+                    "home_min": hs["min"], "home_max": hs["max"],
+                    "iou_mean": round(statistics.fmean(ious), 3) if ious else None})
     return out
 
 
@@ -154,6 +176,8 @@ def _find(points: list[dict], run: str, **kv) -> dict:
 def _runs(data: dict) -> list[str]:
     out = ["| name | command | n | wall (s) |", "|---|---|---|---|"]
     for name, meta in data["meta"]["runs"].items():
+        if name in SIZE_RUNS:
+            continue
         out.append(f"| **{name}** | `{meta['command']}` | {meta['points']} points x "
                    f"{meta['seeds']} | {meta.get('wall_s', '-')} |")
     return out
@@ -313,13 +337,138 @@ def _models(pts: list[dict]) -> list[str]:
     return out
 
 
+def _options_notes(pts: list[dict]) -> list[str]:
+    """The figures the options table's notes quote, from the same points."""
+    three = {"signalMode": "patch", "uphillTies": "ordered", "leaderField": "off"}
+    faithful = {k: "netlogo" for k in three}
+
+    def stalled(run: str, m: str, **kv) -> str:
+        p = _find(pts, run, movementModel=m, fieldDefiance="0", **kv)
+        return f"{p['stalled']}/{p['n']}"
+
+    def two(m: str, fd: str, starts: str, arrival: str) -> dict:
+        return _find(pts, "O-two", movementModel=m, fieldDefiance=fd, starts=starts,
+                     arrival=arrival)
+    base = {m: two(m, "2", "redraw", "within4") for m in MODELS}
+    starts = two("firefly", "2", "netlogo", "within4")
+    arrive = {m: two(m, "2", "redraw", "netlogo") for m in MODELS}
+    o_runs = [p for p in pts if p["run"] in ("O-three", "O-two", "O-five")]
+    every = all(p["n"] - p["stalled"] == p["delivered"] for p in o_runs)
+    return [
+        "- **fieldDefiance 0 stalls with and without the NetLogo rules.** An",
+        "  earlier independent *asynchronous* model reported 5/30 -> 17/30 stalled",
+        "  (ant) when Signal centring, ties and `field 10` are made faithful. In",
+        f"  this synchronous engine the three together give {stalled('O-three', 'ant', **faithful)}"
+        " stalled (ant)",
+        f"  against {stalled('O-three', 'ant', **three)} with our rules, and "
+        f"{stalled('O-three', 'firefly', **faithful)} against "
+        f"{stalled('O-three', 'firefly', **three)} (firefly). With every option",
+        "  the thesis's (`--scenario netlogo`, the activation and the wrapping world",
+        f"  too), {stalled('S-thesis', 'ant', activation='netlogo')} (ant) and "
+        f"{stalled('S-thesis', 'firefly', activation='netlogo')} (firefly) stall; NetLogo's",
+        f"  `ask` alone gives {stalled('S-act', 'ant', activation='netlogo')} and "
+        f"{stalled('S-act', 'firefly', activation='netlogo')}"
+        " (docs/thesis-reproduction.md, runs S-act and S-thesis), and the",
+        "  independent reading of Appendix A there (bench/appendix_a.py) stalls as",
+        "  often as `--scenario netlogo` at 200 seeds.",
+        "- At fieldDefiance 2, `starts` for the firefly: median "
+        f"{_m(starts['it_median'])} against {_m(base['firefly']['it_median'])} ticks"
+        " (why is not examined).",
+        "- `arrival = \"netlogo\"`: median ticks from convergence to delivery at",
+        f"  fieldDefiance 2: firefly {_m(arrive['firefly']['transport_median'])} against "
+        f"{_m(base['firefly']['transport_median'])}, ant "
+        f"{_m(arrive['ant']['transport_median'])} against "
+        f"{_m(base['ant']['transport_median'])} (the nearest holder,",
+        "  not the nearest segment, must reach home); delivered at fieldDefiance 2:",
+        f"  firefly {arrive['firefly']['delivered']} of {arrive['firefly']['n']}, ant "
+        f"{arrive['ant']['delivered']} of {arrive['ant']['n']}.",
+        "- Every run that converged delivered, at fieldDefiance 0 too." if every else
+        "- Not every run that converged delivered (the delivered columns)."]
+
+
+def _wrap_notes(pts: list[dict]) -> list[str]:
+    """The figures the wrap table's notes quote, from the same points."""
+    def p(m: str, act: str, wrap: str) -> dict:
+        return _find(pts, "S-wrap", movementModel=m, activation=act, wrap=wrap)
+    pairs = [(p(m, a, "True"), p(m, a, "False")) for m in MODELS for a in ("sync", "netlogo")]
+    same_touch = all(on["found_median"] == off["found_median"] for on, off in pairs)
+    moves = [abs(on["it_median"] - off["it_median"]) for on, off in pairs]
+    all_conv = all(q["stalled"] == 0 for pair in pairs for q in pair)
+    all_home = all(q["delivered"] == q["n"] for pair in pairs for q in pair)
+
+    def vs(m: str, act: str, key: str) -> str:
+        f = _m if key == "it_median" else _n
+        return f"{f(p(m, act, 'True')[key])} against {f(p(m, act, 'False')[key])}"
+
+    def sd(m: str, of_median: bool = False) -> str:
+        """The sd over the rows of model m, or a median's standard error
+        (about 1.25 sd / sqrt(runs) for a roughly normal spread)."""
+        sds = [q["it_sd"] * (1.25 / (q["n"] - q["stalled"]) ** 0.5 if of_median else 1)
+               for on, off in pairs for q in (on, off)
+               if q["movementModel"] == m and q.get("it_sd") is not None]
+        return f"{min(sds):.0f}-{max(sds):.0f}" if sds else "-"
+    return [
+        "- **Time to first touch: "
+        + ("unchanged** (the same median in every row)." if same_touch else
+           "changed** in some rows (the first-touch column)."),
+        "  The swarm starts within `random max-pxcor` of the centre and the object",
+        "  lies near it, so the first touch comes before any robot reaches an edge.",
+        f"- **Convergence.** The medians move by {min(moves):g}-{max(moves):g} ticks "
+        f"(firefly sync {vs('firefly', 'sync', 'it_median')},",
+        f"  ant sync {vs('ant', 'sync', 'it_median')}; ant netlogo "
+        f"{vs('ant', 'netlogo', 'it_median')}), the means",
+        f"  (ant sync {vs('ant', 'sync', 'it_mean')}, ant netlogo "
+        f"{vs('ant', 'netlogo', 'it_mean')}, firefly",
+        f"  netlogo {vs('firefly', 'netlogo', 'it_mean')}); wrap on first in each pair.",
+        "  " + ("Every run converged either way." if all_conv else
+                "Not every run converged (the converged column)."),
+        "- **Delivery: " + ("every run delivered either way.**" if all_home else
+                            "not every run delivered** (the delivered column)."),
+        "- The run-to-run sd of convergence is "
+        f"{sd('firefly')} ticks (firefly) and {sd('ant')} (ant) over the rows, so a",
+        "  median's standard error (1.25 sd / sqrt(runs)) is "
+        f"{sd('firefly', True)} ticks (firefly) and {sd('ant', True)} (ant):",
+        "  a difference of medians below about twice that is within the seed-to-seed spread.",
+    ]
+
+
+def _range(lo: float | None, hi: float | None) -> str:
+    return _n(lo) if lo == hi else f"{_n(lo)}-{_n(hi)}"
+
+
+def _sizes(data: dict) -> list[str]:
+    pts = data["points"]
+    out = ["| agents (arena) | crowd = yield (default): delivered | delivery: median tick "
+           "(least-most) | convergence: tick (least-most) | mean IoU | crowd = block: delivered | "
+           "delivery: median tick |", "|---|---|---|---|---|---|---|"]
+    for p in (q for q in pts if q["run"] == "Sizes"):
+        side = 2 * int(float(p["worldSize"])) + 1
+        b = _find(pts, "Sizes-block", agents=p["agents"], worldSize=p["worldSize"])
+        out.append(f"| {int(float(p['agents'])):,} ({side} x {side}) | {p['delivered']}/{p['n']} | "
+                   f"{_m(p['home_median'])} ({_range(p['home_min'], p['home_max'])}) | "
+                   f"{_range(p['it_min'], p['it_max'])} | {_m(p['iou_mean'])} | "
+                   f"{b['delivered']}/{b['n']}"
+                   + (f" ({b['n'] - b['delivered']} not delivered; "
+                      + (f"{b['stalled']} of them not converged)" if b["stalled"] else
+                         "all converged)") if b["n"] > b["delivered"] else "")
+                   + f" | {_m(b['home_median'])} |")
+    runs = data["meta"]["runs"]
+    wall = " and ".join(f"{runs[r].get('wall_s', '-')} s (`{runs[r]['command']}`)"
+                        for r in SIZE_RUNS)
+    out += ["", f"Wall time: {wall}, each with `--engine soa --executor inline --no-plots` "
+            "on the loaded 2-core machine."]
+    return out
+
+
 def render(data: dict, table: str) -> str:
     pts = data["points"]
     lines = {"runs": lambda: _runs(data), "sensitivity": lambda: _sensitivity(pts),
              "graph1": lambda: _graph1(pts), "stalls": lambda: _stalls(pts),
              "graphs234": lambda: _graphs234(pts), "activation": lambda: _activation(pts),
              "options": lambda: _options(pts), "wrap": lambda: _wrap(pts),
-             "models": lambda: _models(pts)}[table]()
+             "models": lambda: _models(pts), "sizes": lambda: _sizes(data),
+             "options-notes": lambda: _options_notes(pts),
+             "wrap-notes": lambda: _wrap_notes(pts)}[table]()
     return "\n".join(lines)
 
 
@@ -347,6 +496,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", type=Path, help="write the statistics here")
     ap.add_argument("--from-json", type=Path, help="render the tables from such a file")
     ap.add_argument("--wall", action="append", default=[], help="NAME=SECONDS of a run")
+    ap.add_argument("--update", action="store_true",
+                    help="keep the other runs of the --json file: replace only the runs given")
     ap.add_argument("--docs", action="store_true",
                     help="put each table between its markers in its doc (TABLES)")
     a = ap.parse_args(argv)
@@ -358,6 +509,12 @@ def main(argv: list[str] | None = None) -> int:
                 raise ValueError("give NAME=sweep.csv pairs or --from-json FILE")
             wall = dict(w.split("=", 1) for w in a.wall)
             data = {"meta": {"runs": {}}, "points": []}
+            if a.update:
+                if not a.json:
+                    raise ValueError("--update needs --json FILE, the statistics to update")
+                data = json.loads(a.json.read_text())
+                given = {pair.partition("=")[0] for pair in a.csv}
+                data["points"] = [p for p in data["points"] if p["run"] not in given]
             for pair in a.csv:
                 name, _, path = pair.partition("=")
                 if name not in RUNS:

@@ -203,6 +203,21 @@ def test_the_tables_script_reduces_a_sweep_csv(tmp_path: Path, capsys) -> None:
     p = data["points"][0]
     assert (p["robotVisionSpan"], p["n"], p["stalled"], p["delivered"]) == ("45", 3, 1, 1)
     assert (p["it_median"], p["transport_median"], p["found_median"]) == (15.0, 20.0, 2.0)
+    assert (p["it_min"], p["it_max"], p["home_min"], p["home_max"]) == (10.0, 20.0, 30.0, 30.0)
+    assert p["it_sd"] == 7.1 and p["iou_mean"] is None
+    # --update replaces the runs given and keeps the others
+    data["meta"]["runs"]["Models"] = {"command": tables.RUNS["Models"][0]}
+    data["points"].append({"run": "Models", "movementModel": "frog"})
+    data["points"][0]["n"] = 99
+    out.write_text(json.dumps(data))
+    assert tables.main([f"Sens-span={path}", "--json", str(out), "--update"]) == 2
+    capsys.readouterr()
+    again = json.loads(out.read_text())
+    assert set(again["meta"]["runs"]) == {"Sens-span", "Models"}
+    assert [q["run"] for q in again["points"]] == ["Models", "Sens-span"]
+    assert again["points"][1]["n"] == 3          # the stale Sens-span point replaced
+    assert tables.main([f"Sens-span={path}", "--update"]) == 2
+    assert "--update needs --json" in capsys.readouterr().err
     assert tables.main(["nonsense=" + str(path)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "must be one of" in err
@@ -227,3 +242,18 @@ def test_the_extension_docs_seed_runs_are_what_they_say() -> None:
             f"{home('decoy', 1)}, `wall` {home('wall', 1)}") in scen
     crate = load("crate")
     assert f"{len(crate.objects[0].cells)} cells: weight {crate.objectWeight:g}" in scen
+
+
+def test_the_size_table_has_every_point_of_the_preset() -> None:
+    """Both size runs hold the preset's points, so a changed preset cannot
+    leave the swarm-size table of docs/extensions.md on the old ones."""
+    from sim_backend.arena_presets import SEEDS, size_points
+    tables = _bench("thesis_tables")
+    data = json.loads((ROOT / "bench" / "thesis_tables.json").read_text())
+    want = [dict(p.params) for p in size_points()]
+    for run in tables.SIZE_RUNS:
+        got = [p for p in data["points"] if p["run"] == run]
+        assert [int(p["agents"]) for p in got] == [w["agents"] for w in want], run
+        assert all(p["n"] == SEEDS for p in got), run
+        assert {int(p["worldSize"]) for p in got if int(p["agents"]) > 300} == \
+            {w["worldSize"] for w in want if "worldSize" in w}, run
