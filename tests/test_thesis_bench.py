@@ -257,3 +257,16 @@ def test_the_size_table_has_every_point_of_the_preset() -> None:
         assert all(p["n"] == SEEDS for p in got), run
         assert {int(p["worldSize"]) for p in got if int(p["agents"]) > 300} == \
             {w["worldSize"] for w in want if "worldSize" in w}, run
+
+
+def test_the_field_table_has_every_point_of_the_preset() -> None:
+    """The field run holds the preset's points, so a changed preset cannot
+    leave the field table of docs/extensions.md on the old ones."""
+    from sim_backend.arena_presets import SEEDS, field_points
+    tables = _bench("thesis_tables")
+    data = json.loads((ROOT / "bench" / "thesis_tables.json").read_text())
+    want = [{k: str(v) for k, v in p.params} for p in field_points()]
+    for run in tables.FIELD_RUNS:
+        got = [p for p in data["points"] if p["run"] == run]
+        assert [{k: p[k] for k in ("agents", "field", "crowd")} for p in got] == want, run
+        assert all(p["n"] == SEEDS for p in got), run
