@@ -28,11 +28,12 @@ The model (docs/perception.md, "Recognition", says why this one):
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.lib.stride_tricks import sliding_window_view
+from numpy.lib.stride_tricks import as_strided
 
 from perception.evidence import FREE, OBJECT, Evidence
 from perception.shapes import UNKNOWN, Library, Pose
@@ -117,9 +118,6 @@ def recognise(ev: Evidence, library: Library, eps_touch: float = EPS_TOUCH,
     xmin, xmax, ymin, ymax = min(xs), max(xs), min(ys), max(ys)
     log_false = math.log(eps_touch / area)
     log_true = math.log(1.0 - eps_touch)
-    log_free = math.log(eps_free)
-    maxt = max(len(p.touchable) for ps in library.poses.values() for p in ps)
-    lfact = np.array([math.lgamma(k + 1) for k in range(maxt + 1)])
     # for every origin near the touches and every pose: touched cells on the
     # pose's touchable cells, free cells on its cells (integer counts as
     # one exact product of 0/1 matrices; beyond the arena unknown)
@@ -127,25 +125,16 @@ def recognise(ev: Evidence, library: Library, eps_touch: float = EPS_TOUCH,
     x0, y0 = max(-w, xmin - mw + 1), max(-w, ymin - mh + 1)
     rw, rh = xmax - x0 + 1, ymax - y0 + 1
     part = ev.grid[y0 + w:y0 + w + rh + mh - 1, x0 + w:x0 + w + rw + mw - 1]
-    counts = []
-    for code, mask in ((OBJECT, m_touch), (FREE, m_cells)):
-        pad = np.zeros((rh + mh - 1, rw + mw - 1))
-        pad[:part.shape[0], :part.shape[1]] = part == code
-        win = sliding_window_view(pad, (mh, mw)).reshape(rh * rw, mh * mw)
-        counts.append(win @ mask)
-    c_touch, c_free = (c.astype(np.intp).reshape(rh, rw, -1) for c in counts)
-    # the log-likelihood of a placement depends on it only through its pose
-    # and its two counts: tabulated per pose (t touchable cells, its
-    # placement prior) and count, then looked up for every origin at once
-    ordered = [(name, pose) for name in names for pose in library.poses[name]]
-    fits = [(n - p.width + 1) * (n - p.height + 1) for _, p in ordered]
-    place = [-math.log(len(library.poses[name])) - math.log(f) if f > 0 else 0.0
-             for (name, _), f in zip(ordered, fits)]
-    t = np.array([len(p.touchable) for _, p in ordered])[:, None, None]
-    k = np.arange(maxt + 1, dtype=np.int32)[None, :, None]
-    f = np.arange(max(len(p.cells) for _, p in ordered) + 1, dtype=np.int32)[None, None, :]
-    table = (k * log_true - (lfact[t] - lfact[np.maximum(t - k, 0)]) + (n_obj - k) * log_false
-             + f * log_free + np.array(place)[:, None, None])
+    pad = np.zeros((rh + mh - 1, rw + mw - 1), dtype=part.dtype)
+    pad[:part.shape[0], :part.shape[1]] = part
+    # every origin's window (as_strided: sliding_window_view's checks cost
+    # more than the product on a sweep's small boxes)
+    win = as_strided(pad, (rh, rw, mh, mw), pad.strides * 2, writeable=False).reshape(
+        rh * rw, mh * mw)
+    c_touch, c_free = ((win == code) @ mask for code, mask in ((OBJECT, m_touch), (FREE, m_cells)))
+    c_touch = c_touch.astype(np.intp).reshape(rh, rw, -1)
+    c_free = c_free.astype(np.intp).reshape(rh, rw, -1)
+    ordered, fits, place, table = _table(library.key, n, eps_touch, eps_free, n_obj)
     ll_all = table[np.arange(len(ordered)), c_touch, c_free]     # (rh, rw, poses)
     per_shape: dict[str, float] = {}
     best_of: dict[str, tuple] = {name: (-math.inf, None, (0, 0)) for name in names}
@@ -163,10 +152,13 @@ def recognise(ev: Evidence, library: Library, eps_touch: float = EPS_TOUCH,
             hx, hy = ox1 - ox0 + 1, oy1 - oy0 + 1
             inside = hx * hy
             ll = ll_all[oy0 - y0:oy0 - y0 + hy, ox0 - x0:ox0 - x0 + hx, column]
-            terms[name].append(_logsumexp(ll))
-            j = int(np.argmax(ll))
-            if float(ll.flat[j]) > best_of[name][0]:
-                best_of[name] = (float(ll.flat[j]), pose, (ox0 + j % hx, oy0 + j // hx))
+            # _logsumexp(ll), its max read at the argmax the MAP needs anyway
+            j = int(ll.argmax())
+            top = float(ll.flat[j])
+            terms[name].append(top if top == -math.inf
+                               else top + math.log(float(np.exp(ll - top).sum())))
+            if top > best_of[name][0]:
+                best_of[name] = (top, pose, (ox0 + j % hx, oy0 + j // hx))
         rest = fits[column] - inside
         if rest > 0:   # placements away from every touch: all touches false
             terms[name].append(place[column] + math.log(rest) + n_obj * log_false)
@@ -189,6 +181,35 @@ def recognise(ev: Evidence, library: Library, eps_touch: float = EPS_TOUCH,
     _, pose, origin = best_of[top]      # the MAP placement of the most probable shape
     cells = pose.placed(*origin) if pose is not None else set()
     return Recognition(post, top, post[top], cells, pose, origin)
+
+
+@functools.lru_cache(maxsize=256)
+def _table(key: tuple, n: int, eps_touch: float, eps_free: float, n_obj: int
+           ) -> tuple[list[tuple[str, Pose]], list[int], list[float], np.ndarray]:
+    """The poses in order, their placements on the n x n arena, their
+    placement priors and the log-likelihood table of a library (its key)
+    with n_obj touches: the log-likelihood of a placement depends on it only
+    through its pose and its two counts, so it is tabulated per pose (t
+    touchable cells, its placement prior) and count, then looked up for
+    every origin at once. Built once per process for each (a sweep's runs
+    share the library and differ little in their touches; read-only)."""
+    library = Library(dict(key))
+    ordered = [(name, pose) for name in library.names for pose in library.poses[name]]
+    fits = [(n - p.width + 1) * (n - p.height + 1) for _, p in ordered]
+    place = [-math.log(len(library.poses[name])) - math.log(f) if f > 0 else 0.0
+             for (name, _), f in zip(ordered, fits)]
+    maxt = max(len(p.touchable) for _, p in ordered)
+    lfact = np.array([math.lgamma(k + 1) for k in range(maxt + 1)])
+    log_false = math.log(eps_touch / (n * n))
+    log_true = math.log(1.0 - eps_touch)
+    log_free = math.log(eps_free)
+    t = np.array([len(p.touchable) for _, p in ordered])[:, None, None]
+    k = np.arange(maxt + 1, dtype=np.int32)[None, :, None]
+    f = np.arange(max(len(p.cells) for _, p in ordered) + 1, dtype=np.int32)[None, None, :]
+    table = (k * log_true - (lfact[t] - lfact[np.maximum(t - k, 0)]) + (n_obj - k) * log_false
+             + f * log_free + np.array(place)[:, None, None])
+    table.flags.writeable = False
+    return ordered, fits, place, table
 
 
 def _free_form(cells: set[Cell], n: int, n_obj: int, log_true: float) -> float:
