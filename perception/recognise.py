@@ -134,31 +134,39 @@ def recognise(ev: Evidence, library: Library, eps_touch: float = EPS_TOUCH,
     c_touch, c_free = ((win == code) @ mask for code, mask in ((OBJECT, m_touch), (FREE, m_cells)))
     c_touch = c_touch.astype(np.intp).reshape(rh, rw, -1)
     c_free = c_free.astype(np.intp).reshape(rh, rw, -1)
-    ordered, fits, place, table = _table(library.key, n, eps_touch, eps_free, n_obj)
-    ll_all = table[np.arange(len(ordered)), c_touch, c_free]     # (rh, rw, poses)
+    ordered, fits, place, table, boxes = _table(library.key, n, eps_touch, eps_free, n_obj)
+    ll_all = table[np.arange(len(ordered))[:, None, None],
+                   c_touch.transpose(2, 0, 1), c_free.transpose(2, 0, 1)]   # (poses, rh, rw)
+    # every pose's placements that overlap the touches' box: origins (patch
+    # coordinates) that depend on the pose only through its box, so the poses
+    # of one box are summed at once (each row's exp and sum as the pose's
+    # alone would be: the table is finite, its max is read at the argmax the
+    # MAP needs anyway)
+    near: dict[int, tuple[float, float, Cell, int]] = {}
+    for (bw, bh), cols in boxes:
+        ox0, ox1 = max(-w, xmin - bw + 1), min(w - bw + 1, xmax)
+        oy0, oy1 = max(-w, ymin - bh + 1), min(w - bh + 1, ymax)
+        if ox0 > ox1 or oy0 > oy1:
+            continue
+        hx, hy = ox1 - ox0 + 1, oy1 - oy0 + 1
+        ll = ll_all[cols, oy0 - y0:oy0 - y0 + hy, ox0 - x0:ox0 - x0 + hx].reshape(len(cols), -1)
+        j = ll.argmax(axis=1)
+        top = ll[np.arange(len(cols)), j]
+        sums = np.exp(ll - top[:, None]).sum(axis=1)
+        for column, jj, tt, ss in zip(cols.tolist(), j.tolist(), top.tolist(), sums.tolist()):
+            near[column] = (tt + math.log(ss), tt, (ox0 + jj % hx, oy0 + jj // hx), hx * hy)
     per_shape: dict[str, float] = {}
     best_of: dict[str, tuple] = {name: (-math.inf, None, (0, 0)) for name in names}
     terms: dict[str, list[float]] = {name: [] for name in names}
     for column, (name, pose) in enumerate(ordered):
         if fits[column] <= 0:
             continue
-        # origins (patch coordinates) whose placement overlaps the touches' box
-        ox0 = max(-w, xmin - pose.width + 1)
-        ox1 = min(w - pose.width + 1, xmax)
-        oy0 = max(-w, ymin - pose.height + 1)
-        oy1 = min(w - pose.height + 1, ymax)
         inside = 0
-        if ox0 <= ox1 and oy0 <= oy1:
-            hx, hy = ox1 - ox0 + 1, oy1 - oy0 + 1
-            inside = hx * hy
-            ll = ll_all[oy0 - y0:oy0 - y0 + hy, ox0 - x0:ox0 - x0 + hx, column]
-            # _logsumexp(ll), its max read at the argmax the MAP needs anyway
-            j = int(ll.argmax())
-            top = float(ll.flat[j])
-            terms[name].append(top if top == -math.inf
-                               else top + math.log(float(np.exp(ll - top).sum())))
-            if top > best_of[name][0]:
-                best_of[name] = (top, pose, (ox0 + j % hx, oy0 + j // hx))
+        if column in near:
+            lse, top1, origin1, inside = near[column]
+            terms[name].append(lse)
+            if top1 > best_of[name][0]:
+                best_of[name] = (top1, pose, origin1)
         rest = fits[column] - inside
         if rest > 0:   # placements away from every touch: all touches false
             terms[name].append(place[column] + math.log(rest) + n_obj * log_false)
@@ -185,7 +193,8 @@ def recognise(ev: Evidence, library: Library, eps_touch: float = EPS_TOUCH,
 
 @functools.lru_cache(maxsize=256)
 def _table(key: tuple, n: int, eps_touch: float, eps_free: float, n_obj: int
-           ) -> tuple[list[tuple[str, Pose]], list[int], list[float], np.ndarray]:
+           ) -> tuple[list[tuple[str, Pose]], list[int], list[float], np.ndarray,
+                      list[tuple[tuple[int, int], np.ndarray]]]:
     """The poses in order, their placements on the n x n arena, their
     placement priors and the log-likelihood table of a library (its key)
     with n_obj touches: the log-likelihood of a placement depends on it only
@@ -209,7 +218,12 @@ def _table(key: tuple, n: int, eps_touch: float, eps_free: float, n_obj: int
     table = (k * log_true - (lfact[t] - lfact[np.maximum(t - k, 0)]) + (n_obj - k) * log_false
              + f * log_free + np.array(place)[:, None, None])
     table.flags.writeable = False
-    return ordered, fits, place, table
+    by_box: dict[tuple[int, int], list[int]] = {}
+    for column, (_, p) in enumerate(ordered):
+        if fits[column] > 0:
+            by_box.setdefault((p.width, p.height), []).append(column)
+    boxes = [(box, np.array(cols)) for box, cols in by_box.items()]
+    return ordered, fits, place, table, boxes
 
 
 def _free_form(cells: set[Cell], n: int, n_obj: int, log_true: float) -> float:
