@@ -45,6 +45,7 @@ class Evidence:
         self.free_cells = 0
         self.conflicts = 0                   # free seen on object, or object on free
         self.version = 0                     # bumps whenever the grid changes
+        self._estimate: tuple[int, set[Cell]] = (-1, set())   # hull_estimate at a version
 
     def inside(self, x: int, y: int) -> bool:
         return -self.w <= x <= self.w and -self.w <= y <= self.w
@@ -103,13 +104,16 @@ class Evidence:
         return perception.outline_cells(self.touched)
 
     def hull_estimate(self) -> set[Cell]:
-        """The estimate without a library: the hull minus every known-free cell."""
-        hull = self.hull_cells()
-        if not hull:
-            return hull
-        xs = [c[0] for c in hull]
-        ys = [c[1] for c in hull]
-        return hull - self.free_in(min(xs), max(xs), min(ys), max(ys))
+        """The estimate without a library: the hull minus every known-free
+        cell (kept until the grid changes: recognise and estimate both ask)."""
+        if self._estimate[0] != self.version:
+            hull = self.hull_cells()
+            if hull:
+                xs = [c[0] for c in hull]
+                ys = [c[1] for c in hull]
+                hull -= self.free_in(min(xs), max(xs), min(ys), max(ys))
+            self._estimate = (self.version, hull)
+        return set(self._estimate[1])
 
     def free_in(self, x0: int, x1: int, y0: int, y1: int) -> set[Cell]:
         """The known-free cells of the box x0..x1, y0..y1 (a set to test
