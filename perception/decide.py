@@ -117,7 +117,7 @@ class Decider:
 def equip(coordinator: Any, sc: Any) -> Any:
     """Give a coordinator that wants one (its wants_decider()) a decider;
     a no-op otherwise."""
-    from sim_backend.coordinator import Recognising
-    if isinstance(coordinator, Recognising) and coordinator.wants_decider():
+    from sim_backend.coordinator import Recognising, has
+    if has(coordinator, Recognising) and coordinator.wants_decider():
         coordinator.decider = Decider(sc)
     return coordinator

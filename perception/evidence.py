@@ -45,6 +45,7 @@ class Evidence:
         self.free_cells = 0
         self.conflicts = 0                   # free seen on object, or object on free
         self.version = 0                     # bumps whenever the grid changes
+        self._estimate: tuple[int, set[Cell]] = (-1, set())   # hull_estimate at a version
 
     def inside(self, x: int, y: int) -> bool:
         return -self.w <= x <= self.w and -self.w <= y <= self.w
@@ -103,8 +104,24 @@ class Evidence:
         return perception.outline_cells(self.touched)
 
     def hull_estimate(self) -> set[Cell]:
-        """The estimate without a library: the hull minus every known-free cell."""
-        return {c for c in self.hull_cells() if self.at(*c) != FREE}
+        """The estimate without a library: the hull minus every known-free
+        cell (kept until the grid changes: recognise and estimate both ask)."""
+        if self._estimate[0] != self.version:
+            hull = self.hull_cells()
+            if hull:
+                xs = [c[0] for c in hull]
+                ys = [c[1] for c in hull]
+                hull -= self.free_in(min(xs), max(xs), min(ys), max(ys))
+            self._estimate = (self.version, hull)
+        return set(self._estimate[1])
+
+    def free_in(self, x0: int, x1: int, y0: int, y1: int) -> set[Cell]:
+        """The known-free cells of the box x0..x1, y0..y1 (a set to test
+        cells against: a grid read per cell costs more than the set)."""
+        w = self.w
+        ax, ay = max(x0, -w), max(y0, -w)
+        ys, xs = np.nonzero(self.grid[ay + w:min(y1, w) + w + 1, ax + w:min(x1, w) + w + 1] == FREE)
+        return set(zip((xs + ax).tolist(), (ys + ay).tolist()))
 
     def joined(self) -> set[Cell]:
         """The smallest-looking shape the touches allow: the touched cells
@@ -116,6 +133,7 @@ class Evidence:
         xs = [c[0] for c in self.touched]
         ys = [c[1] for c in self.touched]
         x0, x1, y0, y1 = min(xs) - 2, max(xs) + 2, min(ys) - 2, max(ys) + 2
+        free = self.free_in(x0, x1, y0, y1)
         shape = {self.touched[0]}
         rest = set(self.touched[1:])
         while rest:
@@ -128,7 +146,7 @@ class Evidence:
                     for a, b in ((1, 0), (-1, 0), (0, 1), (0, -1)):
                         c = (x + a, y + b)
                         if c in prev or not (x0 <= c[0] <= x1 and y0 <= c[1] <= y1) \
-                                or self.at(*c) == FREE:
+                                or c in free:
                             continue
                         prev[c] = (x, y)
                         if c in rest:

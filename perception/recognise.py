@@ -28,11 +28,12 @@ The model (docs/perception.md, "Recognition", says why this one):
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.lib.stride_tricks import sliding_window_view
+from numpy.lib.stride_tricks import as_strided
 
 from perception.evidence import FREE, OBJECT, Evidence
 from perception.shapes import UNKNOWN, Library, Pose
@@ -117,9 +118,6 @@ def recognise(ev: Evidence, library: Library, eps_touch: float = EPS_TOUCH,
     xmin, xmax, ymin, ymax = min(xs), max(xs), min(ys), max(ys)
     log_false = math.log(eps_touch / area)
     log_true = math.log(1.0 - eps_touch)
-    log_free = math.log(eps_free)
-    maxt = max(len(p.touchable) for ps in library.poses.values() for p in ps)
-    lfact = np.array([math.lgamma(k + 1) for k in range(maxt + 1)])
     # for every origin near the touches and every pose: touched cells on the
     # pose's touchable cells, free cells on its cells (integer counts as
     # one exact product of 0/1 matrices; beyond the arena unknown)
@@ -127,46 +125,48 @@ def recognise(ev: Evidence, library: Library, eps_touch: float = EPS_TOUCH,
     x0, y0 = max(-w, xmin - mw + 1), max(-w, ymin - mh + 1)
     rw, rh = xmax - x0 + 1, ymax - y0 + 1
     part = ev.grid[y0 + w:y0 + w + rh + mh - 1, x0 + w:x0 + w + rw + mw - 1]
-    counts = []
-    for code, mask in ((OBJECT, m_touch), (FREE, m_cells)):
-        pad = np.zeros((rh + mh - 1, rw + mw - 1))
-        pad[:part.shape[0], :part.shape[1]] = part == code
-        win = sliding_window_view(pad, (mh, mw)).reshape(rh * rw, mh * mw)
-        counts.append(win @ mask)
-    c_touch, c_free = (c.astype(np.intp).reshape(rh, rw, -1) for c in counts)
-    # the log-likelihood of a placement depends on it only through its pose
-    # and its two counts: tabulated per pose (t touchable cells, its
-    # placement prior) and count, then looked up for every origin at once
-    ordered = [(name, pose) for name in names for pose in library.poses[name]]
-    fits = [(n - p.width + 1) * (n - p.height + 1) for _, p in ordered]
-    place = [-math.log(len(library.poses[name])) - math.log(f) if f > 0 else 0.0
-             for (name, _), f in zip(ordered, fits)]
-    t = np.array([len(p.touchable) for _, p in ordered])[:, None, None]
-    k = np.arange(maxt + 1, dtype=np.int32)[None, :, None]
-    f = np.arange(max(len(p.cells) for _, p in ordered) + 1, dtype=np.int32)[None, None, :]
-    table = (k * log_true - (lfact[t] - lfact[np.maximum(t - k, 0)]) + (n_obj - k) * log_false
-             + f * log_free + np.array(place)[:, None, None])
-    ll_all = table[np.arange(len(ordered)), c_touch, c_free]     # (rh, rw, poses)
+    pad = np.zeros((rh + mh - 1, rw + mw - 1), dtype=part.dtype)
+    pad[:part.shape[0], :part.shape[1]] = part
+    # every origin's window (as_strided: sliding_window_view's checks cost
+    # more than the product on a sweep's small boxes)
+    win = as_strided(pad, (rh, rw, mh, mw), pad.strides * 2, writeable=False).reshape(
+        rh * rw, mh * mw)
+    c_touch, c_free = ((win == code) @ mask for code, mask in ((OBJECT, m_touch), (FREE, m_cells)))
+    c_touch = c_touch.astype(np.intp).reshape(rh, rw, -1)
+    c_free = c_free.astype(np.intp).reshape(rh, rw, -1)
+    ordered, fits, place, table, boxes = _table(library.key, n, eps_touch, eps_free, n_obj)
+    ll_all = table[np.arange(len(ordered))[:, None, None],
+                   c_touch.transpose(2, 0, 1), c_free.transpose(2, 0, 1)]   # (poses, rh, rw)
+    # every pose's placements that overlap the touches' box: origins (patch
+    # coordinates) that depend on the pose only through its box, so the poses
+    # of one box are summed at once (each row's exp and sum as the pose's
+    # alone would be: the table is finite, its max is read at the argmax the
+    # MAP needs anyway)
+    near: dict[int, tuple[float, float, Cell, int]] = {}
+    for (bw, bh), cols in boxes:
+        ox0, ox1 = max(-w, xmin - bw + 1), min(w - bw + 1, xmax)
+        oy0, oy1 = max(-w, ymin - bh + 1), min(w - bh + 1, ymax)
+        if ox0 > ox1 or oy0 > oy1:
+            continue
+        hx, hy = ox1 - ox0 + 1, oy1 - oy0 + 1
+        ll = ll_all[cols, oy0 - y0:oy0 - y0 + hy, ox0 - x0:ox0 - x0 + hx].reshape(len(cols), -1)
+        j = ll.argmax(axis=1)
+        top = ll[np.arange(len(cols)), j]
+        sums = np.exp(ll - top[:, None]).sum(axis=1)
+        for column, jj, tt, ss in zip(cols.tolist(), j.tolist(), top.tolist(), sums.tolist()):
+            near[column] = (tt + math.log(ss), tt, (ox0 + jj % hx, oy0 + jj // hx), hx * hy)
     per_shape: dict[str, float] = {}
     best_of: dict[str, tuple] = {name: (-math.inf, None, (0, 0)) for name in names}
     terms: dict[str, list[float]] = {name: [] for name in names}
     for column, (name, pose) in enumerate(ordered):
         if fits[column] <= 0:
             continue
-        # origins (patch coordinates) whose placement overlaps the touches' box
-        ox0 = max(-w, xmin - pose.width + 1)
-        ox1 = min(w - pose.width + 1, xmax)
-        oy0 = max(-w, ymin - pose.height + 1)
-        oy1 = min(w - pose.height + 1, ymax)
         inside = 0
-        if ox0 <= ox1 and oy0 <= oy1:
-            hx, hy = ox1 - ox0 + 1, oy1 - oy0 + 1
-            inside = hx * hy
-            ll = ll_all[oy0 - y0:oy0 - y0 + hy, ox0 - x0:ox0 - x0 + hx, column]
-            terms[name].append(_logsumexp(ll))
-            j = int(np.argmax(ll))
-            if float(ll.flat[j]) > best_of[name][0]:
-                best_of[name] = (float(ll.flat[j]), pose, (ox0 + j % hx, oy0 + j // hx))
+        if column in near:
+            lse, top1, origin1, inside = near[column]
+            terms[name].append(lse)
+            if top1 > best_of[name][0]:
+                best_of[name] = (top1, pose, origin1)
         rest = fits[column] - inside
         if rest > 0:   # placements away from every touch: all touches false
             terms[name].append(place[column] + math.log(rest) + n_obj * log_false)
@@ -189,6 +189,41 @@ def recognise(ev: Evidence, library: Library, eps_touch: float = EPS_TOUCH,
     _, pose, origin = best_of[top]      # the MAP placement of the most probable shape
     cells = pose.placed(*origin) if pose is not None else set()
     return Recognition(post, top, post[top], cells, pose, origin)
+
+
+@functools.lru_cache(maxsize=256)
+def _table(key: tuple, n: int, eps_touch: float, eps_free: float, n_obj: int
+           ) -> tuple[list[tuple[str, Pose]], list[int], list[float], np.ndarray,
+                      list[tuple[tuple[int, int], np.ndarray]]]:
+    """The poses in order, their placements on the n x n arena, their
+    placement priors and the log-likelihood table of a library (its key)
+    with n_obj touches: the log-likelihood of a placement depends on it only
+    through its pose and its two counts, so it is tabulated per pose (t
+    touchable cells, its placement prior) and count, then looked up for
+    every origin at once. Built once per process for each (a sweep's runs
+    share the library and differ little in their touches; read-only)."""
+    library = Library(dict(key))
+    ordered = [(name, pose) for name in library.names for pose in library.poses[name]]
+    fits = [(n - p.width + 1) * (n - p.height + 1) for _, p in ordered]
+    place = [-math.log(len(library.poses[name])) - math.log(f) if f > 0 else 0.0
+             for (name, _), f in zip(ordered, fits)]
+    maxt = max(len(p.touchable) for _, p in ordered)
+    lfact = np.array([math.lgamma(k + 1) for k in range(maxt + 1)])
+    log_false = math.log(eps_touch / (n * n))
+    log_true = math.log(1.0 - eps_touch)
+    log_free = math.log(eps_free)
+    t = np.array([len(p.touchable) for _, p in ordered])[:, None, None]
+    k = np.arange(maxt + 1, dtype=np.int32)[None, :, None]
+    f = np.arange(max(len(p.cells) for _, p in ordered) + 1, dtype=np.int32)[None, None, :]
+    table = (k * log_true - (lfact[t] - lfact[np.maximum(t - k, 0)]) + (n_obj - k) * log_false
+             + f * log_free + np.array(place)[:, None, None])
+    table.flags.writeable = False
+    by_box: dict[tuple[int, int], list[int]] = {}
+    for column, (_, p) in enumerate(ordered):
+        if fits[column] > 0:
+            by_box.setdefault((p.width, p.height), []).append(column)
+    boxes = [(box, np.array(cols)) for box, cols in by_box.items()]
+    return ordered, fits, place, table, boxes
 
 
 def _free_form(cells: set[Cell], n: int, n_obj: int, log_true: float) -> float:

@@ -237,8 +237,8 @@ def decision_verdict(c: Any) -> Verdict:
 def perceives(c: Any) -> bool:
     """Whether a coordinator keeps touched segments of an object it tracks
     as it moves (`touches` with sx, sy; `moved_x`), as the thesis's does."""
-    from sim_backend.coordinator import Tracking
-    return isinstance(c, Tracking)
+    from sim_backend.coordinator import Tracking, has
+    return has(c, Tracking)
 
 
 END_FIELDS = ("estimate_iou", "recognised", "p")

@@ -103,9 +103,26 @@ class TruthMeasuring(Protocol):
     def truth_measures(self, target: set) -> dict: ...
 
 
+# (coordinator class, ability) -> whether it has it; see `has`
+_HAS: dict[tuple[type, type], bool] = {}
+
+
+def has(c: Any, ability: type) -> bool:
+    """isinstance(c, ability), decided once per coordinator class: a
+    runtime-checkable protocol's isinstance looks every member up by name
+    each time (a sweep's summaries asked several per run), and a
+    coordinator's abilities are its class's (its fields are set in
+    __init__, even `decider`, None until given)."""
+    key = (type(c), ability)
+    v = _HAS.get(key)
+    if v is None:
+        v = _HAS[key] = isinstance(c, ability)
+    return v
+
+
 def measures_of(c: Any) -> dict:
     """The coordinator's own measures; none when it declares no such ability."""
-    return c.measures() if isinstance(c, Measuring) else {}
+    return c.measures() if has(c, Measuring) else {}
 
 
 def members(contract: type) -> list[str]:

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable
 
 from sim_backend import registry
-from sim_backend.coordinator import Ending, TruthMeasuring, measures_of
+from sim_backend.coordinator import Ending, TruthMeasuring, has, measures_of
 from sim_backend.link import Link
 from sim_backend import kernel
 from sim_backend.body import SimBody
@@ -174,7 +174,7 @@ class RunResult:
         """The coordinator's measures that need the truth it is not told (the
         target's cells): its truth_measures(cells), when it has them."""
         c = self.coordinator
-        if not isinstance(c, TruthMeasuring) or not self.scenario.pieces():
+        if not has(c, TruthMeasuring) or not self.scenario.pieces():
             return {}
         return c.truth_measures(set(self.scenario.pieces()[0].placed(self.world.obj_x, self.world.obj_y)))
 
@@ -193,7 +193,7 @@ def run_outcome(c: Any) -> str:
     """The roster's outcome of an in-process run's coordinator: delivered,
     halted or stalled when it ended the mission, else stopped (maxTicks)."""
     from firmware_logic.roster import STOPPED
-    return (c.ended() if isinstance(c, Ending) else "") or STOPPED
+    return (c.ended() if has(c, Ending) else "") or STOPPED
 
 
 class Engine:
