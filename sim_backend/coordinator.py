@@ -103,21 +103,25 @@ class TruthMeasuring(Protocol):
     def truth_measures(self, target: set) -> dict: ...
 
 
-# (coordinator class, ability) -> whether it has it; see `has`
+# (coordinator class, ability) -> True, for the classes that carry every
+# member of the ability themselves; see `has`
 _HAS: dict[tuple[type, type], bool] = {}
 
 
 def has(c: Any, ability: type) -> bool:
-    """isinstance(c, ability), decided once per coordinator class: a
-    runtime-checkable protocol's isinstance looks every member up by name
-    each time (a sweep's summaries asked several per run), and a
-    coordinator's abilities are its class's (its fields are set in
-    __init__, even `decider`, None until given)."""
+    """isinstance(c, ability), decided once per coordinator class when the
+    class itself carries every member (its methods): a runtime-checkable
+    protocol's isinstance looks every member up by name each time, and a
+    sweep's summaries asked several per run. A member set on the instance
+    (a field from __init__, a test's SimpleNamespace fake) may differ
+    between instances of one class, so those are asked each time."""
     key = (type(c), ability)
-    v = _HAS.get(key)
-    if v is None:
-        v = _HAS[key] = isinstance(c, ability)
-    return v
+    if key in _HAS:
+        return True
+    if all(hasattr(type(c), m) for m in members(ability)):
+        _HAS[key] = True
+        return True
+    return isinstance(c, ability)
 
 
 def measures_of(c: Any) -> dict:
