@@ -197,10 +197,13 @@ def test_host_sigkilled_at_every_journalled_step_resumes_to_delivery(tmp_path):
     finally:
         stop_all(procs)
     assert len(kills) >= 20, kills
-    # the robots touch before any host runs, so whether the first kill comes
-    # before the first journalled touch is timing; the in-process kill-point
-    # test (hil_tests/test_can_mission.py) covers that phase deterministically
-    assert {"between touches", "transport"} <= set(kills), kills
+    # the robots touch before any host runs, and a tick's reports are
+    # journalled together, so whether a kill falls before the first or
+    # between two journalled touches is timing (under load every touch can
+    # arrive in one tick); the in-process kill-point test
+    # (hil_tests/test_can_mission.py) covers those phases deterministically.
+    # Transport is many journalled steps, each a kill point here.
+    assert "transport" in kills, kills
     assert h["delivered"]
     touches = [tuple(t) for t in h["touches"]]
     assert len(touches) == len(set(touches))                        # none counted twice

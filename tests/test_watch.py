@@ -8,6 +8,7 @@ import csv
 import io
 import json
 import sys
+import shutil
 from pathlib import Path
 
 from PIL import Image
@@ -138,7 +139,7 @@ def test_automatic_stride_keeps_at_most_max_frames():
 
 
 def test_mp4_without_ffmpeg_is_refused_before_the_run(tmp_path, monkeypatch):
-    monkeypatch.setattr(animate.shutil, "which", lambda name: None)
+    monkeypatch.setattr(shutil, "which", lambda name: None)   # animate imports it when used
     rc, out, err = run_cli("run", "--animate", str(tmp_path / "run.mp4"))
     assert rc == 2 and out == ""
     assert "needs ffmpeg on PATH" in err and len(err.strip().splitlines()) == 1
