@@ -73,7 +73,7 @@ class RunResult:
     ticks: int
     world: World
     coordinator: Any          # the behaviour's coordinator
-    robots: list[Any]         # the behaviour's FSMs
+    _robots: list[Any]        # the behaviour's FSMs (read them as `robots`)
     trajectories: list[tuple[list[int], list[int]]] = field(default_factory=list)
     states: list[list[int]] = field(default_factory=list)   # every robot's state per tick
     # FSM steps the swarm had taken when it converged (activation netlogo; -1:
@@ -82,6 +82,17 @@ class RunResult:
     # measures watching the run (e.g. perception's Perceiver): each
     # adds its summary() fields; see Engine.instruments
     instruments: list[Any] = field(default_factory=list)
+    # writes the FSMs' final fields into them, at the first read of `robots`:
+    # an engine that keeps them in arrays (soa) spends most of a big run's
+    # end there, and a summary reads none of them
+    fill: Callable[[], None] | None = field(default=None, repr=False, compare=False)
+
+    @property
+    def robots(self) -> list[Any]:
+        if self.fill is not None:
+            fill, self.fill = self.fill, None
+            fill()
+        return self._robots
 
     @property
     def delivered(self) -> bool:

@@ -20,8 +20,9 @@ is asked every tick); a message the coordinator declared `muted()` (one
 that would change nothing) is not handed to it, as in the reference
 (sim_backend/exchange.py, the rule both follow). A run stops where `Engine.run` stops it: delivered
 (or, with until="converged", converged) or at its maxTicks. At a run's end
-the robots' fields are written back into their CPython objects and the
-run's final state into a World, so a RunResult holds the very robots and
+its final state goes into a World, and the robots' fields into their
+CPython objects when its RunResult's robots are first read (a summary reads
+none), so a RunResult holds the very robots and
 world the reference engine holds, and every summary, record and picture is
 the reference's.
 """
@@ -40,6 +41,7 @@ import time
 import traceback
 from collections import defaultdict
 from contextlib import contextmanager
+from functools import partial
 from pathlib import Path
 from types import ModuleType
 from typing import Any, Callable, Iterable, Iterator, Sequence
@@ -522,12 +524,15 @@ class SoaEngine:
                 live[r] = 0
 
     def _result(self, r: int, t: int) -> None:
-        """The run's robots back into their CPython objects and its final
-        state into its World, as the reference engine leaves them."""
+        """The run's final state into its World and, when its RunResult's
+        robots are first read, its robots back into their CPython objects,
+        as the reference engine leaves them. Late is the same: a finished
+        run is never ticked again (an instance its robots shared with a live
+        run's would be read as it is then; no behaviour's robots share one)."""
         sc, seed = self.runs[r]
         w = self.worlds[r]
         lo, hi = int(self.rt[B.LO, r]), int(self.rt[B.HI, r])
-        T.unpack(self.layout, self.arrays, self.robot_objs[lo:hi])
+        objs = self.robot_objs[lo:hi]
         base, size = r * self.stride, w.n * w.n
         for row, name in ((B.OBJ, "obj"), (B.OWNER, "owner"), (B.FIELD, "field"),
                           (B.OCC, "occ"), (B.STAMP, "stamp")):
@@ -541,8 +546,8 @@ class SoaEngine:
         for xs, ys, st in self.frames[:t]:
             traj.append((xs[lo:hi].tolist(), ys[lo:hi].tolist()))
             states.append(st[lo:hi].tolist())
-        res = RunResult(sc, seed, t, w, self.coords[r], self.robot_objs[lo:hi], traj,
-                        conv_steps=self.conv_steps[r])
+        res = RunResult(sc, seed, t, w, self.coords[r], objs, traj, conv_steps=self.conv_steps[r],
+                        fill=partial(T.unpack, self.layout, self.arrays, objs))
         res.states = states
         self.results[r] = res
 
