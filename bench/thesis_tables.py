@@ -3,8 +3,8 @@ Graphs 2-4 under three rule sets, the fieldDefiance-0 stalls, the
 sensitivity of the unsourced base values, the two activations), the
 option effects and world edges of docs/tick-semantics.md (tables and the
 figures their notes quote), the movement models' convergence of
-docs/movement-models.md and the swarm sizes and static and dynamic field
-of docs/extensions.md, each
+docs/movement-models.md and the swarm sizes, obstacles on and off and
+static and dynamic field of docs/extensions.md, each
 rendered from a committed JSON of per-point statistics, so a changed
 default cannot leave a stale figure in the text: a test checks that each
 table between its markers is what this script renders from
@@ -33,6 +33,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import math
 import statistics
 import sys
 from collections import defaultdict
@@ -87,18 +88,21 @@ RUNS = {
     "Sizes": ("touchswarm sweep --preset sizes", ("agents", "worldSize")),
     "Sizes-block": ("touchswarm sweep --preset sizes --set crowd=block", ("agents", "worldSize")),
     "Field": ("touchswarm sweep --preset field", ("agents", "field", "crowd")),
+    # sweep.csv has no obstacles column: the point's text names the wall
+    "Obstacles": ("touchswarm sweep --preset obstacles", ("point",)),
 }
-# the runs docs/extensions.md's swarm-size and field tables read; they are
-# not the thesis study's, so the thesis runs table leaves them out
+# the runs docs/extensions.md's swarm-size, field and obstacles tables read;
+# they are not the thesis study's, so the thesis runs table leaves them out
 SIZE_RUNS = ("Sizes", "Sizes-block")
 FIELD_RUNS = ("Field",)
+OBSTACLE_RUNS = ("Obstacles",)
 MODELS = ("firefly", "ant")
 # each table and the doc that carries it
 TABLES = {t: "docs/thesis-reproduction.md" for t in ("runs", "sensitivity", "graph1", "stalls",
                                                       "graphs234", "activation")}
 TABLES["options"] = TABLES["options-notes"] = "docs/tick-semantics.md"
 TABLES["wrap"] = TABLES["wrap-notes"] = "docs/tick-semantics.md"
-TABLES["sizes"] = TABLES["field"] = "docs/extensions.md"
+TABLES["sizes"] = TABLES["field"] = TABLES["obstacles"] = "docs/extensions.md"
 TABLES["models"] = "docs/movement-models.md"
 
 
@@ -179,7 +183,7 @@ def _find(points: list[dict], run: str, **kv) -> dict:
 def _runs(data: dict) -> list[str]:
     out = ["| name | command | n | wall (s) |", "|---|---|---|---|"]
     for name, meta in data["meta"]["runs"].items():
-        if name in SIZE_RUNS + FIELD_RUNS:
+        if name in SIZE_RUNS + FIELD_RUNS + OBSTACLE_RUNS:
             continue
         out.append(f"| **{name}** | `{meta['command']}` | {meta['points']} points x "
                    f"{meta['seeds']} | {meta.get('wall_s', '-')} |")
@@ -463,6 +467,17 @@ def _sizes(data: dict) -> list[str]:
     return out
 
 
+def _wall(meta: dict) -> str:
+    """A preset run's wall-time line."""
+    return (f"Wall time: {meta.get('wall_s', '-')} s (`{meta['command']}` with `--engine soa "
+            f"--executor inline --no-plots`, {meta['points']} points x {meta['seeds']} seeds, "
+            "the soa engine's compile cached, on the loaded 2-core machine).")
+
+
+def _and(items: list[str]) -> str:
+    return " and ".join(items) if len(items) < 3 else ", ".join(items[:-1]) + " and " + items[-1]
+
+
 def _field(data: dict) -> list[str]:
     pts = [p for p in data["points"] if p["run"] == "Field"]
     fields = ("static", "dynamic")
@@ -481,15 +496,46 @@ def _field(data: dict) -> list[str]:
     higher = [f"{int(float(a))} robots with `{c}` ({_m(dy['iou_mean'])} against "
               f"{_m(st['iou_mean'])})" for (a, c), (st, dy) in pair.items()
               if (dy["iou_mean"] or 0) > (st["iou_mean"] or 0) + 0.02]
+    yld = [(int(float(a)), st, dy) for (a, c), (st, dy) in pair.items() if c == "yield"]
+    more = max(((dy["home_median"] or 0) / (st["home_median"] or 1) - 1) * 100
+               for _, st, dy in yld)
     meta = data["meta"]["runs"]["Field"]
     out += ["", ("The static field delivers at least as many runs as the dynamic one at every "
                  "point." if as_many else "The dynamic field delivers more runs than the static "
                  "one at some point (the delivered columns)."),
             "The dynamic field's mean IoU is higher by more than 0.02 at "
             + (" and at ".join(higher) if higher else "no point") + ".",
-            "", f"Wall time: {meta.get('wall_s', '-')} s (`{meta['command']}` with `--engine soa "
-            f"--executor inline --no-plots`, {meta['points']} points x {meta['seeds']} seeds, "
-            "the soa engine's compile cached, on the loaded 2-core machine)."]
+            "With `yield` the dynamic field delivers "
+            + ("every run" if all(dy["delivered"] == dy["n"] for _, _, dy in yld) else
+               "not every run (the delivered columns)")
+            + ", its median delivery tick "
+            + _and([_m(dy["home_median"]) for _, _, dy in yld])
+            + " against the static field's "
+            + _and([_m(st["home_median"]) for _, st, _ in yld])
+            + " at " + _and([str(a) for a, _, _ in yld]) + " robots ("
+            + (f"at most {math.ceil(more)}% more)." if more > 0 else "never more)."),
+            "", _wall(meta)]
+    return out
+
+
+def _obstacles(data: dict) -> list[str]:
+    pts = [p for p in data["points"] if p["run"] == "Obstacles"]
+    out = ["| wall | delivered | delivery: median tick (least-most) | convergence: median tick "
+           "| mean IoU |", "|---|---|---|---|---|"]
+    home = {}
+    for p in pts:
+        wall = "off" if p["point"].endswith("=()") else "on"
+        home[wall] = p["home_median"]
+        out.append(f"| {wall} | {p['delivered']}/{p['n']} | {_m(p['home_median'])} "
+                   f"({_range(p['home_min'], p['home_max'])}) | {_m(p['it_median'])} | "
+                   f"{_m(p['iou_mean'])} |")
+    meta = data["meta"]["runs"]["Obstacles"]
+    out += ["", ("Every run delivered, with the wall and without." if
+                 all(p["delivered"] == p["n"] for p in pts) else
+                 "Not every run delivered (the delivered column)."),
+            f"The median delivery tick goes from {_m(home['off'])} without the wall to "
+            f"{_m(home['on'])} with it.",
+            "", _wall(meta)]
     return out
 
 
@@ -500,7 +546,7 @@ def render(data: dict, table: str) -> str:
              "graphs234": lambda: _graphs234(pts), "activation": lambda: _activation(pts),
              "options": lambda: _options(pts), "wrap": lambda: _wrap(pts),
              "models": lambda: _models(pts), "sizes": lambda: _sizes(data),
-             "field": lambda: _field(data),
+             "field": lambda: _field(data), "obstacles": lambda: _obstacles(data),
              "options-notes": lambda: _options_notes(pts),
              "wrap-notes": lambda: _wrap_notes(pts)}[table]()
     return "\n".join(lines)

@@ -270,3 +270,19 @@ def test_the_field_table_has_every_point_of_the_preset() -> None:
         got = [p for p in data["points"] if p["run"] == run]
         assert [{k: p[k] for k in ("agents", "field", "crowd")} for p in got] == want, run
         assert all(p["n"] == SEEDS for p in got), run
+
+
+def test_the_obstacles_table_has_every_point_of_the_preset() -> None:
+    """The obstacles run holds the preset's points (wall on, then off), so a
+    changed wall or preset cannot leave the obstacles table of
+    docs/extensions.md on the old ones."""
+    from sim_backend.arena_presets import SEEDS, obstacle_points
+    from sim_backend.sweep import _point_text
+    tables = _bench("thesis_tables")
+    data = json.loads((ROOT / "bench" / "thesis_tables.json").read_text())
+    want = [_point_text(p) for p in obstacle_points()]
+    for run in tables.OBSTACLE_RUNS:
+        got = [p for p in data["points"] if p["run"] == run]
+        assert [p["point"] for p in got] == want, run
+        assert all(p["n"] == SEEDS for p in got), run
+        assert data["meta"]["runs"][run]["seeds"] == SEEDS, run
