@@ -183,7 +183,7 @@ def recognise(ev: Evidence, library: Library, eps_touch: float = EPS_TOUCH,
             [_free_form(cs, n, n_obj, log_true) for cs in (outline, ev.joined())]))
     total = _logsumexp(np.array(list(per_shape.values())))
     post = {k: math.exp(v - total) for k, v in per_shape.items()}
-    top = max(post, key=post.get)
+    top = max(post, key=post.__getitem__)
     if top == UNKNOWN:
         return Recognition(post, top, post[top], outline, None, (0, 0))
     _, pose, origin = best_of[top]      # the MAP placement of the most probable shape

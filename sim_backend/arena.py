@@ -94,7 +94,9 @@ def _table(where: str, t: Any, keys: tuple[str, ...]) -> dict:
     return t
 
 
-def _object(j: int, t: Any) -> Piece:
+def _object(j: int, t: Any) -> tuple[Piece, bool | None]:
+    """The piece (its target resolved by the caller, across all objects) and
+    the table's target: None when the table does not say."""
     where = f"objects[{j}]"
     t = _table(where, t, OBJECT_KEYS)
     cs = _cells(where, t)
@@ -119,7 +121,7 @@ def _object(j: int, t: Any) -> Piece:
         weight = _num(f"{where}.weight", t["weight"], *WEIGHT)
     else:
         weight = DEFAULT_WEIGHT
-    return Piece(name, cs, at, weight, density, bool(target) if target is not None else None)
+    return Piece(name, cs, at, weight, density), target
 
 
 def _obstacle(j: int, t: Any) -> Piece:
@@ -190,16 +192,17 @@ def parse(raw: dict[str, Any], values: dict[str, Any]) -> dict[str, Any]:
                                     enumerate(_array("obstacles", raw.pop("obstacles"))))
     if "objects" not in raw:
         return raw
-    pieces = [_object(j, t) for j, t in enumerate(_array("objects", raw.pop("objects")))]
-    if not pieces:
+    given = [_object(j, t) for j, t in enumerate(_array("objects", raw.pop("objects")))]
+    if not given:
         return raw
+    pieces = [p for p, _ in given]
     names = [p.name for p in pieces]
     for j, p in enumerate(pieces):
         if names.index(p.name) != j:
             raise ScenarioError(f"objects[{j}].name: {p.name!r} is taken by "
                                 f"objects[{names.index(p.name)}]")
-    marked = [j for j, p in enumerate(pieces) if p.target]
-    if len(pieces) == 1 and pieces[0].target is None:
+    marked = [j for j, (_, target) in enumerate(given) if target]
+    if len(given) == 1 and given[0][1] is None:
         marked = [0]
     if len(marked) != 1:
         raise ScenarioError(f"objects: exactly one object must have target = true, got "

@@ -61,7 +61,10 @@ class Behaviour:
 
     @property
     def folder(self) -> Path:
-        return Path(self.package.__file__).resolve().parent
+        init = self.package.__file__
+        if init is None:        # a namespace package: no __init__.py to wire it
+            raise BehaviourError(f"behaviour {self.name!r}: its package has no __init__.py")
+        return Path(init).resolve().parent
 
     # robot_module and robot_class are per behaviour, not per robot: looked
     # up once per Behaviour (an engine builds one robot per node through them)

@@ -9,7 +9,7 @@ world.png read the same way.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence, cast
 
 import matplotlib
 
@@ -71,15 +71,17 @@ def draw_base(ax: Any, w: Any, field: np.ndarray, vmax: float) -> tuple[Any, Any
 
 
 def trail_segments(xs: np.ndarray, ys: np.ndarray, states: np.ndarray,
-                   colours: list[tuple]) -> tuple[np.ndarray, list[tuple]]:
+                   colours: list[tuple]) -> tuple[Sequence[np.ndarray], list[tuple]]:
     """Line segments of every robot's path, tick to tick, each coloured by
     the state the robot was in at the segment's end. xs, ys, states: (ticks, robots)."""
+    # one (segments, 2, 2) array, not a list of 2x2 arrays: LineCollection
+    # takes either (a sequence of segments), and the array is one allocation
     if len(xs) < 2:
-        return np.zeros((0, 2, 2)), []
+        return cast(Sequence[np.ndarray], np.zeros((0, 2, 2))), []
     a = np.stack([xs[:-1], ys[:-1]], axis=-1)       # (ticks-1, robots, 2)
     b = np.stack([xs[1:], ys[1:]], axis=-1)
     segs = np.stack([a, b], axis=2).reshape(-1, 2, 2)
-    return segs, [colours[s] for s in states[1:].reshape(-1)]
+    return cast(Sequence[np.ndarray], segs), [colours[s] for s in states[1:].reshape(-1)]
 
 
 def touch_labels(ax: Any, touches: tuple, xs: tuple, ys: tuple) -> list[Any]:

@@ -156,7 +156,8 @@ class Scenario:
             return sorted(self.objects, key=lambda p: not p.target)
         if self.object == objects.NONE:
             return []
-        at = None if self.objectX is None else (self.objectX, self.objectY)
+        at = (None if self.objectX is None or self.objectY is None
+              else (self.objectX, self.objectY))
         return [objects.Piece(self.object, tuple(objects.offsets(self.object)), at,
                               self.objectWeight, None, True)]
 
@@ -354,6 +355,10 @@ def validate(raw: dict[str, Any], source: str = "scenario") -> Scenario:
         arena.check(sc)
     else:
         _check_consistency(sc)
+    if (sc.objectX is None) != (sc.objectY is None):
+        # the world draws the anchor whole (CreateWorld's two `random 10`s) or takes it whole
+        raise ScenarioError(f"objectX, objectY: set both or neither (got objectX={sc.objectX}, "
+                            f"objectY={sc.objectY})")
     # the behaviour's own rules over the whole scenario (its __init__.check)
     check = getattr(beh.package, "check", None)
     if check is not None:

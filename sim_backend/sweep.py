@@ -569,8 +569,9 @@ def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None =
         if missing:
             from sim_backend.batch.soa import lock_holder
             held = [lock_holder(d) for d in missing.values()]
-            if all(h is not None for h in held):       # another sweep compiles them
-                bg = _Watch(scenarios, list(missing.values()), held[0])
+            pids = [h for h in held if h is not None]
+            if len(pids) == len(held):       # another sweep compiles them
+                bg = _Watch(scenarios, list(missing.values()), pids[0])
             else:
                 bg = (background or BackgroundCompile)(scenarios)
             names = ", ".join(repr(b) for b in missing)

@@ -30,6 +30,7 @@ def test_builtin_scenarios_load_with_thesis_names():
     ({"movementModel": "bee"}, "movementModel: expected one of 'firefly' (1), 'ant' (2)"),
     ({"object": 9}, "object: expected 1-4"),
     ({"objectX": 12}, "does not fit the arena"),
+    ({"objectX": 3}, "objectX, objectY: set both or neither"),
     ({"objectWeight": 30.0}, "objectWeight: weight 30 is more than all 20 robots"),
     ({"objectWeight": 19.0, "agents": 24, "object": "square"}, "reachable segments"),
 ])

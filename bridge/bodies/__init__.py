@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import importlib
 from dataclasses import dataclass, field
-from typing import Any, Callable, Protocol
+from typing import Any, Callable, Protocol, TypedDict
 from urllib.parse import parse_qsl
 
 from bridge import devices
@@ -150,7 +150,15 @@ class Opened:
         self.close()
 
 
-def start_pose(spec: BodySpec, ctx: BodyContext) -> dict[str, float]:
+class Pose(TypedDict):
+    """A host-side body's constructor keywords for where it starts."""
+    x_mm: float
+    y_mm: float
+    heading: float
+    patch_mm: float
+
+
+def start_pose(spec: BodySpec, ctx: BodyContext) -> Pose:
     """x_mm, y_mm, heading and patch_mm for a host-side body: where the URL
     says the robot was put down, else the scenario's start of that node."""
     patch_mm = float(spec.get("patch_mm", 50.0))

@@ -184,10 +184,10 @@ def _make_host(args: argparse.Namespace, sc: Any, journal: Any, event: Any) -> A
     cannot resume is one line, and no robot has been told anything."""
     from bridge.errors import UsageError
     from bridge.host.journal import JournalError
-    from bridge.host.process import HostProcess
+    from bridge.host.process import HostProcess, NotOpen
     try:
         # the host knows the arena, not the object: the robots may be real
-        host = HostProcess(None, sc.weight_centi, sc.homeX, sc.homeY, journal=journal,
+        host = HostProcess(NotOpen(), sc.weight_centi, sc.homeX, sc.homeY, journal=journal,
                            tick_seconds=args.tick_ms / 1000.0, on_event=event,
                            world_size=sc.worldSize, behaviour=sc.behaviour,
                            scenario=sc)

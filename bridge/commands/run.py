@@ -256,6 +256,7 @@ def _watchers(args: argparse.Namespace, engine) -> tuple:
         trace = Trace(engine)
     if args.animate:
         from sim_backend.animate import Animation
+        assert trails is not None       # args.animate made them above
         anim = Animation(engine, trails, every=args.frame_every)
     return trails, trace, anim
 

@@ -87,6 +87,24 @@ def host_behaviour(name: str | None, sc: Any = None) -> registry.Behaviour:
     return b
 
 
+class NotOpen:
+    """The host's end before its ports open: `touchswarm host` builds the
+    host (and resumes its journal) first, so that a journal it cannot resume
+    is refused before any robot is told anything, then sets host.transport."""
+
+    def poll(self, timeout: float) -> list[Message]:
+        raise RuntimeError("the host's transport is not open yet")
+
+    def send(self, node: int, kind: int, fields: tuple) -> None:
+        raise RuntimeError("the host's transport is not open yet")
+
+    def bad_frames(self) -> dict[str, int]:
+        return {}
+
+    def close(self) -> None:
+        pass
+
+
 class HostProcess:
     def __init__(self, transport: HostEnd, weight: int, home_x: int = -15,
                  home_y: int = -15, journal: Journal | None = None,

@@ -9,6 +9,25 @@ from typing import Any, Callable
 import can
 
 from bridge.links.canlink import Faults, Gateway
+from bridge.links.codec import Message
+
+
+class SwarmGateway(Gateway):
+    """The gateway as the Link an Engine is built with. Its host's end is
+    across the bus, so the engine's is empty: SwarmEngine.exchange() neither
+    polls nor sends; the bad frames are the robots' side's."""
+
+    def poll(self, timeout: float) -> list[Message]:
+        return []
+
+    def send(self, node: int, kind: int, fields: tuple) -> None:
+        raise RuntimeError("the swarm's host is across the bus: it sends its own commands")
+
+    def bad_frames(self) -> dict[str, int]:
+        return dict(self.decoder.bad.counts)
+
+    def close(self) -> None:
+        pass      # the bus is its opener's to close
 
 
 def swarm_engine(sc: Any, seed: int, bus: can.BusABC, faults_up: Faults | None = None,
@@ -24,8 +43,8 @@ def swarm_engine(sc: Any, seed: int, bus: can.BusABC, faults_up: Faults | None =
         def finished(self) -> bool:
             return self.tick >= self.sc.maxTicks or all_halted(self)
 
-    gw = Gateway(bus, list(range(1, sc.agents + 1)), faults_up, faults_down=faults_down,
-                 keys=keys, fresh=fresh)
+    gw = SwarmGateway(bus, list(range(1, sc.agents + 1)), faults_up, faults_down=faults_down,
+                      keys=keys, fresh=fresh)
     return SwarmEngine(sc, seed, link=gw)
 
 

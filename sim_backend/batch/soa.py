@@ -97,6 +97,7 @@ class Compiled:
             spec.loader.exec_module(mod)
             self.module = mod
             log.debug("soa module %s at %s", name, path)
+        assert self.module.__file__ is not None     # loaded from its mod.py
         self.path = Path(self.module.__file__)
         self.names = names
 
@@ -471,7 +472,7 @@ class SoaEngine:
             self._deliver(sends)
         return called
 
-    def _deliver(self, sends: list[tuple[int, Iterable[tuple[int, int, tuple]]]]) -> None:
+    def _deliver(self, sends: Sequence[tuple[int, Iterable[tuple[int, int, tuple]]]]) -> None:
         """Commands (run, [(node, kind, fields), ...]) into the robots'
         inbox rings, each robot's in the order given. Element writes, not
         numpy's fancy indexing: a tick sends a few dozen messages, and a

@@ -373,7 +373,7 @@ class FunctionTransform:
             self.locals[arg.arg] = kind
             if not isinstance(kind, ListOf):
                 params.append(arg.arg)
-        defaults = []
+        defaults: list[ast.expr] = []
         for d in a.defaults:
             if not isinstance(d, ast.Constant):
                 raise _err(self.fn, d, "a default that is not a literal")
@@ -442,7 +442,7 @@ class FunctionTransform:
             if not isinstance(value, ast.Tuple) or len(value.elts) != len(target.elts):
                 raise _err(self.fn, st, "unpacking anything but a tuple display")
             vals = [self.scalar(v) for v in value.elts]
-            tgts = [self.store(t, SCALAR, st) for t in target.elts]
+            tgts: list[ast.expr] = [self.store(t, SCALAR, st) for t in target.elts]
             return ast.Assign(targets=[ast.Tuple(tgts, ast.Store())],
                               value=ast.Tuple(vals, ast.Load()))
         v, kind = self.expr(value)
@@ -452,7 +452,8 @@ class FunctionTransform:
             raise _err(self.fn, st, "a list of objects stored in a variable")
         return ast.Assign(targets=[self.store(target, kind, st)], value=v)
 
-    def store(self, target: ast.expr, kind: Any, st: ast.AST) -> ast.expr:
+    def store(self, target: ast.expr, kind: Any, st: ast.AST
+              ) -> ast.Name | ast.Attribute | ast.Subscript:
         if isinstance(target, ast.Name):
             old = self.locals.get(target.id)
             if target.id in self.locals and old is not None and old != kind:
@@ -501,7 +502,7 @@ class FunctionTransform:
         return self.state(array_name(cl, attr))
 
     def column(self, cl: ClassLayout, attr: str, index: ast.expr, ctx: ast.expr_context
-               ) -> ast.expr:
+               ) -> ast.Subscript:
         """An int, bool or object field of instance `index`: its cell of the table."""
         return ast.Subscript(self.state(ints_name(cl)),
                              ast.Tuple([index, ast.Constant(cl.columns[attr])], ast.Load()),
