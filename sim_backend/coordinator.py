@@ -11,6 +11,7 @@ protocol: `isinstance(c, Measuring)` says whether `c` has it.
 
 from __future__ import annotations
 
+import functools
 from typing import Any, Protocol, runtime_checkable
 
 
@@ -129,14 +130,16 @@ def measures_of(c: Any) -> dict:
     return c.measures() if has(c, Measuring) else {}
 
 
-def members(contract: type) -> list[str]:
-    """The names a protocol above declares, its bases' included."""
+@functools.cache
+def members(contract: type) -> tuple[str, ...]:
+    """The names a protocol above declares, its bases' included (a
+    protocol's members do not change, and `has` asks per run)."""
     out: list[str] = []
     for cls in reversed(contract.__mro__):
         if getattr(cls, "_is_protocol", False) and cls is not Protocol:
             out += list(vars(cls).get("__annotations__", {}))
             out += [m for m, v in vars(cls).items() if callable(v) and not m.startswith("_")]
-    return list(dict.fromkeys(out))
+    return tuple(dict.fromkeys(out))
 
 
 def lacks(c: Any, contract: type) -> list[str]:

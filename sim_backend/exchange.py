@@ -20,6 +20,10 @@ class Muting(NamedTuple):
     drop: frozenset
     key: Any
 
+    def drops(self, node: int, kind: int) -> bool:
+        """The rule: this message would change nothing, so it is not handed over."""
+        return kind == self.kind and node in self.drop
+
 
 HEARS_ALL = Muting(-1, frozenset(), None)
 
@@ -89,22 +93,13 @@ def exchange(c: Any, up: Iterable[tuple[int, int, tuple]], tick: int, asked: boo
     coordinator c but the muted ones (`mute`, read from c now when not
     given), then c.tick(tick): its commands [(node, kind, fields), ...].
     None, and no tick, when c heard nothing and was not `asked`."""
-    if not (deliver(c, up, tick, mute) or asked):
-        return None
-    return c.tick(tick)
-
-
-def deliver(c: Any, up: Iterable[tuple[int, int, tuple]], tick: int,
-            mute: Muting | None = None) -> bool:
-    """The first half of `exchange`, for a driver that ticks c on its own
-    (the host process): the messages `up` to c.on_message in the order sent
-    but the muted ones (`mute`, read from c now when not given); whether c
-    heard any."""
-    kind_m, drop = (mute if mute is not None else muting(c))[:2]
+    mute = mute if mute is not None else muting(c)
     heard = False
     for node, kind, fields in up:
-        if kind == kind_m and node in drop:
+        if mute.drops(node, kind):
             continue
         c.on_message(node, kind, fields, tick)
         heard = True
-    return heard
+    if not (heard or asked):
+        return None
+    return c.tick(tick)

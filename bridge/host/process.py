@@ -42,7 +42,7 @@ from firmware_logic import messages as msg
 from firmware_logic import roster
 from sim_backend import registry
 from sim_backend.coordinator import HostCoordinator, lacks
-from sim_backend.exchange import deliver, muting
+from sim_backend.exchange import muting
 from sim_backend.link import HostEnd
 from sim_backend.scenario import CHOICES
 
@@ -252,7 +252,7 @@ class HostProcess:
 
     def handle(self, messages: list[Message]) -> None:
         """Messages as they arrive, to the coordinator by the engines' rule
-        (sim_backend/exchange.py: in order, the muted ones dropped), one at
+        (in order, the muted ones dropped: exchange.Muting.drops), one at
         a time: whether a node is announced changes with each HELLO handed
         over, and a rejected report is journalled with its kind."""
         c = self.coord
@@ -260,15 +260,16 @@ class HostProcess:
         tick = self.tick
         mute = self.mute
         self.messages += len(messages)
-        for m in messages:
-            node, kind, f = m
+        for node, kind, f in messages:
             if kind != msg.HELLO and node not in nodes:
                 self.bad.add(UNANNOUNCED, "%s from node %d" % (msg.SCHEMA[kind][0], node))
                 continue
             if kind == msg.HEARTBEAT:
                 self.poses[node] = [tick, *f]
+            if mute.drops(node, kind):
+                continue
             self.kind_now = kind
-            deliver(c, (m,), tick, mute)
+            c.on_message(node, kind, f, tick)
         self.kind_now = 0
 
     # -- ticks --------------------------------------------------------------------------
