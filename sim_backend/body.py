@@ -22,6 +22,13 @@ class SimBody(Hal):
     def __init__(self, world: World, index: int, node: int, link) -> None:
         self.world = world
         self.i = index
+        # the kernel's state, which the World never replaces, held here: a
+        # probe is most of a reference tick, and each lookup costs in CPython
+        self.grid = world.grid
+        self.run = world.run
+        self.rb = world.rb
+        self.xs = world.xs
+        self.ys = world.ys
         self.node = node
         self.link = link
         self.tape = None           # optional list receiving (query, arg, value)
@@ -35,13 +42,12 @@ class SimBody(Hal):
     def reset_intents(self) -> None:
         """A new turn: no intents yet (kernel.start_turn, which lets a robot
         whose death tick it is go limp)."""
-        w = self.world
-        kernel.start_turn(w.grid, w.rb, w.run, 0, self.i)
+        kernel.start_turn(self.grid, self.rb, self.run, 0, self.i)
 
     # -- faults ------------------------------------------------------------
 
     def dead(self) -> bool:
-        return self.faulty and kernel.dead(self.world.rb, self.world.run, 0, self.i) == 1
+        return self.faulty and kernel.dead(self.rb, self.run, 0, self.i) == 1
 
     @property
     def held(self) -> int:
@@ -51,50 +57,48 @@ class SimBody(Hal):
     # -- sensing ----------------------------------------------------------
 
     def x(self) -> int:
-        return self.world.xs[self.i]
+        return self.xs[self.i]
 
     def y(self) -> int:
-        return self.world.ys[self.i]
+        return self.ys[self.i]
 
     def probe(self, heading: int) -> int:
-        w = self.world
-        r = kernel.probe(w.grid, w.run, 0, w.xs[self.i], w.ys[self.i], heading)
+        i = self.i
+        r = kernel.probe(self.grid, self.run, 0, self.xs[i], self.ys[i], heading)
         if self.faulty:
-            r = kernel.sensed_probe(w.rb, w.run, 0, self.i, r)
+            r = kernel.sensed_probe(self.rb, self.run, 0, i, r)
         if self.tape is not None:
             self.tape.append((hal.PROBE, heading, r))
         return r
 
     def field_ahead(self, heading: int) -> int:
-        w = self.world
-        v = kernel.field_ahead(w.grid, w.run, 0, w.xs[self.i], w.ys[self.i], heading)
+        i = self.i
+        v = kernel.field_ahead(self.grid, self.run, 0, self.xs[i], self.ys[i], heading)
         if self.faulty:
-            v = kernel.sensed_field(w.rb, w.run, 0, self.i, v)
+            v = kernel.sensed_field(self.rb, self.run, 0, i, v)
         if self.tape is not None:
             self.tape.append((hal.FIELD_AHEAD, heading, v))
         return v
 
     def field_here(self) -> int:
-        w = self.world
-        v = kernel.field_here(w.grid, w.run, 0, w.xs[self.i], w.ys[self.i])
+        i = self.i
+        v = kernel.field_here(self.grid, self.run, 0, self.xs[i], self.ys[i])
         if self.faulty:
-            v = kernel.sensed_field(w.rb, w.run, 0, self.i, v)
+            v = kernel.sensed_field(self.rb, self.run, 0, i, v)
         if self.tape is not None:
             self.tape.append((hal.FIELD_HERE, 0, v))
         return v
 
     def uphill(self) -> int:
-        w = self.world
-        out = w.uphill(self.i)
+        out = kernel.uphill(self.grid, self.rb, self.run, 0, self.i)
         if self.faulty:
-            out = kernel.sensed_uphill(w.rb, w.run, 0, self.i, out)
+            out = kernel.sensed_uphill(self.rb, self.run, 0, self.i, out)
         if self.tape is not None:
             self.tape.append((hal.UPHILL, 0, out))
         return out
 
     def holding(self) -> int:
-        w = self.world
-        r = kernel.holding(w.grid, w.rb, w.run, 0, self.i)
+        r = kernel.holding(self.grid, self.rb, self.run, 0, self.i)
         if self.tape is not None:
             self.tape.append((hal.HOLDING, 0, r))
         return r
@@ -108,37 +112,37 @@ class SimBody(Hal):
     def forward(self, heading: int, step: int) -> None:
         if self.acts is not None:
             self.acts.append((hal.FORWARD, heading, step))
-        if self.faulty and kernel.stuck(self.world.rb, self.world.run, 0, self.i) == 1:
+        if self.faulty and kernel.stuck(self.rb, self.run, 0, self.i) == 1:
             return
-        w = self.world
-        w.mv_on[self.i] = 1
-        w.mv_h[self.i] = heading
-        w.mv_step[self.i] = step
+        rb = self.rb
+        i = self.i
+        rb.mv_on[i] = 1
+        rb.mv_h[i] = heading
+        rb.mv_step[i] = step
 
     def claim(self, heading: int) -> None:
         if self.acts is not None:
             self.acts.append((hal.CLAIM, heading, 0))
         if self.faulty and self.dead():
             return
-        w = self.world
-        w.claim[self.i] = kernel.claim_cell(w.rb, w.run, 0, self.i, heading)
+        self.rb.claim[self.i] = kernel.claim_cell(self.rb, self.run, 0, self.i, heading)
 
     def carry(self, dx: int, dy: int) -> None:
         if self.acts is not None:
             self.acts.append((hal.CARRY, dx, dy))
         if self.faulty and self.dead():
             return
-        w = self.world
-        w.carry_on[self.i] = 1
-        w.carry_dx[self.i] = dx
-        w.carry_dy[self.i] = dy
+        rb = self.rb
+        rb.carry_on[self.i] = 1
+        rb.carry_dx[self.i] = dx
+        rb.carry_dy[self.i] = dy
 
     def beacon(self, on: int) -> None:
         if self.acts is not None:
             self.acts.append((hal.BEACON, on, 0))
         if self.faulty and self.dead():
             return
-        self.world.beacon_set[self.i] = on
+        self.rb.beacon_set[self.i] = on
 
     # -- messages ------------------------------------------------------------------
 
@@ -153,8 +157,7 @@ class SimBody(Hal):
 
     def recv(self, buf: list) -> int:
         m = self.link.robot_recv(self.node)
-        w = self.world
-        while m is not None and self.faulty and kernel.drops(w.rb, w.run, 0, self.i, m[0]):
+        while m is not None and self.faulty and kernel.drops(self.rb, self.run, 0, self.i, m[0]):
             m = self.link.robot_recv(self.node)     # lost on a dead or defiant robot
         if m is None:
             if self.tape is not None:

@@ -17,6 +17,7 @@ Tick semantics (docs/tick-semantics.md):
 from __future__ import annotations
 
 import logging
+import sys
 from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, Callable
@@ -247,6 +248,13 @@ class Engine:
         self.observers.append(fn)
 
     def snapshot(self) -> Any:
+        """The world and the host's view now (sim_backend/observe.py), every
+        field built."""
+        snap = self._snapshot()
+        snap.freeze()
+        return snap
+
+    def _snapshot(self) -> Any:
         from sim_backend.observe import snapshot
         return snapshot(self)
 
@@ -267,9 +275,14 @@ class Engine:
         if self.conv_steps < 0 and self.coordinator.converged_tick >= 0:
             self.conv_steps = self.steps
         if self.observers:
-            snap = self.snapshot()
+            snap = self._snapshot()      # its fields built as observers read them
             for fn in self.observers:
                 fn(snap)
+            # an observer that kept it (a view, an animation's last frame)
+            # reads it after the next tick: its fields are this tick's. Here
+            # only `snap` and getrefcount's argument refer to one nobody kept
+            if sys.getrefcount(snap) > 2:
+                snap.freeze()
         if self.record:
             self.trajectories.append((list(self.world.xs), list(self.world.ys)))
             self.states.append([r.state for r in self.robots])

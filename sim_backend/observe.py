@@ -6,13 +6,17 @@ the animation (sim_backend/animate.py) and the trails on world.png
 (`Trails` here) all read these. An engine with no observer builds none, so
 a plain run pays nothing.
 
-The cheap parts are copied into the snapshot; the two grids (field, object
-colours) are copied only when an observer asks, and only during its call.
+The cheap parts are copied into the snapshot; the rest (positions, states,
+the perceived outline, the IoUs, ...) are built on their first read, so an
+observer that reads none of them (the Perceiver's) costs a run nothing, and a
+snapshot an observer keeps is completed before the next tick (freeze). The
+two grids (field, object colours) are copied only when an observer asks, and
+only during its call.
 """
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -54,11 +58,29 @@ class Snapshot:
 
     __slots__ = ("tick", "xs", "ys", "states", "state_names", "touches", "holders", "power",
                  "perceived", "iou", "polygon_iou", "object_cells", "msgs_up", "msgs_down", "bad_frames",
-                 "reporters", "home", "_world")
+                 "reporters", "home", "_world", "_engine")
 
     def __init__(self, **kw: Any) -> None:
         for k, v in kw.items():
             setattr(self, k, v)
+
+    def __getattr__(self, name: str) -> Any:
+        # only a field not set yet gets here: one of LAZY, built from the
+        # engine as it stands (still this tick: see freeze), then kept
+        build = _LAZY.get(name)
+        engine = getattr(self, "_engine", None) if build is not None else None
+        if engine is None:
+            raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+        v = build(engine)
+        setattr(self, name, v)
+        return v
+
+    def freeze(self) -> None:
+        """Build every field not built yet and let go of the engine: a
+        snapshot kept past its tick holds that tick's values."""
+        for name in _LAZY:
+            getattr(self, name)
+        self._engine = None
 
     def field(self) -> np.ndarray:
         """The potential field now, (n, n), row = y; a copy."""
@@ -85,27 +107,44 @@ def bad_frames_total(link: Any) -> int:
 
 def snapshot(engine: Any) -> Snapshot:
     """The one builder of a Snapshot; it also advances the engine's bad-frame
-    mark, so call it once per tick (Engine.step does)."""
+    mark, so call it once per tick (Engine.step does). The fields in _LAZY
+    are built on their first read (most of a snapshot's cost: the perceived
+    outline and the IoUs), so an observer that reads none of them (the
+    Perceiver's) costs nothing; call freeze() before the engine steps again
+    if the snapshot is kept (Engine.step does when an observer kept it)."""
     w = engine.world
-    c = engine.coordinator
     bad = bad_frames_total(engine.link)
     fresh, engine.bad_seen = bad - engine.bad_seen, bad
-    cells = list(w.object_cells)
-    perceived = perception.outline_cells(c.segments_now())
-    one = float(fx.ONE)
     return Snapshot(
-        tick=engine.tick,
-        xs=tuple(x / one for x in w.xs), ys=tuple(y / one for y in w.ys),
-        states=tuple(r.state for r in engine.robots),
-        state_names=tuple(engine.behaviour.spec.STATES),
-        touches=tuple((t.node, t.tick, t.rx, t.ry) for t in c.touches),
-        holders=tuple(dict.fromkeys(t.node for t in c.touches)),
-        power=power_held(c),
-        perceived=perceived, iou=shape_iou(c, w), polygon_iou=polygon_iou(c, w),
-        object_cells=cells,
+        tick=engine.tick, state_names=tuple(engine.behaviour.spec.STATES),
         msgs_up=engine.msgs_up, msgs_down=engine.msgs_down, bad_frames=fresh,
-        reporters=engine.behaviour.report(c),
-        home=(w.sc.homeX, w.sc.homeY), _world=w)
+        home=(w.sc.homeX, w.sc.homeY), _world=w, _engine=engine)
+
+
+def _xs(engine: Any) -> tuple[float, ...]:
+    one = float(fx.ONE)
+    return tuple(x / one for x in engine.world.xs)
+
+
+def _ys(engine: Any) -> tuple[float, ...]:
+    one = float(fx.ONE)
+    return tuple(y / one for y in engine.world.ys)
+
+
+# a Snapshot's fields built on their first read, each from the engine
+_LAZY: dict[str, Callable[[Any], Any]] = {
+    "xs": _xs,
+    "ys": _ys,
+    "states": lambda e: tuple(r.state for r in e.robots),
+    "touches": lambda e: tuple((t.node, t.tick, t.rx, t.ry) for t in e.coordinator.touches),
+    "holders": lambda e: tuple(dict.fromkeys(t.node for t in e.coordinator.touches)),
+    "power": lambda e: power_held(e.coordinator),
+    "perceived": lambda e: perception.outline_cells(e.coordinator.segments_now()),
+    "iou": lambda e: shape_iou(e.coordinator, e.world),
+    "polygon_iou": lambda e: polygon_iou(e.coordinator, e.world),
+    "object_cells": lambda e: list(e.world.object_cells),
+    "reporters": lambda e: e.behaviour.report(e.coordinator),
+}
 
 
 class Trails:
