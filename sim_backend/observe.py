@@ -69,7 +69,7 @@ class Snapshot:
         # engine as it stands (still this tick: see freeze), then kept
         build = _LAZY.get(name)
         engine = getattr(self, "_engine", None) if build is not None else None
-        if engine is None:
+        if build is None or engine is None:
             raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
         v = build(engine)
         setattr(self, name, v)
