@@ -134,10 +134,20 @@ def warm(scenarios: Iterable[Scenario], engine: str = "auto",
 COMPILE_MAIN = "from sim_backend.sweep import _compile_main; _compile_main()"
 
 
+# the background compile's niceness: the sweep's reference runs, which the
+# user waits for, take the cores first and the compile the rest. A sweep short
+# enough to end before the compile (a 20-seed sweep: seconds against minutes)
+# gets its runs done sooner; a long one loses little, its reference runs doing
+# the work meanwhile; a sweep that ends leaves the compile the idle machine
+COMPILE_NICE = 10
+
+
 def _compile_main() -> None:
     import pickle
     import sys
     import traceback
+    if hasattr(os, "nice"):
+        os.nice(COMPILE_NICE)
     scenarios = pickle.load(sys.stdin.buffer)
     try:
         from sim_backend.batch.soa import warm as soa_warm
@@ -316,10 +326,17 @@ class _Engines:
             return self.fixed
         return "soa" if self.state == "compiled" else "reference"
 
-    def chunk_size(self, engine: str, chunk_size: int) -> int:
-        if self.state is not None and engine == "reference":
-            return min(chunk_size, REFERENCE_CHUNK)
-        return chunk_size
+    def chunk_size(self, engine: str, chunk_size: int, left: int, workers: int) -> int:
+        """Runs in the next chunk, `left` runs not given to one yet. Under a
+        background compile the reference chunks shrink towards the end, each
+        at most half a worker's share of what is left, so that the workers end
+        together (a 20-seed sweep on 2 workers in chunks of 4: one worker
+        would run 12 runs while the other ran 8)."""
+        if self.state is None or engine != "reference":
+            return chunk_size
+        if workers > 1:
+            return max(1, min(chunk_size, REFERENCE_CHUNK, left // (2 * workers)))
+        return min(chunk_size, REFERENCE_CHUNK)
 
     def end(self) -> None:
         if self.state == "compiling" and not self.bg.finished():
@@ -589,10 +606,12 @@ def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None =
         chunk_size = chunk_runs(len(jobs), executor)
     rows: list[dict | None] = [None] * len(jobs)
     todo = list(range(len(jobs)))          # job indices not yet given to a chunk
+    workers = 1 if executor is None else (getattr(executor, "_max_workers", None)
+                                          or os.cpu_count() or 1)
 
     def next_chunk() -> tuple[list[int], str]:
         eng = plan.poll()
-        n = plan.chunk_size(eng, chunk_size)
+        n = plan.chunk_size(eng, chunk_size, len(todo), workers)
         ch = todo[:n]
         del todo[:n]
         return ch, eng
@@ -622,7 +641,7 @@ def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None =
             # worker is free for it; otherwise every chunk goes at once
             limit = None
             if bg is not None:
-                limit = getattr(executor, "_max_workers", None) or os.cpu_count() or 1
+                limit = workers
             _run_on(executor, next_chunk, lambda: bool(todo), jobs, until, progress, finish,
                     limit, plan.poll)
     finally:
