@@ -276,12 +276,12 @@ class Engine:
             self.conv_steps = self.steps
         if self.observers:
             snap = self._snapshot()      # its fields built as observers read them
+            alone = sys.getrefcount(snap)
             for fn in self.observers:
                 fn(snap)
             # an observer that kept it (a view, an animation's last frame)
-            # reads it after the next tick: its fields are this tick's. Here
-            # only `snap` and getrefcount's argument refer to one nobody kept
-            if sys.getrefcount(snap) > 2:
+            # reads it after the next tick: its fields are this tick's
+            if sys.getrefcount(snap) > alone:
                 snap.freeze()
         if self.record:
             self.trajectories.append((list(self.world.xs), list(self.world.ys)))
