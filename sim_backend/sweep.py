@@ -331,10 +331,11 @@ class _Engines:
 
 # runs per chunk when the caller gives none: at most this many, and as many
 # chunks as the executor has workers (CHUNKS_PER_WORKER each), so that both
-# cores of a 2-core machine help from ~20 runs up (a warm soa engine builds
-# in milliseconds: bench/engine_build.py, docs/performance.md)
+# cores of a 2-core machine help from ~20 runs up; one each: a chunk's
+# build, first tick and summaries have costs of their own, which a second
+# chunk per worker paid again (docs/performance.md)
 MAX_CHUNK = 256
-CHUNKS_PER_WORKER = 2
+CHUNKS_PER_WORKER = 1
 
 
 def chunk_runs(runs: int, executor: Executor | None = None) -> int:
