@@ -61,3 +61,15 @@ def test_scenario_parameter_read_by_name():
     with pytest.raises(AttributeError, match="no key"):
         sc.noSuchKey
     assert sc.replace(**{sc.params[0][0]: sc.params[0][1]}) == sc
+
+
+def test_layout_values_are_every_field_of_every_instance():
+    robots = _robots(4)
+    lay = T.Layout()
+    for r in robots:
+        lay.add(r)
+    for cl in lay.classes.values():
+        got = lay.values(cl)
+        assert list(got) == list(cl.fields)
+        for attr in cl.fields:
+            assert list(got[attr]) == [getattr(o, attr) for o in cl.instances]

@@ -35,6 +35,7 @@ import ast
 import builtins
 import hashlib
 import inspect
+import operator
 import os
 import sys
 import textwrap
@@ -158,6 +159,17 @@ class Layout:
                                    tuple((k, f[1]) for k, f in enumerate(kinds) if f[0] == "row"),
                                    tuple(k for k, f in enumerate(kinds) if f[0] == "inst"))
         return j
+
+    def values(self, cl: ClassLayout) -> dict[str, Sequence[Any]]:
+        """Every field's values now, instance by instance: one C-level
+        getter call per instance, not one getattr per field and instance."""
+        names = list(cl.fields)
+        if not names or not cl.instances or any("." in a for a in names):
+            return {a: [getattr(o, a) for o in cl.instances] for a in names}
+        get = operator.attrgetter(*names)
+        if len(names) == 1:
+            return {names[0]: list(map(get, cl.instances))}
+        return dict(zip(names, zip(*map(get, cl.instances))))
 
     def _add(self, obj: Any, cls: type) -> int:
         cl = self.classes.get(cls)
@@ -928,8 +940,9 @@ def state_arrays(layout: Layout) -> dict[str, Any]:
         out[ints_name(cl)] = ints
         for j, b in enumerate(cl.bases):
             out[base_name(cl, j)] = b
+        values = layout.values(cl)
         for attr, f in cl.fields.items():
-            vals = [getattr(o, attr) for o in cl.instances]
+            vals = values[attr]
             if attr in cl.columns:
                 if f[0] == "inst":
                     vals = [layout.index[id(v)][1] for v in vals]
