@@ -23,8 +23,9 @@ against its floor. Every figure is a fresh interpreter timed from outside
   (every module imported, every per-process cache filled): what the command
   adds to its floor is its start-up alone. Each of the three timed after one
   untimed call; `--tree DIR` (repeatable) times another source tree's
-  command and in-process run beside this one's (e.g. an export of an older
-  commit: `git archive COMMIT | tar -x -C /tmp/old`).
+  command and in-process run, and its warm sweep, beside this one's (e.g.
+  an export of an older commit: `git archive COMMIT | tar -x -C /tmp/old`),
+  in rounds that interleave the trees.
 
 Every child reads and writes bytecode as a user's install does
 (cli_startup.user_env), even where PYTHONDONTWRITEBYTECODE is set. Medians
@@ -32,6 +33,7 @@ of --reps (the sweeps: one each unless --reps; the run: at least 3).
 Prints one JSON.
 
     .venv/bin/python bench/sweep_wall.py [--reps N] [--mesa-runs N] [--sweep-runs N] [--skip-fresh]
+                                         [--skip-run] [--tree DIR]
     .venv/bin/python bench/sweep_wall.py --run-only [--reps N] [--tree DIR]
 """
 
@@ -113,10 +115,11 @@ def wall(argv: list[str], env: dict | None = None, cwd: Path = ROOT
     return w, p.stdout, p.stderr
 
 
-def sweep(seeds: int, activation: str, out: Path, env: dict | None = None) -> tuple[float, str]:
-    """Wall seconds of the sweep and its stderr."""
+def sweep(seeds: int, activation: str, out: Path, env: dict | None = None,
+          tree: Path = ROOT) -> tuple[float, str]:
+    """Wall seconds of the sweep (of `tree`'s sources) and its stderr."""
     w, _, err = wall([sys.executable, "-c", CLI, "sweep", "--seeds", str(seeds), "--no-plots",
-                 "--overwrite", "--out", str(out), *scenario_args(activation)], env)
+                 "--overwrite", "--out", str(out), *scenario_args(activation)], env, tree)
     return w, err
 
 
@@ -157,8 +160,10 @@ def main(argv: list[str] | None = None) -> int:
                     help="runs of the warm-cache sweep (default: 500)")
     ap.add_argument("--skip-fresh", action="store_true", help="no fresh-cache sweep")
     ap.add_argument("--run-only", action="store_true", help="no sweep: the run against its floor")
+    ap.add_argument("--skip-run", action="store_true", help="no run against its floor")
     ap.add_argument("--tree", action="append", default=[], type=Path,
-                    help="another source tree whose run to time beside this one's")
+                    help="another source tree whose run (and warm sweep) to time beside "
+                         "this one's")
     a = ap.parse_args(argv)
     act = a.activation
     out: dict = {"cpus": os.cpu_count(), "workers": workers(), "load_before": os.getloadavg()[0],
@@ -185,29 +190,39 @@ def main(argv: list[str] | None = None) -> int:
         if not a.run_only:
             sweep_500(a, out, tmpd)
         trees = {"this": ROOT, **{str(t): t.resolve() for t in a.tree}}
-        out.update(run_vs_floor(trees, max(3, a.reps)))
+        if not a.skip_run:
+            out.update(run_vs_floor(trees, max(3, a.reps)))
     out["load_after"] = os.getloadavg()[0]
     print(json.dumps(out, indent=1))
     return 0
 
 
 def sweep_500(a: argparse.Namespace, out: dict, tmpd: Path) -> None:
-    """out["sweep_500"]: the warm-cache sweep against the Mesa port."""
+    """out["sweep_500"] (and "sweep_500 TREE" for each --tree): the
+    warm-cache sweep against the Mesa port, the trees' sweeps and the Mesa
+    port's runs interleaved in rounds so that load hits them alike."""
     act = a.activation
-    sweep(1, act, tmpd / "warmup")                       # the step loaded, text kept
-    rows = []
+    trees = {"this": ROOT, **{str(t): t.resolve() for t in a.tree}}
+    for tree in trees.values():
+        sweep(1, act, tmpd / "warmup", tree=tree)        # the step loaded, text kept
+    rows: dict[str, list] = {label: [] for label in trees}
     for k in range(a.reps):
-        w = sweep(a.sweep_runs, act, tmpd / f"big{k}")[0]
-        rows.append((w, CPU[0]) + mesa(a.mesa_runs, act, scale_to=a.sweep_runs))
-    s, sc, m1, mc = (statistics.median(r[j] for r in rows) for j in range(4))
-    out["sweep_500"] = {
-        "runs": a.sweep_runs, "cache": "warm", "sweep_wall_s": round(s, 2),
-        "sweep_cpu_s": round(sc, 2), "mesa_cpu_s": round(mc, 1),
-        "speedup_cpu": round(mc / sc, 1),
-        "mesa_runs_timed": a.mesa_runs, "mesa_wall_s_one_process": round(m1, 1),
-        "mesa_wall_s_per_worker": round(m1 / out["workers"], 1),
-        "speedup_one_process": round(m1 / s, 1),
-        "speedup_per_worker": round(m1 / out["workers"] / s, 1), "target": ">= 10"}
+        mesa_k = mesa(a.mesa_runs, act, scale_to=a.sweep_runs)
+        for label, tree in trees.items():
+            w = sweep(a.sweep_runs, act, tmpd / f"big{k}", tree=tree)[0]
+            rows[label].append((w, CPU[0]) + mesa_k)
+    for label, got in rows.items():
+        s, sc, m1, mc = (statistics.median(r[j] for r in got) for j in range(4))
+        out["sweep_500" if label == "this" else f"sweep_500 {label}"] = {
+            "runs": a.sweep_runs, "cache": "warm", "sweep_wall_s": round(s, 2),
+            "sweep_cpu_s": round(sc, 2), "mesa_cpu_s": round(mc, 1),
+            "speedup_cpu": round(mc / sc, 1),
+            "mesa_runs_timed": a.mesa_runs, "mesa_wall_s_one_process": round(m1, 1),
+            "mesa_wall_s_per_worker": round(m1 / out["workers"], 1),
+            "speedup_one_process": round(m1 / s, 1),
+            "speedup_per_worker": round(m1 / out["workers"] / s, 1), "target": ">= 10",
+            "rounds_wall_s": [round(r[0], 2) for r in got],
+            "rounds_cpu_s": [round(r[1], 2) for r in got]}
 
 
 def run_vs_floor(trees: dict[str, Path], reps: int) -> dict:

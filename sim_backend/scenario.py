@@ -141,9 +141,18 @@ class Scenario:
     def __post_init__(self) -> None:
         if not self.params:
             object.__setattr__(self, "params", params.defaults(self.behaviour))
+        # the parameters by name: a batch's robot constructors read them
+        # 10,000s of times (no field: not compared, not written)
+        try:
+            object.__setattr__(self, "_by_name", dict(reversed(self.params)))
+        except (TypeError, ValueError):      # not pairs: validate names what is wrong
+            pass
 
     def __getattr__(self, name: str) -> Any:
         # only reached for names that are no field: the behaviour's parameters
+        by_name = self.__dict__.get("_by_name")
+        if by_name is not None and name in by_name:
+            return by_name[name]
         for key, value in self.__dict__.get("params", ()):
             if key == name:
                 return value

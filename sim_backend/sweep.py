@@ -361,17 +361,24 @@ class _Engines:
 
 # runs per chunk when the caller gives none: at most this many, and as many
 # chunks as the executor has workers (CHUNKS_PER_WORKER each), so that both
-# cores of a 2-core machine help from ~20 runs up (a warm soa engine builds
-# in milliseconds: bench/engine_build.py, docs/performance.md)
+# cores of a 2-core machine help from ~20 runs up; one each: a chunk's
+# build, first tick and summaries have costs of their own, which a second
+# chunk per worker paid again (docs/performance.md)
 MAX_CHUNK = 256
-CHUNKS_PER_WORKER = 2
+CHUNKS_PER_WORKER = 1
+
+
+def workers_of(executor: Executor | None) -> int:
+    """How many runs `executor` steps at once (None: this process, one)."""
+    if executor is None:
+        return 1
+    return getattr(executor, "_max_workers", None) or os.cpu_count() or 1
 
 
 def chunk_runs(runs: int, executor: Executor | None = None) -> int:
     """The runs per chunk of a sweep of `runs` runs on `executor` (None:
     this process, one chunk of up to MAX_CHUNK)."""
-    workers = 1 if executor is None else (getattr(executor, "_max_workers", None)
-                                          or os.cpu_count() or 1)
+    workers = workers_of(executor)
     if workers == 1:
         return max(1, min(MAX_CHUNK, runs))
     return max(1, min(MAX_CHUNK, -(-runs // (workers * CHUNKS_PER_WORKER))))
@@ -618,8 +625,7 @@ def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None =
         chunk_size = chunk_runs(len(jobs), executor)
     rows: list[dict | None] = [None] * len(jobs)
     todo = list(range(len(jobs)))          # job indices not yet given to a chunk
-    workers = 1 if executor is None else (getattr(executor, "_max_workers", None)
-                                          or os.cpu_count() or 1)
+    workers = workers_of(executor)
 
     def next_chunk() -> tuple[list[int], str]:
         eng = plan.poll()
@@ -654,8 +660,20 @@ def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None =
             limit = None
             if bg is not None:
                 limit = workers
-            _run_on(executor, next_chunk, lambda: bool(todo), jobs, until, progress, finish,
-                    limit, plan.poll)
+            # the objects this process holds now (numba and the loaded step
+            # among them) out of the collector's sight while the workers fork:
+            # a forked worker's collections no longer walk them (nor copy
+            # their pages by touching their counts): a tenth of its CPU
+            import gc
+            forks = isinstance(executor, ProcessPoolExecutor)
+            if forks:
+                gc.freeze()
+            try:
+                _run_on(executor, next_chunk, lambda: bool(todo), jobs, until, progress,
+                        finish, limit, plan.poll)
+            finally:
+                if forks:
+                    gc.unfreeze()
     finally:
         plan.end()
     return rows  # type: ignore[return-value]

@@ -91,7 +91,7 @@ def register(sub) -> None:
                    help="processes[:N] (default: one per core), inline, or dask://HOST:PORT "
                         "(a dask.distributed scheduler)")
     p.add_argument("--chunk", type=int, default=None, metavar="RUNS",
-                   help="runs per task, at least 1 (default: two tasks per worker, at most 256 runs)")
+                   help="runs per task, at least 1 (default: one task per worker, at most 256 runs)")
     p.add_argument("--out", type=path_arg, default=None, metavar="DIR",
                    help="directory (created if missing) for sweep.csv and the PNGs "
                         "(default: sweep-out)")

@@ -29,6 +29,7 @@ the reference's.
 
 from __future__ import annotations
 
+import gc
 import hashlib
 import importlib.util
 import json
@@ -90,6 +91,7 @@ class Compiled:
                 tmp = folder / f"mod.{os.getpid()}.tmp"
                 tmp.write_text(source)
                 os.replace(tmp, path)        # atomic: another process may read it
+            _without_blas()
             spec = importlib.util.spec_from_file_location(name, path)
             assert spec is not None and spec.loader is not None
             mod = importlib.util.module_from_spec(spec)
@@ -136,6 +138,22 @@ class Compiled:
                         "compiling it again", folder, type(err).__name__, err)
             shutil.rmtree(folder, ignore_errors=True)
             return fn(*args)
+
+
+def _without_blas() -> None:
+    """Import numba's array maths without asking for scipy's BLAS: it does
+    so once per process to choose np.correlate's and np.convolve's inner
+    loop (the linear algebra asks again itself), importing scipy.linalg, a
+    quarter second of a warm sweep's start. A generated step is integers
+    only (transform.py's subset): it calls neither."""
+    if "numba.np.arraymath" in sys.modules or "scipy.linalg" in sys.modules:
+        return
+    blas = "scipy.linalg.cython_blas"
+    sys.modules[blas] = None            # type: ignore[assignment]  # an ImportError
+    try:
+        import numba.np.arraymath  # noqa: F401
+    finally:
+        del sys.modules[blas]
 
 
 @contextmanager
@@ -294,6 +312,10 @@ class BatchArrays:
         grids = tuple(np.zeros(nr * self.stride, dtype=t) for t in B.GRID_TYPES)
         grids[B.STAMP][:] = -1
         rb = np.zeros((B.ROBOT_ROWS, nrob), dtype=np.int64)
+        # a grid equal to the run before's is copied from its array: a
+        # sweep's runs mostly start on the same object, owner and field grids,
+        # and a list's conversion costs far more than comparing it
+        last: dict[int, tuple[list, int]] = {}
         for r, w in enumerate(worlds):
             a, b = int(tstarts[r]), int(tstarts[r + 1])
             table[:, a:b] = tables[r]
@@ -302,11 +324,17 @@ class BatchArrays:
             base, size = r * self.stride, w.n * w.n
             for row, grid in ((B.OBJ, w.obj), (B.OWNER, w.owner), (B.FIELD, w.field),
                               (B.OCC, w.occ)):
-                grids[row][base:base + size] = grid
-            lo, hi = int(starts[r]), int(starts[r + 1])
-            for j, name in enumerate(kernel.ROBOT_FIELDS):
-                rb[j, lo:hi] = getattr(w.rb, name)
-            rb[B.RUN, lo:hi] = r
+                prev = last.get(row)
+                if prev is not None and len(prev[0]) == size and prev[0] == grid:
+                    grids[row][base:base + size] = grids[row][prev[1]:prev[1] + size]
+                else:
+                    grids[row][base:base + size] = grid
+                last[row] = (grid, base)
+        # each robot field of every run in one conversion (the runs' robots
+        # are consecutive)
+        for j, name in enumerate(kernel.ROBOT_FIELDS):
+            rb[j, :] = [v for w in worlds for v in getattr(w.rb, name)]
+        rb[B.RUN, :] = np.repeat(np.arange(nr, dtype=np.int64), agents)
         self.rt, self.rb, self.grids, self.cells, self.table = rt, rb, grids, cell, table
         self.grid = kernel.Grid(grids, table, cell)
         self.robots = kernel.Robots(rb)
@@ -347,7 +375,16 @@ class SoaEngine:
         self.tick = 0
         self.nfields = _nfields()
         t0 = time.perf_counter()
-        self._build()
+        # a batch's build makes tens of thousands of objects and no garbage
+        # cycle: the collector, run every few hundred of them, found nothing
+        # and cost a quarter of the build
+        collecting = gc.isenabled()
+        gc.disable()
+        try:
+            self._build()
+        finally:
+            if collecting:
+                gc.enable()
         self.setup_seconds = time.perf_counter() - t0
 
     # -- set-up -------------------------------------------------------------------------

@@ -35,6 +35,7 @@ import ast
 import builtins
 import hashlib
 import inspect
+import operator
 import os
 import sys
 import textwrap
@@ -123,11 +124,54 @@ class Layout:
     def __init__(self) -> None:
         self.classes: dict[type, ClassLayout] = {}
         self.index: dict[int, tuple[type, int]] = {}   # id(obj) -> (class, index)
+        # per class, what an instance laid out by the full walk looked like:
+        # (its field names, their exact types, the row fields' positions and
+        # lengths, the instance fields' positions); an instance that looks
+        # the same gets the same kinds, so a batch's 10,000 robots are checked
+        # at C speed (one tuple comparison) instead of field by field
+        self._seen: dict[type, tuple[tuple, tuple, tuple, tuple]] = {}
 
     def add(self, obj: Any) -> int:
         if id(obj) in self.index:
             return self.index[id(obj)][1]
         cls = type(obj)
+        seen = self._seen.get(cls)
+        if seen is not None:
+            d = vars(obj)
+            keys, types, rows, insts = seen
+            values = tuple(d.values())
+            if (tuple(d) == keys and tuple(map(type, values)) == types
+                    and all(len(values[k]) == n and all(type(v) is int for v in values[k])
+                            for k, n in rows)):
+                cl = self.classes[cls]
+                j = len(cl.instances)
+                cl.instances.append(obj)
+                self.index[id(obj)] = (cls, j)
+                for k in insts:
+                    self.add(values[k])
+                return j
+        j = self._add(obj, cls)
+        if seen is None:
+            d = vars(obj)
+            kinds = [self.classes[cls].fields[a] for a in d]
+            if all(k[0] != "array" for k in kinds):
+                self._seen[cls] = (tuple(d), tuple(map(type, d.values())),
+                                   tuple((k, f[1]) for k, f in enumerate(kinds) if f[0] == "row"),
+                                   tuple(k for k, f in enumerate(kinds) if f[0] == "inst"))
+        return j
+
+    def values(self, cl: ClassLayout) -> dict[str, Sequence[Any]]:
+        """Every field's values now, instance by instance: one C-level
+        getter call per instance, not one getattr per field and instance."""
+        names = list(cl.fields)
+        if not names or not cl.instances or any("." in a for a in names):
+            return {a: [getattr(o, a) for o in cl.instances] for a in names}
+        get = operator.attrgetter(*names)
+        if len(names) == 1:
+            return {names[0]: list(map(get, cl.instances))}
+        return dict(zip(names, zip(*map(get, cl.instances))))
+
+    def _add(self, obj: Any, cls: type) -> int:
         cl = self.classes.get(cls)
         if cl is None:
             name = cls.__name__
@@ -896,8 +940,9 @@ def state_arrays(layout: Layout) -> dict[str, Any]:
         out[ints_name(cl)] = ints
         for j, b in enumerate(cl.bases):
             out[base_name(cl, j)] = b
+        values = layout.values(cl)
         for attr, f in cl.fields.items():
-            vals = [getattr(o, attr) for o in cl.instances]
+            vals = values[attr]
             if attr in cl.columns:
                 if f[0] == "inst":
                     vals = [layout.index[id(v)][1] for v in vals]
