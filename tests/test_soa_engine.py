@@ -86,6 +86,28 @@ def test_an_attribute_outside_the_subset_is_named(tmp_path):
         SoaEngine([(sc, 1)])
 
 
+def test_arrays_that_share_memory_are_refused():
+    """The compiled step's entry promises LLVM its arrays are apart
+    (borrow.NoAlias): two array fields over one buffer are a named error,
+    not a step that may read stale values (nothing is compiled)."""
+    import numpy as np
+
+    from sim_backend.batch import transform as T
+
+    class Holder:
+        def __init__(self) -> None:
+            base = np.zeros(10, dtype=np.int64)
+            self.a = base[:6]
+            self.b = base[4:]
+
+    layout = T.Layout()
+    layout.add(Holder())
+    for cl in layout.classes.values():
+        cl.finish()
+    with pytest.raises(CompileError, match="Holder__a and Holder__b share memory"):
+        T.state_arrays(layout)
+
+
 @pytest.mark.parametrize("construct,code,named", [
     ("try", "        try:\n            self.ticks += 0\n        except ValueError:\n"
             "            pass\n", "a Try statement"),
