@@ -86,6 +86,28 @@ def test_an_attribute_outside_the_subset_is_named(tmp_path):
         SoaEngine([(sc, 1)])
 
 
+def test_arrays_that_share_memory_are_refused():
+    """The compiled step's entry promises LLVM its arrays are apart
+    (borrow.NoAlias): two array fields over one buffer are a named error,
+    not a step that may read stale values (nothing is compiled)."""
+    import numpy as np
+
+    from sim_backend.batch import transform as T
+
+    class Holder:
+        def __init__(self) -> None:
+            base = np.zeros(10, dtype=np.int64)
+            self.a = base[:6]
+            self.b = base[4:]
+
+    layout = T.Layout()
+    layout.add(Holder())
+    for cl in layout.classes.values():
+        cl.finish()
+    with pytest.raises(CompileError, match="Holder__a and Holder__b share memory"):
+        T.state_arrays(layout)
+
+
 @pytest.mark.parametrize("construct,code,named", [
     ("try", "        try:\n            self.ticks += 0\n        except ValueError:\n"
             "            pass\n", "a Try statement"),
@@ -211,17 +233,19 @@ def test_the_robot_loop_is_inlined_and_its_entry_borrows_every_array(monkeypatch
     """The two rules behind the soa engine's speed (docs/performance.md), read
     off the generated module (nothing is compiled): everything a robot's step
     reaches is inlined into the loop, the world's per-run functions are not,
-    and the entry Python calls borrows every argument."""
+    and the entry Python calls borrows every argument and promises LLVM its
+    arrays are apart."""
     import ast
 
     monkeypatch.delenv("TOUCHSWARM_SOA_INLINE", raising=False)
     e = SoaEngine([(validate({"maxTicks": 50}), 1)])
     tree = ast.parse(e.compiled.path.read_text())
-    inline = {}
+    inline, pipeline = {}, {}
     for f in tree.body:
         if isinstance(f, ast.FunctionDef):
-            kw = {k.arg: k.value.value for k in f.decorator_list[0].keywords}
-            inline[f.name] = kw.get("forceinline", False)
+            kw = {k.arg: k.value for k in f.decorator_list[0].keywords}
+            inline[f.name] = ast.literal_eval(kw.get("forceinline", ast.Constant(False)))
+            pipeline[f.name] = ast.unparse(kw["pipeline_class"]) if "pipeline_class" in kw else None
     for name in ("F_Robot_step", "F_Robot__search", "F_BatchBody_probe",
                  "F_sim_backend_kernel__probe", "F_Rng_below",
                  "F_sim_backend_batch_body__tick_all"):
@@ -232,6 +256,7 @@ def test_the_robot_loop_is_inlined_and_its_entry_borrows_every_array(monkeypatch
                  and f.name == e.compiled.names["tick_all"])
     call = entry.body[0].value
     assert [a.func.id for a in call.args] == ["borrow"] * len(entry.args.args)
+    assert pipeline[entry.name] == "NoAlias"        # its arrays are apart (borrow.NoAlias)
     assert [a.args[0].id for a in call.args] == [a.arg for a in entry.args.args]
 
 

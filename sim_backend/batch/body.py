@@ -11,6 +11,7 @@ numba (sim_backend/batch/transform.py, soa.py); it stays plain Python so it
 can be read, and run uncompiled, like the rest.
 """
 
+from firmware_logic import fixedpoint as fx
 from sim_backend import kernel
 
 # rows of the per-robot table (int64[ROBOT_ROWS, robots]): the kernel's
@@ -49,6 +50,15 @@ GRID_ROWS = len(kernel.GRID_FIELDS)
 GRID_TYPES = ("int8", "int32", "int32", "int16", "int32")
 
 FIELDS = 6      # message fields a HAL send() carries
+# how many robots ahead of the one stepping the grids are fetched into the
+# cache (BatchBody.turn): a turn is a few hundred cycles, a miss to memory
+# about as long
+AHEAD = 4
+
+
+def prefetch(a, k):
+    """A hint that a[k] is read soon: nothing here; the compiled step asks
+    the cache for it (transform.INTRINSICS, borrow.prefetch)."""
 
 
 class BatchBody:
@@ -70,7 +80,22 @@ class BatchBody:
         self.in_f = in_f            # [robots, ring size, FIELDS]
 
     def turn(self, robot, i):
-        """Robot i's FSM steps once on this body (the kernel's turn loops ask it)."""
+        """Robot i's FSM steps once on this body (the kernel's turn loops ask
+        it). First the cache is asked for the grid rows robot j = i + AHEAD
+        will read (its patch's and the ones beside it: probes, field,
+        uphill): a robot's patch is anywhere in its run's grids and the
+        robots' own tables stream through the cache every tick, so without it
+        these reads missed (docs/performance.md)."""
+        j = i + AHEAD
+        if j < len(self.run):
+            r = self.run[j]
+            n = self.runs.n[r]
+            k = self.runs.base[r] + kernel.cell(self.runs.w[r], n, fx.patch(self.rb.xs[j]),
+                                                fx.patch(self.rb.ys[j]))
+            for d in range(-1, 2):
+                prefetch(self.g.obj, k + d * n)
+                prefetch(self.g.occ, k + d * n)
+                prefetch(self.g.field, k + d * n)
         self.i = i
         robot.step(self)
 
