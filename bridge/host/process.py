@@ -266,7 +266,7 @@ class HostProcess:
                 continue
             if kind == msg.HEARTBEAT:
                 self.poses[node] = [tick, *f]
-            if mute.drops(node, kind):
+            if mute.drops(node, kind, f):
                 continue
             self.kind_now = kind
             c.on_message(node, kind, f, tick)

@@ -55,7 +55,7 @@ from sim_backend.batch import body as B
 from sim_backend.batch import transform as T
 from sim_backend.engine import UNTIL, RunResult, run_ended
 from sim_backend.errors import EngineError
-from sim_backend.exchange import HEARS_ALL, BatchMutes, exchange, quiet
+from sim_backend.exchange import HEARS_ALL, BatchMutes, exchange, wake
 from sim_backend.scenario import Scenario
 from sim_backend.world import World
 
@@ -371,7 +371,7 @@ class SoaEngine:
         from perception import host_coordinator
         self.coords = [host_coordinator(beh, sc, cells=list(w.object_cells))
                        for (sc, _), w in zip(runs, self.worlds)]
-        self.busy = np.array([not quiet(c) for c in self.coords], dtype=bool)
+        self.wake = np.array([wake(c) for c in self.coords], dtype=np.int64)
         self.lo = starts[:-1].tolist()
         self.agents = np.diff(starts).tolist()
         self.run_of = rb[B.RUN].tolist()
@@ -447,12 +447,12 @@ class SoaEngine:
         if n:
             run_of, node_of, nfields = self.run_of, self.node_of, self.nfields
             ii, kk = self.out_i[:n], self.out_kind[:n]
-            kept = np.flatnonzero(mutes.keep(ii, kk))
+            kept = np.flatnonzero(mutes.keep(ii, kk, self.out_f[:n]))
             for i, kind, f in zip(ii[kept].tolist(), kk[kept].tolist(),
                                   self.out_f[kept].tolist()):
                 ups[run_of[i]].append((node_of[i], kind, tuple(f[:nfields[kind]])))
-        busy = self.busy
-        asked = set(np.flatnonzero(busy & (self.rt[B.LIVE] == 1)).tolist())
+        woken = self.wake
+        asked = set(np.flatnonzero((woken <= t) & (self.rt[B.LIVE] == 1)).tolist())
         coords, conv = self.coords, self.conv_steps
         called: set[int] = set()
         sends = []
@@ -464,7 +464,7 @@ class SoaEngine:
             called.add(r)
             if out:
                 sends.append((r, out))
-            busy[r] = not quiet(c)
+            woken[r] = wake(c)
             mutes.update(r, c)
             if conv[r] < 0 and c.converged_tick >= 0:
                 conv[r] = int(self.rt[B.STEPS, r])
