@@ -15,6 +15,8 @@ from __future__ import annotations
 
 from typing import Any, Iterable, Sequence
 
+from sim_backend.coordinator import Idling, Muted, has
+
 NEVER = 1 << 62       # a `wake` tick no run reaches
 
 
@@ -57,8 +59,7 @@ def muting(c: Any, prev: Muting | None = None) -> Muting:
     `prev` is kept while the declaration is the same (the same kind,
     collection, size and `but`, no `same`); its node set while only `same`
     differs."""
-    m = getattr(c, "muted", None)
-    m = m() if m is not None else None
+    m = c.muted() if has(c, Muted) else None
     if m is None:
         return HEARS_ALL
     kind, nodes, but = m[0], m[1], m[2]
@@ -141,8 +142,7 @@ def wake(c: Any) -> int:
     tick; a coordinator without `idle_until` is asked every tick)."""
     if quiet(c):
         return NEVER
-    f = getattr(c, "idle_until", None)
-    return int(f()) if f is not None else 0
+    return int(c.idle_until()) if has(c, Idling) else 0
 
 
 def exchange(c: Any, up: Iterable[tuple[int, int, tuple]], tick: int, asked: bool = True,

@@ -15,10 +15,11 @@ is a different text, so a different directory.
 One compiled call steps a tick of every live run; the host coordinators stay
 the behaviour's Python objects, fed the same messages in the same order as
 the reference engine's in-process link feeds them, and asked to tick when
-they received a message or are not `quiet()` (a coordinator without `quiet`
-is asked every tick); a message the coordinator declared `muted()` (one
-that would change nothing) is not handed to it, as in the reference
-(sim_backend/exchange.py, the rule both follow). A run stops where `Engine.run` stops it: delivered
+they received a message or their `wake` tick came (never while `quiet()`,
+else `idle_until()`; a coordinator without either is asked every tick); a
+message the coordinator declared `muted()` (one that would change nothing)
+is not handed to it, as in the reference (sim_backend/exchange.py, the
+rule both follow). A run stops where `Engine.run` stops it: delivered
 (or, with until="converged", converged) or at its maxTicks. At a run's end
 its final state goes into a World, and the robots' fields into their
 CPython objects when its RunResult's robots are first read (a summary reads
@@ -440,8 +441,8 @@ class SoaEngine:
 
     def _exchange(self, t: int) -> set[int]:
         """This tick's messages to their coordinators in the order they were
-        sent and a tick of every coordinator that heard one or is busy (in
-        run order; sim_backend/exchange.py); their commands reach the
+        sent and a tick of every coordinator that heard one or whose wake
+        tick came (in run order; sim_backend/exchange.py); their commands reach the
         robots' inboxes together. Returns the runs whose coordinator ticked."""
         n = int(self.out_n[0])
         ups: dict[int, list[tuple[int, int, tuple]]] = defaultdict(list)
