@@ -84,9 +84,10 @@ class BatchMutes:
         import numpy as np
         self.lo, self.agents, self.run_of = lo, agents, run_of
         self.mutes = [HEARS_ALL] * len(coords)
-        self.kind = np.full(len(coords), HEARS_ALL.kind, dtype=np.int64)
-        self.robot = np.zeros(len(run_of), dtype=bool)     # muted sender
-        self.repeats = np.zeros(len(run_of), dtype=bool)   # sender with a `same`
+        # per sender robot, the kind its run's declaration drops from it,
+        # and the kind of its repeat clause (-1: none, no message's kind)
+        self.muted = np.full(len(run_of), -1, dtype=np.int64)
+        self.repeats = np.full(len(run_of), -1, dtype=np.int64)
         for r, c in enumerate(coords):
             self.update(r, c)
 
@@ -98,31 +99,29 @@ class BatchMutes:
         self.mutes[r] = m
         lo, n = self.lo[r], self.agents[r]
         if prev.same is not None and 1 <= prev.node <= n:
-            self.repeats[lo + prev.node - 1] = False
+            self.repeats[lo + prev.node - 1] = -1
         if m.same is not None and 1 <= m.node <= n:
-            self.repeats[lo + m.node - 1] = True
+            self.repeats[lo + m.node - 1] = m.kind
         if m.drop is prev.drop and m.kind == prev.kind:
             return
-        self.kind[r] = m.kind
-        self.robot[lo:lo + n] = False
+        self.muted[lo:lo + n] = -1
         for node in m.drop:
             if 1 <= node <= n:
-                self.robot[lo + node - 1] = True
+                self.muted[lo + node - 1] = m.kind
 
     def keep(self, robot: Any, kind: Any, fields: Any) -> Any:
         """Which messages (sender robot, kind, fields: arrays, one row of
         fields each, in the order sent) reach their coordinators."""
         import numpy as np
-        run = self.run_of[robot]
-        ours = kind == self.kind[run]
-        keep = ~(self.robot[robot] & ours)
-        rep = np.flatnonzero(self.repeats[robot] & ours)
+        keep = self.muted[robot] != kind
+        rep = np.flatnonzero(self.repeats[robot] == kind)
         if len(rep):
             # a few a tick (one sender a run): each by the rule itself
-            for j, r, f in zip(rep.tolist(), run[rep].tolist(), fields[rep].tolist()):
-                m = self.mutes[r]
+            run_of = self.run_of
+            for j, i, f in zip(rep.tolist(), robot[rep].tolist(), fields[rep].tolist()):
+                m = self.mutes[run_of[i]]
                 if m.same is None:           # ended by an earlier message
-                    self.repeats[robot[j]] = False
+                    self.repeats[i] = -1
                     continue
                 if m.drops(m.node, m.kind, f[:len(m.same)]):
                     keep[j] = False
