@@ -57,8 +57,8 @@ def muting(c: Any, prev: Muting | None = None) -> Muting:
     and `but`'s with fields `same`, change nothing until c's next tick(); a
     coordinator without `muted` (or returning None) hears every message.
     `prev` is kept while the declaration is the same (the same kind,
-    collection, size and `but`, no `same`); its node set while only `same`
-    differs."""
+    collection, size, `but` and `same`, the last not ended since); its node
+    set while only `same` differs."""
     m = c.muted() if has(c, Muted) else None
     if m is None:
         return HEARS_ALL
@@ -66,7 +66,7 @@ def muting(c: Any, prev: Muting | None = None) -> Muting:
     same = tuple(m[3]) if len(m) > 3 and m[3] is not None else None
     key = (kind, id(nodes), len(nodes), but)
     if prev is not None and prev.key == key:
-        if same is None and prev.same is None:
+        if same == prev.same:
             return prev
         return Muting(kind, prev.drop, key, but, same)
     return Muting(kind, frozenset(nodes) - {but}, key, but, same)

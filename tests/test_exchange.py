@@ -104,6 +104,10 @@ def test_a_repeat_of_the_declared_fields_is_dropped_until_other_fields_come():
     assert [(m[1], m[2]) for m in c.heard] == [(4, (7,)), (5, (8,)), (5, (7,))]
     exchange(c, up[:1], 2)                            # read again at the next exchange
     assert len(c.heard) == 3
+    m = muting(c)
+    assert muting(c, m) is m and not m.drops(3, 5, (8,))     # (8,) ends the clause ...
+    again = muting(c, m)                                      # ... until it is read again
+    assert again is not m and again.drops(3, 5, (7,)) and not m.drops(3, 5, (7,))
 
 
 def test_the_bulk_rule_is_the_one_by_one_rule():
