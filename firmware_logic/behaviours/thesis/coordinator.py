@@ -777,8 +777,12 @@ class Coordinator(Recognising, Roster):
 
     def _command(self, tick):
         self.step_sent_tick = tick
+        # one fields tuple for every holder: a step commands about ten, and
+        # a batch plans tens of thousands of steps
+        f = (self.step, self.dx, self.dy)
+        out = self.outbox
         for node in self.carriers():
-            self._send(node, msg.TRANSPORT, (self.step, self.dx, self.dy))
+            out.append((node, msg.TRANSPORT, f))
 
     # -- liveness: holders that fall silent (lost_after > 0) ---------------------
 
