@@ -53,6 +53,35 @@ class HostCoordinator(Coordinator, Protocol):
 
 
 @runtime_checkable
+class Muted(Protocol):
+    """Ability: declares, at each tick(), the messages that would change
+    nothing until its next tick(), so an engine does not hand them over
+    (sim_backend/exchange.py `muting`, the one rule `Muting.drops`):
+    muted() -> (kind, nodes, but) or (kind, nodes, but, same), or None.
+    Dropped: the messages of `kind` from the nodes in `nodes` (a collection
+    that only grows) other than node `but`, and `but`'s whose fields are
+    `same` (an unchanged repeat: the thesis's transport leader reporting
+    the pose it reported last) until a message of `kind` from `but` with
+    other fields is handed over. A message handed over in between never
+    makes a muted one count."""
+
+    def muted(self) -> Any: ...
+
+
+@runtime_checkable
+class Idling(Protocol):
+    """Ability: says when it next needs tick() though it hears nothing:
+    idle_until() -> the first tick t at which tick(t) may change anything
+    or send when no message is handed over before it (0: any tick), read
+    from its state as it is now. A batch engine asks it to tick() only
+    when it heard a message or that tick has come (`exchange.wake`; a
+    `quiet()` coordinator is never asked); without the ability, every tick.
+    tests/test_muted_messages.py checks both promises on whole runs."""
+
+    def idle_until(self) -> int: ...
+
+
+@runtime_checkable
 class Measuring(Protocol):
     """Ability: the behaviour's own end-of-run measures (summary.json)."""
 

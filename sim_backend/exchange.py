@@ -1,55 +1,82 @@
 """The host's side of a tick boundary, one rule for both engines
 (sim_backend/engine.py `Engine.exchange`, sim_backend/batch/soa.py
-`SoaEngine._exchange`): the messages robots sent this tick go to the
-coordinator's `on_message` in the order they were sent, except those it
-declared `muted()` at its last `tick()` (they would change nothing:
+`SoaEngine._exchange`), the host process (bridge/host/process.py) and
+replay: the messages robots sent this tick go to the coordinator's
+`on_message` in the order they were sent, except those it declared
+`muted()` at its last `tick()` (they would change nothing:
 tests/test_muted_messages.py); then it is asked to `tick()`, whose commands
 go down to the robots. The batch engine asks only a coordinator that heard a
-message or is not `quiet()`; the reference asks every tick.
+message or whose `wake` tick has come (`wake`: never while it is `quiet()`,
+else its `idle_until()`); the reference asks every tick. The declarations
+are sim_backend/coordinator.py's `Muted` and `Idling`.
 """
 
 from __future__ import annotations
 
-from typing import Any, Iterable, NamedTuple, Sequence
+from typing import Any, Iterable, Sequence
+
+from sim_backend.coordinator import Idling, Muted, has
+
+NEVER = 1 << 62       # a `wake` tick no run reaches
 
 
-class Muting(NamedTuple):
+class Muting:
     """What a coordinator's muted() dropped when it was read: messages of
-    `kind` from the nodes in `drop`; `key` tells a changed declaration."""
-    kind: int
-    drop: frozenset
-    key: Any
+    `kind` from the nodes in `drop`, and from node `node` those whose
+    fields are `same` until it sends others (None: none); `key` tells a
+    changed node set."""
 
-    def drops(self, node: int, kind: int) -> bool:
-        """The rule: this message would change nothing, so it is not handed over."""
-        return kind == self.kind and node in self.drop
+    __slots__ = ("kind", "drop", "key", "node", "same")
+
+    def __init__(self, kind: int, drop: frozenset, key: Any, node: int = 0,
+                 same: tuple | None = None) -> None:
+        self.kind, self.drop, self.key, self.node, self.same = kind, drop, key, node, same
+
+    def drops(self, node: int, kind: int, fields: Sequence[int]) -> bool:
+        """The rule: this message would change nothing, so it is not handed
+        over. A message from `node` with other fields than `same` is handed
+        over and ends the repeat clause until the declaration is read again
+        (the coordinator's state may have moved past `same`)."""
+        if kind != self.kind:
+            return False
+        if node in self.drop:
+            return True
+        if node == self.node and self.same is not None:
+            if tuple(fields) == self.same:
+                return True
+            self.same = None
+        return False
 
 
 HEARS_ALL = Muting(-1, frozenset(), None)
 
 
 def muting(c: Any, prev: Muting | None = None) -> Muting:
-    """c.muted(): (kind, nodes, but), the messages of that kind from the
-    nodes in `nodes` (a collection that only grows) other than `but` change
-    nothing until c's next tick(); a coordinator without `muted` (or
-    returning None) hears every message. `prev` is kept while the
-    declaration is the same (the same kind, collection, size and `but`)."""
-    m = getattr(c, "muted", None)
-    m = m() if m is not None else None
+    """c.muted(): (kind, nodes, but[, same]), the messages of that kind from
+    the nodes in `nodes` (a collection that only grows) other than `but`,
+    and `but`'s with fields `same`, change nothing until c's next tick(); a
+    coordinator without `muted` (or returning None) hears every message.
+    `prev` is kept while the declaration is the same (the same kind,
+    collection, size, `but` and `same`, the last not ended since); its node
+    set while only `same` differs."""
+    m = c.muted() if has(c, Muted) else None
     if m is None:
         return HEARS_ALL
-    kind, nodes, but = m
+    kind, nodes, but = m[0], m[1], m[2]
+    same = tuple(m[3]) if len(m) > 3 and m[3] is not None else None
     key = (kind, id(nodes), len(nodes), but)
     if prev is not None and prev.key == key:
-        return prev
-    return Muting(kind, frozenset(nodes) - {but}, key)
+        if same == prev.same:
+            return prev
+        return Muting(kind, prev.drop, key, but, same)
+    return Muting(kind, frozenset(nodes) - {but}, key, but, same)
 
 
 class BatchMutes:
     """The muted() declarations of a batch's coordinators (one per run, robots
     lo[r] .. lo[r] + agents[r] - 1 of the batch nodes 1..agents[r]) held as
     arrays, so a batch engine drops the messages they mute in bulk, before
-    decoding any (`keep`), by the rule `exchange` follows one by one;
+    decoding any (`keep`), by the rule `Muting.drops` follows one by one;
     `update(r, c)` after each tick() of run r's coordinator c."""
 
     def __init__(self, coords: Sequence[Any], lo: Sequence[int], agents: Sequence[int],
@@ -57,8 +84,10 @@ class BatchMutes:
         import numpy as np
         self.lo, self.agents, self.run_of = lo, agents, run_of
         self.mutes = [HEARS_ALL] * len(coords)
-        self.kind = np.full(len(coords), HEARS_ALL.kind, dtype=np.int64)
-        self.robot = np.zeros(len(run_of), dtype=bool)     # muted sender
+        # per sender robot, the kind its run's declaration drops from it,
+        # and the kind of its repeat clause (-1: none, no message's kind)
+        self.muted = np.full(len(run_of), -1, dtype=np.int64)
+        self.repeats = np.full(len(run_of), -1, dtype=np.int64)
         for r, c in enumerate(coords):
             self.update(r, c)
 
@@ -69,15 +98,34 @@ class BatchMutes:
             return
         self.mutes[r] = m
         lo, n = self.lo[r], self.agents[r]
-        self.kind[r] = m.kind
-        self.robot[lo:lo + n] = False
+        if prev.same is not None and 1 <= prev.node <= n:
+            self.repeats[lo + prev.node - 1] = -1
+        if m.same is not None and 1 <= m.node <= n:
+            self.repeats[lo + m.node - 1] = m.kind
+        if m.drop is prev.drop and m.kind == prev.kind:
+            return
+        self.muted[lo:lo + n] = -1
         for node in m.drop:
             if 1 <= node <= n:
-                self.robot[lo + node - 1] = True
+                self.muted[lo + node - 1] = m.kind
 
-    def keep(self, robot: Any, kind: Any) -> Any:
-        """Which messages (sender robot, kind: arrays) reach their coordinators."""
-        return ~(self.robot[robot] & (kind == self.kind[self.run_of[robot]]))
+    def keep(self, robot: Any, kind: Any, fields: Any) -> Any:
+        """Which messages (sender robot, kind, fields: arrays, one row of
+        fields each, in the order sent) reach their coordinators."""
+        import numpy as np
+        keep = self.muted[robot] != kind
+        rep = np.flatnonzero(self.repeats[robot] == kind)
+        if len(rep):
+            # a few a tick (one sender a run): each by the rule itself
+            run_of = self.run_of
+            for j, i, f in zip(rep.tolist(), robot[rep].tolist(), fields[rep].tolist()):
+                m = self.mutes[run_of[i]]
+                if m.same is None:           # ended by an earlier message
+                    self.repeats[i] = -1
+                    continue
+                if m.drops(m.node, m.kind, f[:len(m.same)]):
+                    keep[j] = False
+        return keep
 
 
 def quiet(c: Any) -> bool:
@@ -85,6 +133,15 @@ def quiet(c: Any) -> bool:
     coordinator without `quiet` is never quiet)."""
     q = getattr(c, "quiet", None)
     return bool(q()) if q is not None else False
+
+
+def wake(c: Any) -> int:
+    """The first tick at which c must be asked to tick() though it heard
+    nothing: NEVER while it is quiet(), else its idle_until() (0: every
+    tick; a coordinator without `idle_until` is asked every tick)."""
+    if quiet(c):
+        return NEVER
+    return int(c.idle_until()) if has(c, Idling) else 0
 
 
 def exchange(c: Any, up: Iterable[tuple[int, int, tuple]], tick: int, asked: bool = True,
@@ -96,7 +153,7 @@ def exchange(c: Any, up: Iterable[tuple[int, int, tuple]], tick: int, asked: boo
     mute = mute if mute is not None else muting(c)
     heard = False
     for node, kind, fields in up:
-        if mute.drops(node, kind):
+        if mute.drops(node, kind, fields):
             continue
         c.on_message(node, kind, fields, tick)
         heard = True

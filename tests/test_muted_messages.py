@@ -5,44 +5,75 @@ reference engine told to hear everything (every message declared muted,
 taken anyway, leaves the coordinator as it was) and that the soa engine
 drops them and ends every run as the reference does."""
 
+from types import SimpleNamespace
+
 from firmware_logic import messages as msg
 from sim_backend.batch.soa import SoaEngine
-from sim_backend.engine import Engine
+from sim_backend.engine import Engine, InprocLink
+from sim_backend.exchange import muting
 from sim_backend.scenario import validate
 
 
 def state(c):
     """Everything a coordinator holds, comparable across a call."""
-    return {k: repr(v) for k, v in vars(c).items() if k not in ("on_message", "tick", "muted")}
+    return {k: repr(v) for k, v in vars(c).items()
+            if k not in ("on_message", "tick", "muted", "idle_until")}
 
 
-def run_checking_muted(sc, seed):
-    """Run to the end; every message muted at the previous tick() is
-    handed over anyway and must change nothing. Returns (muted seen,
-    leader HEARTBEATs not muted during the transport)."""
-    eng = Engine(sc, seed)
+class Lossy(InprocLink):
+    """Loses every seventh TRANSPORT: the coordinator's resend ticks come."""
+
+    def __init__(self, nodes):
+        super().__init__(nodes)
+        self.transports = 0
+
+    def send(self, node, kind, fields):
+        if kind == msg.TRANSPORT:
+            self.transports += 1
+            if self.transports % 7 == 0:
+                return
+        super().send(node, kind, fields)
+
+
+def run_checking_muted(sc, seed, link=None):
+    """Run to the end; every message muted at the previous tick() (by the
+    rule, exchange.Muting.drops) is handed over anyway and must change
+    nothing, and every tick() before the coordinator's idle_until() with no
+    other message since must change nothing and send nothing. Returns
+    (result, counts: muted, repeats of the leader's muted, idle ticks,
+    leader HEARTBEATs heard during the transport)."""
+    eng = Engine(sc, seed, link=link)
     c = eng.coordinator
     muted = c.muted
-    declared = [muted()]
     c.muted = lambda: None           # the engine hands every message over
-    counts = {"muted": 0, "leader": 0}
+    declared = [muting(SimpleNamespace(muted=muted))]
+    idle = [c.idle_until()]
+    counts = {"muted": 0, "repeat": 0, "idle": 0, "leader": 0}
     hear, tick = c.on_message, c.tick
 
     def on_message(node, kind, f, t):
         m = declared[0]
-        if m is not None and kind == m[0] and node in m[1] and node != m[2]:
+        if m.drops(node, kind, f):
             before = state(c)
             hear(node, kind, f, t)
             assert state(c) == before, (node, kind, f, t)
-            counts["muted"] += 1
+            counts["repeat" if node == m.node else "muted"] += 1
             return
+        idle[0] = 0                  # a message that counts: the next tick() may act
         if kind == msg.HEARTBEAT and c.step > 0 and node == c.leader:
             counts["leader"] += 1
         hear(node, kind, f, t)
 
     def on_tick(t):
-        out = tick(t)
-        declared[0] = muted()
+        if t < idle[0]:
+            before = state(c)
+            out = tick(t)
+            assert out == [] and state(c) == before, t
+            counts["idle"] += 1
+        else:
+            out = tick(t)
+        declared[0] = muting(SimpleNamespace(muted=muted))
+        idle[0] = c.idle_until()
         return out
 
     c.on_message, c.tick = on_message, on_tick
@@ -50,13 +81,17 @@ def run_checking_muted(sc, seed):
     return res, counts
 
 
-def test_every_muted_message_changes_nothing_and_the_leader_is_heard():
-    sc = validate({"maxTicks": 3000})
-    for seed in (1, 2):
-        res, counts = run_checking_muted(sc, seed)
+def test_every_muted_message_and_idle_tick_changes_nothing_and_the_leader_is_heard():
+    plain = validate({"maxTicks": 3000})
+    for sc, seed, link in ((plain, 1, None), (plain, 2, Lossy(list(range(1, 21)))),
+                           (validate({"maxTicks": 3000, "arrival": "netlogo",
+                                      "activation": "netlogo"}), 3, None)):
+        res, counts = run_checking_muted(sc, seed, link)
         assert res.summary()["delivered"]
         assert counts["muted"] > 100          # the holders' HEARTBEATs, carrying
         assert counts["leader"] > 10          # the transport follows the leader's
+        assert counts["repeat"] > 10          # ... but not its unchanged repeats
+        assert counts["idle"] > 10            # nor ticks while a step is under way
 
 
 def test_liveness_and_recognition_mute_nothing():
@@ -98,3 +133,41 @@ def test_both_engines_drop_them_alike_and_end_alike():
     assert got == want
     assert 0 < handed[0] < sent[0] // 2
     assert ref_handed == handed           # the same messages reach the coordinators
+
+
+def test_soa_asks_no_idle_coordinator_and_ends_as_without_the_declarations():
+    """The soa engine calls tick() only on a coordinator that heard a
+    message since its last one or whose idle_until() has come; the same
+    runs with the declarations taken away (every leader HEARTBEAT handed
+    over, every transport tick asked) end alike, with more calls."""
+    sc = validate({"maxTicks": 3000})
+    runs = [(sc, 1), (sc, 2), (sc.replace(activation="netlogo"), 3)]
+
+    def watched(plain):
+        eng = SoaEngine(runs)
+        calls = [0, 0]                 # tick() calls, on_message calls
+        for c in eng.coords:
+            if plain:
+                c.idle_until = lambda: 0
+                c.muted = lambda m=c.muted: None if m() is None else m()[:3]
+            state = {"heard": False, "idle": 0}
+            hear, tick = c.on_message, c.tick
+
+            def on_message(node, kind, f, t, hear=hear, state=state):
+                calls[1] += 1
+                state["heard"] = True
+                hear(node, kind, f, t)
+
+            def on_tick(t, c=c, tick=tick, state=state):
+                assert state["heard"] or t >= state["idle"], t
+                calls[0] += 1
+                out = tick(t)
+                state["heard"], state["idle"] = False, c.idle_until()
+                return out
+            c.on_message, c.tick = on_message, on_tick
+        return [r.summary() for r in eng.run()], calls
+
+    got, calls = watched(False)
+    want, plain_calls = watched(True)
+    assert got == want
+    assert calls[0] < plain_calls[0] and calls[1] < plain_calls[1], (calls, plain_calls)

@@ -42,7 +42,7 @@ from firmware_logic import messages as msg
 from firmware_logic import roster
 from sim_backend import registry
 from sim_backend.coordinator import HostCoordinator, lacks
-from sim_backend.exchange import muting
+from sim_backend.exchange import muting, wake
 from sim_backend.link import HostEnd
 from sim_backend.scenario import CHOICES
 
@@ -266,7 +266,7 @@ class HostProcess:
                 continue
             if kind == msg.HEARTBEAT:
                 self.poses[node] = [tick, *f]
-            if mute.drops(node, kind):
+            if mute.drops(node, kind, f):
                 continue
             self.kind_now = kind
             c.on_message(node, kind, f, tick)
@@ -283,9 +283,9 @@ class HostProcess:
         self.tick += 1
         c = self.coord
         repeat = c.done() and self.halts_sent < HALT_REPEATS
-        # a quiet coordinator's tick changes nothing: no snapshot to compare
-        # (most ticks; a snapshot costs more than the rest of the tick)
-        quiet = c.quiet() and not repeat
+        # a quiet or idle coordinator's tick changes nothing: no snapshot to
+        # compare (most ticks; a snapshot costs more than the rest of the tick)
+        quiet = wake(c) > self.tick and not repeat
         before = None if quiet else c.snapshot()
         out = c.tick(self.tick)
         self.mute = muting(c, self.mute)

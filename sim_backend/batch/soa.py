@@ -15,10 +15,11 @@ is a different text, so a different directory.
 One compiled call steps a tick of every live run; the host coordinators stay
 the behaviour's Python objects, fed the same messages in the same order as
 the reference engine's in-process link feeds them, and asked to tick when
-they received a message or are not `quiet()` (a coordinator without `quiet`
-is asked every tick); a message the coordinator declared `muted()` (one
-that would change nothing) is not handed to it, as in the reference
-(sim_backend/exchange.py, the rule both follow). A run stops where `Engine.run` stops it: delivered
+they received a message or their `wake` tick came (never while `quiet()`,
+else `idle_until()`; a coordinator without either is asked every tick); a
+message the coordinator declared `muted()` (one that would change nothing)
+is not handed to it, as in the reference (sim_backend/exchange.py, the
+rule both follow). A run stops where `Engine.run` stops it: delivered
 (or, with until="converged", converged) or at its maxTicks. At a run's end
 its final state goes into a World, and the robots' fields into their
 CPython objects when its RunResult's robots are first read (a summary reads
@@ -56,7 +57,7 @@ from sim_backend.batch import body as B
 from sim_backend.batch import transform as T
 from sim_backend.engine import UNTIL, RunResult, run_ended
 from sim_backend.errors import EngineError
-from sim_backend.exchange import HEARS_ALL, BatchMutes, exchange, quiet
+from sim_backend.exchange import HEARS_ALL, BatchMutes, exchange, wake
 from sim_backend.scenario import Scenario
 from sim_backend.world import World
 
@@ -65,6 +66,8 @@ log = logging.getLogger(__name__)
 INBOX = 16            # messages a robot may have waiting (the host sends a few per tick)
 SENDS_PER_ROBOT = 8   # messages a robot may send in one tick
 PREFIX = "_touchswarm_soa_"
+# zeros that fill a command's fields to a whole row of the inbox, by its field count
+_PAD = tuple((0,) * (B.FIELDS - n) for n in range(B.FIELDS + 1))
 
 
 def cache_root() -> Path:
@@ -408,7 +411,7 @@ class SoaEngine:
         from perception import host_coordinator
         self.coords = [host_coordinator(beh, sc, cells=list(w.object_cells))
                        for (sc, _), w in zip(runs, self.worlds)]
-        self.busy = np.array([not quiet(c) for c in self.coords], dtype=bool)
+        self.wake = np.array([wake(c) for c in self.coords], dtype=np.int64)
         self.lo = starts[:-1].tolist()
         self.agents = np.diff(starts).tolist()
         self.run_of = rb[B.RUN].tolist()
@@ -475,8 +478,8 @@ class SoaEngine:
 
     def _exchange(self, t: int) -> set[int]:
         """This tick's messages to their coordinators in the order they were
-        sent and a tick of every coordinator that heard one or is busy (in
-        run order; sim_backend/exchange.py); their commands reach the
+        sent and a tick of every coordinator that heard one or whose wake
+        tick came (in run order; sim_backend/exchange.py); their commands reach the
         robots' inboxes together. Returns the runs whose coordinator ticked."""
         n = int(self.out_n[0])
         ups: dict[int, list[tuple[int, int, tuple]]] = defaultdict(list)
@@ -484,12 +487,12 @@ class SoaEngine:
         if n:
             run_of, node_of, nfields = self.run_of, self.node_of, self.nfields
             ii, kk = self.out_i[:n], self.out_kind[:n]
-            kept = np.flatnonzero(mutes.keep(ii, kk))
+            kept = np.flatnonzero(mutes.keep(ii, kk, self.out_f[:n]))
             for i, kind, f in zip(ii[kept].tolist(), kk[kept].tolist(),
                                   self.out_f[kept].tolist()):
                 ups[run_of[i]].append((node_of[i], kind, tuple(f[:nfields[kind]])))
-        busy = self.busy
-        asked = set(np.flatnonzero(busy & (self.rt[B.LIVE] == 1)).tolist())
+        woken = self.wake
+        asked = set(np.flatnonzero((woken <= t) & (self.rt[B.LIVE] == 1)).tolist())
         coords, conv = self.coords, self.conv_steps
         called: set[int] = set()
         sends = []
@@ -501,7 +504,7 @@ class SoaEngine:
             called.add(r)
             if out:
                 sends.append((r, out))
-            busy[r] = not quiet(c)
+            woken[r] = wake(c)
             mutes.update(r, c)
             if conv[r] < 0 and c.converged_tick >= 0:
                 conv[r] = int(self.rt[B.STEPS, r])
@@ -511,40 +514,65 @@ class SoaEngine:
 
     def _deliver(self, sends: Sequence[tuple[int, Iterable[tuple[int, int, tuple]]]]) -> None:
         """Commands (run, [(node, kind, fields), ...]) into the robots'
-        inbox rings, each robot's in the order given. Element writes, not
-        numpy's fancy indexing: a tick sends a few dozen messages, and a
-        fancy write costs more to set up than tens of element writes."""
-        head, tail = self.rb[B.IN_HEAD], self.rb[B.IN_TAIL]
-        in_kind, in_nf, in_f = self.in_kind, self.in_nf, self.in_f
-        at: dict[int, list[int]] = {}       # robot -> [next slot, its head]
+        inbox rings, each robot's in the order given: gathered, then one
+        fancy write per array. A tick delivers tens of commands (a
+        transport step's to each holder) to thousands (a HALT to every
+        robot of a run, the first tick's ACK to every robot): from about
+        fifty on, fewer numpy calls cost less than one element write per
+        message, and a field row is written whole (the robot reads its
+        first `in_nf` only, body.py `recv`)."""
+        to: list[int] = []
+        kinds: list[int] = []
+        nfs: list[int] = []
+        rows: list[tuple] = []
+        pad = _PAD
         lo_of, agents_of = self.lo, self.agents
         for r, out in sends:
             lo, agents = lo_of[r], agents_of[r]
             for node, kind, f in out:
+                nf = len(f)
+                if nf > B.FIELDS:
+                    raise EngineError(f"run {r}: the coordinator sent {nf} fields, more than "
+                                      f"a message holds ({B.FIELDS})")
+                row = tuple(f) + pad[nf]
                 if node == msg.HOST:
-                    to: Iterable[int] = range(lo, lo + agents)
+                    to.extend(range(lo, lo + agents))
+                    kinds.extend([kind] * agents)
+                    nfs.extend([nf] * agents)
+                    rows.extend([row] * agents)
                 elif 1 <= node <= agents:
-                    to = (lo + node - 1,)
+                    to.append(lo + node - 1)
+                    kinds.append(kind)
+                    nfs.append(nf)
+                    rows.append(row)
                 else:
                     raise EngineError(f"run {r}: the coordinator addressed node {node}, "
                                       f"which is not one of its {agents} robots")
-                nf = len(f)
-                for i in to:
-                    ring = at.get(i)
-                    if ring is None:
-                        ring = at[i] = [int(tail[i]), int(head[i])]
-                    pos = ring[0]
-                    if pos - ring[1] >= INBOX:
-                        raise EngineError(f"run {r}: robot {i - lo + 1} has {INBOX} "
-                                          "unread messages")
-                    ring[0] = pos + 1
-                    slot = pos % INBOX
-                    in_kind[i, slot] = kind
-                    in_nf[i, slot] = nf
-                    if nf:
-                        in_f[i, slot, :nf] = f
-        for i, ring in at.items():
-            tail[i] = ring[0]
+        head, tail = self.rb[B.IN_HEAD], self.rb[B.IN_TAIL]
+        idx = np.array(to, dtype=np.int64)
+        pos = tail[idx]
+        once = len(set(to)) == len(to)
+        if not once:                     # a robot's second command this tick goes after its first
+            seen: dict[int, int] = {}
+            nth = []
+            for i in to:
+                k = seen.get(i, 0)
+                nth.append(k)
+                seen[i] = k + 1
+            pos += np.array(nth, dtype=np.int64)
+        full = pos - head[idx] >= INBOX
+        if full.any():
+            i = to[int(np.argmax(full))]
+            r = self.run_of[i]
+            raise EngineError(f"run {r}: robot {i - self.lo[r] + 1} has {INBOX} unread messages")
+        slot = pos % INBOX
+        self.in_kind[idx, slot] = kinds
+        self.in_nf[idx, slot] = nfs
+        self.in_f[idx, slot] = rows
+        if once:
+            tail[idx] += 1
+        else:
+            tail[list(seen)] += list(seen.values())
 
     # -- run ends -----------------------------------------------------------------------------
 

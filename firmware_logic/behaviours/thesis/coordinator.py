@@ -196,7 +196,8 @@ class Touch:
 
 class Coordinator(Recognising, Roster):
     NOT_SNAPSHOT = Roster.NOT_SNAPSHOT + ("home_x", "home_y", "home_r2", "by_carrier",
-                                          "closed", "stall_ticks", "cells_box") \
+                                          "closed", "stall_ticks", "cells_box",
+                                          "leader_heard") \
         + Recognising.RECOGNITION_NOT_SNAPSHOT
     VOLATILE = ("step_sent_tick",)     # a resend of the same TRANSPORT
 
@@ -264,6 +265,9 @@ class Coordinator(Recognising, Roster):
         self.leader_x = 0        # leader pose, patches
         self.leader_y = 0
         self.leader_done = 0
+        # the fields of the leader's last HEARTBEAT that left its pose as
+        # above: a repeat changes nothing (muted)
+        self.leader_heard = None
         self.moved_x = 0         # object displacement since the touches
         self.moved_y = 0
         self.blocked = 0
@@ -302,6 +306,7 @@ class Coordinator(Recognising, Roster):
                 x = (f[1] + 128) >> 8
                 y = (f[2] + 128) >> 8
                 if (x, y, f[4]) == (self.leader_x, self.leader_y, self.leader_done):
+                    self.leader_heard = tuple(f)
                     return
                 # the leader moves with the object, at most one patch per
                 # step commanded since its last pose here (and the step it
@@ -317,6 +322,7 @@ class Coordinator(Recognising, Roster):
                 self.leader_x = x
                 self.leader_y = y
                 self.leader_done = f[4]
+                self.leader_heard = tuple(f)
                 lead = self.leader_touch()
                 self.moved_x = self.leader_x - lead.rx
                 self.moved_y = self.leader_y - lead.ry
@@ -479,15 +485,33 @@ class Coordinator(Recognising, Roster):
         return self.converged_tick < 0 and not (self.touches and self.power >= self.weight)
 
     def muted(self):
-        """(kind, nodes, but): the messages of that kind from the nodes in
-        `nodes` (a collection that only grows) other than node `but` would
-        change nothing until the next tick() (a batch engine then does not
-        hand them over; a message taken in between never makes one of them
-        count), or None. Here the HEARTBEATs of announced holders other than
-        the transport's leader, unless liveness or recognition read them."""
+        """(kind, nodes, but, same): the messages of that kind from the nodes
+        in `nodes` (a collection that only grows) other than node `but`, and
+        `but`'s with the fields `same`, would change nothing until the next
+        tick() (a batch engine then does not hand them over; a message taken
+        in between never makes one of them count, but one from `but` with
+        other fields ends `same`), or None. Here the HEARTBEATs of announced
+        holders, and the transport leader's that repeat the last one that
+        set its pose, unless liveness or recognition read them."""
         if self.lost_after or self.recognise:
             return None
-        return msg.HEARTBEAT, self.nodes, self.leader if self.step > 0 else 0
+        if self.step == 0:
+            return msg.HEARTBEAT, self.nodes, 0
+        f = self.leader_heard
+        if f is not None and ((f[1] + 128) >> 8, (f[2] + 128) >> 8, f[4]) != \
+                (self.leader_x, self.leader_y, self.leader_done):
+            f = None                  # the pose came from elsewhere (an adopted snapshot)
+        return msg.HEARTBEAT, self.nodes, self.leader, f
+
+    def idle_until(self):
+        """The first tick whose tick() may change anything or send when no
+        message comes before it (0: any): while the transport waits for the
+        leader to report a step, the step's resend and the stall."""
+        if self.outbox or self.acks or self.lost_after or self.recognise or self.done() \
+                or self.converged_tick < 0 or self.power < self.weight \
+                or self.last_move_tick < 0 or self.leader_done == self.step:
+            return 0
+        return min(self.step_sent_tick + RESEND_AFTER, self.last_move_tick + self.stall_ticks)
 
     def tick(self, tick):
         """Advance the centralised phase; return and clear the commands to send."""
@@ -753,8 +777,12 @@ class Coordinator(Recognising, Roster):
 
     def _command(self, tick):
         self.step_sent_tick = tick
+        # one fields tuple for every holder: a step commands about ten, and
+        # a batch plans tens of thousands of steps
+        f = (self.step, self.dx, self.dy)
+        out = self.outbox
         for node in self.carriers():
-            self._send(node, msg.TRANSPORT, (self.step, self.dx, self.dy))
+            out.append((node, msg.TRANSPORT, f))
 
     # -- liveness: holders that fall silent (lost_after > 0) ---------------------
 

@@ -1,0 +1,38 @@
+"""SoaEngine._deliver: a tick's commands into the robots' inbox rings, each
+robot's in the order sent (an engine built, not stepped: nothing compiles)."""
+
+import pytest
+
+from firmware_logic import messages as msg
+from sim_backend.batch import body as B
+from sim_backend.batch.soa import INBOX, SoaEngine
+from sim_backend.errors import EngineError
+from sim_backend.scenario import validate
+
+
+def inbox(eng, i):
+    """Robot i's unread messages, oldest first: (kind, fields)."""
+    head, tail = int(eng.rb[B.IN_HEAD, i]), int(eng.rb[B.IN_TAIL, i])
+    out = []
+    for pos in range(head, tail):
+        s = pos % INBOX
+        nf = int(eng.in_nf[i, s])
+        out.append((int(eng.in_kind[i, s]), tuple(eng.in_f[i, s, :nf].tolist())))
+    return out
+
+
+def test_commands_reach_their_robots_in_order_and_a_full_ring_is_an_error():
+    sc = validate({"agents": 3, "objectWeight": 2})
+    eng = SoaEngine([(sc, 1), (sc, 2)])
+    eng.rb[B.IN_HEAD, 4] = eng.rb[B.IN_TAIL, 4] = INBOX - 1      # robot 2 of run 1 wraps
+    eng._deliver([(0, [(2, msg.ACK, (5,)), (msg.HOST, msg.HALT, (0,)), (2, msg.ACK, (6,))]),
+                  (1, [(2, msg.TRANSPORT, (1, -1, 1)), (2, msg.ACK, ())])])
+    assert inbox(eng, 0) == [(msg.HALT, (0,))]
+    assert inbox(eng, 1) == [(msg.ACK, (5,)), (msg.HALT, (0,)), (msg.ACK, (6,))]
+    assert inbox(eng, 3) == []
+    assert inbox(eng, 4) == [(msg.TRANSPORT, (1, -1, 1)), (msg.ACK, ())]
+    with pytest.raises(EngineError, match="not one of its 3 robots"):
+        eng._deliver([(1, [(4, msg.ACK, (1,))])])
+    with pytest.raises(EngineError, match=f"run 1: robot 1 has {INBOX} unread"):
+        eng._deliver([(1, [(1, msg.ACK, (k,)) for k in range(INBOX + 1)])])
+    assert inbox(eng, 3) == []                 # refused whole: nothing written
