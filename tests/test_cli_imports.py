@@ -23,9 +23,10 @@ NOT_FOR_RUN = ("matplotlib", "numba", "llvmlite", "can", "cantools", "serial", "
 # uses (whole modules, not packages): installed packages' metadata (their
 # entry points; a built-in is found without them) and the email and zipfile
 # modules it loads, package resources, temporary files, child processes,
-# digests, sockets
+# digests, sockets; shutil (argparse's terminal width, asked only to print
+# help) and the compression modules it loads
 STDLIB_NOT_FOR_RUN = ("importlib.metadata", "importlib.resources", "email", "zipfile",
-                      "tempfile", "subprocess", "hashlib", "socket")
+                      "tempfile", "subprocess", "hashlib", "socket", "shutil", "bz2", "lzma")
 
 PROBE = """
 import contextlib, io, json, sys
@@ -122,6 +123,19 @@ def test_no_command_parser_needs_a_heavy_package():
     done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True,
                           text=True, timeout=300, check=True)
     assert loaded(json.loads(done.stdout), NOT_FOR_RUN) == []
+
+
+def test_help_still_wraps_at_the_terminal_width(monkeypatch):
+    """add_argument's metavar check formats with a fixed width (no shutil on
+    a run); the help a user reads keeps the terminal's."""
+    sub = next(a for a in cli.build_parser()._actions if isinstance(a, cli.LazyCommands))
+    sub.load("run")
+    for columns in (50, 120):
+        monkeypatch.setenv("COLUMNS", str(columns))
+        text = sub.choices["run"].format_help()     # options: wrapped (the epilog is raw)
+        lines = text[text.index("\noptions:"):text.index("\nexamples:")].splitlines()
+        assert max(map(len, lines)) <= columns - 2
+        assert max(map(len, lines)) > columns - 12
 
 
 def test_the_lazy_help_is_the_full_help():
