@@ -76,7 +76,8 @@ class OneLineParser(argparse.ArgumentParser):
 
     def _get_formatter(self) -> argparse.HelpFormatter:
         if self._checking:
-            return self.formatter_class(prog=self.prog, width=80)
+            # every HelpFormatter takes width (typeshed types the class by prog alone)
+            return self.formatter_class(prog=self.prog, width=80)  # type: ignore[call-arg]
         return super()._get_formatter()
 
 
