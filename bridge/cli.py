@@ -60,6 +60,26 @@ class OneLineParser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:
         self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see `{self.prog} --help`)\n")
 
+    # add_argument checks each metavar with a throw-away formatter, whose
+    # default width is the terminal's: shutil (and with it bz2, lzma, zlib),
+    # about 7 M instructions of a run's start-up for text nobody reads. The
+    # check formats no line, so its formatter gets a fixed width; help and
+    # usage keep the terminal's.
+    _checking = False
+
+    def add_argument(self, *args, **kwargs) -> argparse.Action:
+        self._checking = True
+        try:
+            return super().add_argument(*args, **kwargs)
+        finally:
+            self._checking = False
+
+    def _get_formatter(self) -> argparse.HelpFormatter:
+        if self._checking:
+            # every HelpFormatter takes width (typeshed types the class by prog alone)
+            return self.formatter_class(prog=self.prog, width=80)  # type: ignore[call-arg]
+        return super()._get_formatter()
+
 
 class LazyCommands(argparse._SubParsersAction):
     """The sub-parsers of COMMANDS, each built only when needed: `touchswarm
@@ -131,7 +151,9 @@ def build_parser(full: bool = False) -> argparse.ArgumentParser:
     p.add_argument("--version", action=LazyVersion,
                    help="print the installed version and exit")
     # sub-parsers are built by type(p), so every command's errors are one line too
-    sub = p.add_subparsers(dest="command", metavar="COMMAND", action=LazyCommands)
+    # prog given: argparse would format the usage line (a terminal-wide formatter) to find it
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", action=LazyCommands,
+                           prog=p.prog)
     if full:
         sub.load()
     return p

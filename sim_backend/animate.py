@@ -24,10 +24,9 @@ import numpy as np
 from sim_backend.observe import OutputFormatError, Snapshot, Trails, output_format
 
 # matplotlib (and sim_backend.render, which draws with it) is imported by
-# write() only: the command line reads MAX_FRAMES and checks --animate's
-# suffix before a run, and a run without --animate never draws; shutil and
-# subprocess (ffmpeg) likewise where they are used: every `touchswarm run`
-# imports this module
+# write() only: the command line checks --animate's suffix before a run
+# (and reads MAX_FRAMES for its help), and a run without --animate never
+# draws; shutil and subprocess (ffmpeg) likewise where they are used
 
 SUFFIXES = (".gif", ".mp4")
 MAX_FRAMES = 120

@@ -23,9 +23,10 @@ NOT_FOR_RUN = ("matplotlib", "numba", "llvmlite", "can", "cantools", "serial", "
 # uses (whole modules, not packages): installed packages' metadata (their
 # entry points; a built-in is found without them) and the email and zipfile
 # modules it loads, package resources, temporary files, child processes,
-# digests, sockets
+# digests, sockets; shutil (argparse's terminal width, asked only to print
+# help) and the compression modules it loads
 STDLIB_NOT_FOR_RUN = ("importlib.metadata", "importlib.resources", "email", "zipfile",
-                      "tempfile", "subprocess", "hashlib", "socket")
+                      "tempfile", "subprocess", "hashlib", "socket", "shutil", "bz2", "lzma")
 
 PROBE = """
 import contextlib, io, json, sys
@@ -78,6 +79,8 @@ def test_help_lists_every_command_without_building_one():
 def test_run_help_builds_only_run():
     got = probe("run", "--help")
     assert got["code"] == 0 and "--animate FILE" in got["out"]
+    from sim_backend.animate import MAX_FRAMES
+    assert f"at most {MAX_FRAMES} frames" in " ".join(got["out"].split())
     assert loaded(got["modules"], NOT_FOR_RUN) == []
     assert commands(got["modules"]) == ["bridge.commands.run"]
 
@@ -89,6 +92,7 @@ def test_a_run_loads_no_can_compiler_serial_plot_or_parquet_package():
     assert loaded(got["modules"], NOT_FOR_RUN) == []
     assert commands(got["modules"]) == ["bridge.commands.run"]
     assert sorted(set(got["modules"]) & set(STDLIB_NOT_FOR_RUN)) == []
+    assert "sim_backend.animate" not in got["modules"]     # read by --animate and its help only
 
 
 def test_a_sweep_without_a_preset_loads_no_plotting_module(tmp_path):
@@ -114,14 +118,25 @@ def test_importing_the_facade_reads_the_version_only_when_asked():
 
 def test_no_command_parser_needs_a_heavy_package():
     """Every command's --help (all parsers built, as for docs/cli.md) loads
-    none of them but numpy (run's parser reads sim_backend.animate's
-    MAX_FRAMES, beside the engine's snapshots): heavy imports are inside the
-    handlers."""
+    none of them: heavy imports are inside the handlers."""
     code = ("import json, sys; from bridge.cli import build_parser; build_parser(full=True); "
             "print(json.dumps(sorted(sys.modules)))")
     done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True,
                           text=True, timeout=300, check=True)
     assert loaded(json.loads(done.stdout), NOT_FOR_RUN) == []
+
+
+def test_help_still_wraps_at_the_terminal_width(monkeypatch):
+    """add_argument's metavar check formats with a fixed width (no shutil on
+    a run); the help a user reads keeps the terminal's."""
+    sub = next(a for a in cli.build_parser()._actions if isinstance(a, cli.LazyCommands))
+    sub.load("run")
+    for columns in (50, 120):
+        monkeypatch.setenv("COLUMNS", str(columns))
+        text = sub.choices["run"].format_help()     # options: wrapped (the epilog is raw)
+        lines = text[text.index("\noptions:"):text.index("\nexamples:")].splitlines()
+        assert max(map(len, lines)) <= columns - 2
+        assert max(map(len, lines)) > columns - 12
 
 
 def test_the_lazy_help_is_the_full_help():

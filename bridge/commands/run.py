@@ -108,10 +108,22 @@ def scenario_from_args(args: argparse.Namespace):
     return sc.replace(**changes) if changes else sc
 
 
+class RunHelp(argparse.RawDescriptionHelpFormatter):
+    """--animate's help names sim_backend.animate's MAX_FRAMES, read when
+    the help is printed: a run without --animate never imports that module
+    (5-6 M instructions of start-up)."""
+
+    def _expand_help(self, action: argparse.Action) -> str:
+        text = super()._expand_help(action)
+        if "{MAX_FRAMES}" not in text:
+            return text
+        from sim_backend.animate import MAX_FRAMES
+        return text.replace("{MAX_FRAMES}", str(MAX_FRAMES))
+
+
 def register(sub) -> None:
     from bridge.commands.numbers import count
     from bridge.record.formats import FORMATS
-    from sim_backend.animate import MAX_FRAMES
     p = sub.add_parser(
         "run",
         description="Run one scenario to the end with no hardware: the behaviour's robots "
@@ -127,7 +139,7 @@ def register(sub) -> None:
                "  touchswarm run --robots 12 --set sigRadius=8 --json\n"
                "  touchswarm run --link can --record run.blf      # then: touchswarm replay "
                "run.blf",
-        formatter_class=argparse.RawDescriptionHelpFormatter)
+        formatter_class=RunHelp)
     add_scenario_args(p)
     p.add_argument("--out", type=path_arg, metavar="DIR",
                    help="directory (created if missing) for world.png, summary.json and the "
@@ -150,8 +162,8 @@ def register(sub) -> None:
                         "trails coloured by state, the field, touches in order, the "
                         "behaviour's reporters in the title (the thesis: also the perceived "
                         "shape and the path home). Frames: the start, every --frame-every ticks "
-                        f"and the last tick; by default the stride doubles until at most "
-                        f"{MAX_FRAMES} frames are kept (the default scenario: 87 frames, "
+                        "and the last tick; by default the stride doubles until at most "
+                        "{MAX_FRAMES} frames are kept (the default scenario: 87 frames, "
                         "about 1.3 MB)")
     p.add_argument("--frame-every", type=count(1, what="ticks per frame"), metavar="K",
                    help="with --animate: one frame every K ticks (default: automatic, see "
