@@ -79,6 +79,16 @@ UPHILL_H = (0, 45, 90, 135, 180, 225, 270, 315)
 UPHILL_DX = (0, 1, 1, 1, 0, -1, -1, -1)
 UPHILL_DY = (1, 1, 0, -1, -1, -1, 0, 1)
 
+# activation netlogo in a run of WARM_MIN robots or more: the robot WARM_ROW
+# turns on and the patches round the one WARM_CELL turns on are read ahead,
+# so their cache lines are in when their turns come (docs/performance.md, "The
+# netlogo activation's tick"); the reads' sum is never WARM_NEVER (its terms
+# are far below 2**60 / 40,000)
+WARM_MIN = 512
+WARM_ROW = 4
+WARM_CELL = 2
+WARM_NEVER = 1 << 60
+
 # activation (a run's `act`)
 SYNC = 0            # every robot decides on the tick-start world
 SEQUENTIAL = 1      # NetLogo's ask, one robot after another
@@ -806,8 +816,36 @@ def go_iteration(robots, hal, g, rb, run, r):
     for i in range(lo, hi):
         rb.beacon_set[i] = -1
     draw_order(rb, run, r)
+    order = rb.order
+    xs = rb.xs
+    ys = rb.ys
+    w = run.w[r]
+    n = run.n[r]
+    base = run.base[r]
+    # a big run's robots and their patches are read ahead of their turns
+    # (WARM_MIN): in a random order each turn's data is a cache miss
+    far = hi - WARM_ROW
+    if hi - lo < WARM_MIN:
+        far = lo
+    warm = 0
     for j in range(lo, hi):
-        i = rb.order[j]
+        if j < far:
+            a = order[j + WARM_ROW]
+            warm += robots[a].state + xs[a] + ys[a] + rb.held[a] + rb.mv_on[a] + \
+                rb.mv_h[a] + rb.mv_step[a] + rb.claim[a] + rb.beacon_set[a]
+            a = order[j + WARM_CELL]
+            px = fx.patch(xs[a])
+            py = fx.patch(ys[a])
+            c = base + cell(w, n, px, py)
+            up = c
+            if py < w:
+                up = c + n
+            down = c
+            if py > -w:
+                down = c - n
+            warm += g.field[down] + g.field[c] + g.field[up] + g.obj[down] + g.obj[c] + \
+                g.obj[up] + g.occ[down] + g.occ[c] + g.occ[up]
+        i = order[j]
         steps = turn_steps(run, r, robots[i].state)
         k = 0
         while k < steps:
@@ -816,13 +854,16 @@ def go_iteration(robots, hal, g, rb, run, r):
             rb.claim[i] = -1
             hal.turn(robots[i], i)
             claimed = rb.claim[i] >= 0
-            apply_robot(g, rb, run, r, i)
+            if claimed or rb.mv_on[i] != 0:     # else apply_robot changes nothing
+                apply_robot(g, rb, run, r, i)
             run.steps[r] += 1
             if claimed:
                 steps = k + 2
             elif was != fs and robots[i].state == fs:
                 steps = k + 1 + turn_steps(run, r, robots[i].state)
             k += 1
+    if warm == WARM_NEVER:
+        run.steps[r] = warm     # never: the sum only keeps the reads ahead
     end_iteration(g, rb, run, r)
 
 
