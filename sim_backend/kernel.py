@@ -80,14 +80,12 @@ UPHILL_DX = (0, 1, 1, 1, 0, -1, -1, -1)
 UPHILL_DY = (1, 1, 0, -1, -1, -1, 0, 1)
 
 # activation netlogo in a run of WARM_MIN robots or more: the robot WARM_ROW
-# turns on and the patches round the one WARM_CELL turns on are read ahead,
-# so their cache lines are in when their turns come (docs/performance.md, "The
-# netlogo activation's tick"); the reads' sum is never WARM_NEVER (its terms
-# are far below 2**60 / 40,000)
+# turns on and the patches round the one WARM_CELL turns on are fetched
+# ahead (prefetch), so their cache lines are in when their turns come
+# (docs/performance.md, "The netlogo activation's tick")
 WARM_MIN = 512
 WARM_ROW = 4
 WARM_CELL = 2
-WARM_NEVER = 1 << 60
 
 # activation (a run's `act`)
 SYNC = 0            # every robot decides on the tick-start world
@@ -182,6 +180,13 @@ def fold_q8(w, n, q, rules):
         edge = w * fx.ONE + fx.HALF          # the arena's west (south) edge, in Q8
         return (q + edge) % (n * fx.ONE) - edge
     return q
+
+
+def prefetch(a, k):
+    """A hint that a[k] (robot k's fields when a is the list of robots) is
+    read soon: nothing here; the batch engine compiles it to a cache
+    prefetch (sim_backend/batch/borrow.py), which unlike a read never waits
+    for its line."""
 
 
 def ahead_x(x, h):
@@ -803,7 +808,10 @@ def go_iteration(robots, hal, g, rb, run, r):
     """One go iteration of run r, NetLogo's `ask robots`: each robot in a
     freshly drawn order (draw_order) takes its turn's steps (turn_steps),
     each applied at once (apply_robot); then the iteration's beacons and
-    the carried group (end_iteration).
+    the carried group (end_iteration). The last robot in the order whose
+    beacon turns on is go's `found` (set by the last LookForObject of the
+    iteration): a robot's beacon call is its own turn's, and beacons change
+    only at the iteration's end, so it is known once its turn is over.
 
     A claim is a touch: one more step grasps (LookForObject holds at once)
     and the turn ends (go's `if foundObject [ stop ]`); a robot that has
@@ -822,29 +830,43 @@ def go_iteration(robots, hal, g, rb, run, r):
     w = run.w[r]
     n = run.n[r]
     base = run.base[r]
-    # a big run's robots and their patches are read ahead of their turns
+    # a big run's robots and their patches are fetched ahead of their turns
     # (WARM_MIN): in a random order each turn's data is a cache miss
     far = hi - WARM_ROW
     if hi - lo < WARM_MIN:
         far = lo
-    warm = 0
+    last = -1
     for j in range(lo, hi):
         if j < far:
             a = order[j + WARM_ROW]
-            warm += robots[a].state + xs[a] + ys[a] + rb.held[a] + rb.mv_on[a] + \
-                rb.mv_h[a] + rb.mv_step[a] + rb.claim[a] + rb.beacon_set[a]
+            prefetch(robots, a)
+            prefetch(xs, a)
+            prefetch(ys, a)
+            prefetch(rb.held, a)
+            prefetch(rb.mv_on, a)
+            prefetch(rb.mv_h, a)
+            prefetch(rb.mv_step, a)
+            prefetch(rb.claim, a)
+            prefetch(rb.beacon_set, a)
+            prefetch(rb.beacon_on, a)
             a = order[j + WARM_CELL]
-            px = fx.patch(xs[a])
             py = fx.patch(ys[a])
-            c = base + cell(w, n, px, py)
+            c = base + cell(w, n, fx.patch(xs[a]), py)
             up = c
             if py < w:
                 up = c + n
             down = c
             if py > -w:
                 down = c - n
-            warm += g.field[down] + g.field[c] + g.field[up] + g.obj[down] + g.obj[c] + \
-                g.obj[up] + g.occ[down] + g.occ[c] + g.occ[up]
+            prefetch(g.field, down)
+            prefetch(g.field, c)
+            prefetch(g.field, up)
+            prefetch(g.obj, down)
+            prefetch(g.obj, c)
+            prefetch(g.obj, up)
+            prefetch(g.occ, down)
+            prefetch(g.occ, c)
+            prefetch(g.occ, up)
         i = order[j]
         steps = turn_steps(run, r, robots[i].state)
         k = 0
@@ -862,9 +884,9 @@ def go_iteration(robots, hal, g, rb, run, r):
             elif was != fs and robots[i].state == fs:
                 steps = k + 1 + turn_steps(run, r, robots[i].state)
             k += 1
-    if warm == WARM_NEVER:
-        run.steps[r] = warm     # never: the sum only keeps the reads ahead
-    end_iteration(g, rb, run, r)
+        if rb.beacon_set[i] >= 1 and rb.beacon_on[i] == 0:
+            last = i
+    end_iteration(g, rb, run, r, last)
 
 
 def order_seed(seed):
@@ -942,22 +964,12 @@ def apply_robot(g, rb, run, r, i):
     rb.ys[i] = ny
 
 
-def last_finder(rb, run, r):
-    """The last robot in this iteration's order whose beacon turns on (go's
-    `found`, set by the last LookForObject of the iteration), -1 if none."""
-    last = -1
-    for j in range(run.lo[r], run.hi[r]):
-        i = rb.order[j]
-        if rb.beacon_set[i] >= 1 and rb.beacon_on[i] == 0:
-            last = i
-    return last
-
-
-def end_iteration(g, rb, run, r):
+def end_iteration(g, rb, run, r, last):
     """After every robot's turn: the beacons of the iteration (go's Signal
-    after the ask; the last finder in the drawn order), the carried group
-    (with the arena's `rules`, as in apply_tick), occupancy recounted."""
-    beacons_last(g, rb, run, r, last_finder(rb, run, r))
+    after the ask; `last`, the last finder in the drawn order, -1: none), the
+    carried group (with the arena's `rules`, as in apply_tick), occupancy
+    recounted."""
+    beacons_last(g, rb, run, r, last)
     if carry_group(g, rb, run, r) and (run.rules[r] & DYNAMIC) != 0:
         carry_beacons(g, rb, run, r)
     recount(g, rb, run, r)
