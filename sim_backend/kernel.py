@@ -852,21 +852,10 @@ def go_iteration(robots, hal, g, rb, run, r):
             a = order[j + WARM_CELL]
             py = fx.patch(ys[a])
             c = base + cell(w, n, fx.patch(xs[a]), py)
-            up = c
-            if py < w:
-                up = c + n
-            down = c
-            if py > -w:
-                down = c - n
-            prefetch(g.field, down)
-            prefetch(g.field, c)
-            prefetch(g.field, up)
-            prefetch(g.obj, down)
-            prefetch(g.obj, c)
-            prefetch(g.obj, up)
-            prefetch(g.occ, down)
-            prefetch(g.occ, c)
-            prefetch(g.occ, up)
+            for d in range(max(-1, -w - py), min(1, w - py) + 1):
+                prefetch(g.field, c + d * n)     # the rows of patches round it
+                prefetch(g.obj, c + d * n)
+                prefetch(g.occ, c + d * n)
         i = order[j]
         steps = turn_steps(run, r, robots[i].state)
         k = 0
