@@ -124,9 +124,10 @@ def test_summaries_report_convergence_in_go_iterations_and_in_moves():
 
 
 def test_reading_a_big_runs_robots_ahead_changes_nothing(monkeypatch):
-    """A run of kernel.WARM_MIN robots reads each robot's row and patches a
-    few turns ahead of it (a cache warm-up for the compiled tick): the run
-    is the one without, robots on the arena's edge rows among them."""
+    """A run of kernel.WARM_MIN robots fetches each robot's row and patches a
+    few turns ahead of its turn (kernel.prefetch: a cache hint when
+    compiled, nothing here): the run is the one without, robots on the
+    arena's edge rows among them."""
     sc = validate({"agents": kernel.WARM_MIN, "worldSize": 24, "objectWeight": 3,
                    "activation": "netlogo", "maxTicks": 20})
 
