@@ -79,6 +79,14 @@ UPHILL_H = (0, 45, 90, 135, 180, 225, 270, 315)
 UPHILL_DX = (0, 1, 1, 1, 0, -1, -1, -1)
 UPHILL_DY = (1, 1, 0, -1, -1, -1, 0, 1)
 
+# activation netlogo in a run of WARM_MIN robots or more: the robot WARM_ROW
+# turns on and the patches round the one WARM_CELL turns on are fetched
+# ahead (prefetch), so their cache lines are in when their turns come
+# (docs/performance.md, "The netlogo activation's tick")
+WARM_MIN = 512
+WARM_ROW = 4
+WARM_CELL = 2
+
 # activation (a run's `act`)
 SYNC = 0            # every robot decides on the tick-start world
 SEQUENTIAL = 1      # NetLogo's ask, one robot after another
@@ -172,6 +180,13 @@ def fold_q8(w, n, q, rules):
         edge = w * fx.ONE + fx.HALF          # the arena's west (south) edge, in Q8
         return (q + edge) % (n * fx.ONE) - edge
     return q
+
+
+def prefetch(a, k):
+    """A hint that a[k] (robot k's fields when a is the list of robots) is
+    read soon: nothing here; the batch engine compiles it to a cache
+    prefetch (sim_backend/batch/borrow.py), which unlike a read never waits
+    for its line."""
 
 
 def ahead_x(x, h):
@@ -793,7 +808,10 @@ def go_iteration(robots, hal, g, rb, run, r):
     """One go iteration of run r, NetLogo's `ask robots`: each robot in a
     freshly drawn order (draw_order) takes its turn's steps (turn_steps),
     each applied at once (apply_robot); then the iteration's beacons and
-    the carried group (end_iteration).
+    the carried group (end_iteration). The last robot in the order whose
+    beacon turns on is go's `found` (set by the last LookForObject of the
+    iteration): a robot's beacon call is its own turn's, and beacons change
+    only at the iteration's end, so it is known once its turn is over.
 
     A claim is a touch: one more step grasps (LookForObject holds at once)
     and the turn ends (go's `if foundObject [ stop ]`); a robot that has
@@ -806,8 +824,39 @@ def go_iteration(robots, hal, g, rb, run, r):
     for i in range(lo, hi):
         rb.beacon_set[i] = -1
     draw_order(rb, run, r)
+    order = rb.order
+    xs = rb.xs
+    ys = rb.ys
+    w = run.w[r]
+    n = run.n[r]
+    base = run.base[r]
+    # a big run's robots and their patches are fetched ahead of their turns
+    # (WARM_MIN): in a random order each turn's data is a cache miss
+    far = hi - WARM_ROW
+    if hi - lo < WARM_MIN:
+        far = lo
+    last = -1
     for j in range(lo, hi):
-        i = rb.order[j]
+        if j < far:
+            a = order[j + WARM_ROW]
+            prefetch(robots, a)
+            prefetch(xs, a)
+            prefetch(ys, a)
+            prefetch(rb.held, a)
+            prefetch(rb.mv_on, a)
+            prefetch(rb.mv_h, a)
+            prefetch(rb.mv_step, a)
+            prefetch(rb.claim, a)
+            prefetch(rb.beacon_set, a)
+            prefetch(rb.beacon_on, a)
+            a = order[j + WARM_CELL]
+            py = fx.patch(ys[a])
+            c = base + cell(w, n, fx.patch(xs[a]), py)
+            for d in range(max(-1, -w - py), min(1, w - py) + 1):
+                prefetch(g.field, c + d * n)     # the rows of patches round it
+                prefetch(g.obj, c + d * n)
+                prefetch(g.occ, c + d * n)
+        i = order[j]
         steps = turn_steps(run, r, robots[i].state)
         k = 0
         while k < steps:
@@ -816,14 +865,17 @@ def go_iteration(robots, hal, g, rb, run, r):
             rb.claim[i] = -1
             hal.turn(robots[i], i)
             claimed = rb.claim[i] >= 0
-            apply_robot(g, rb, run, r, i)
+            if claimed or rb.mv_on[i] != 0:     # else apply_robot changes nothing
+                apply_robot(g, rb, run, r, i)
             run.steps[r] += 1
             if claimed:
                 steps = k + 2
             elif was != fs and robots[i].state == fs:
                 steps = k + 1 + turn_steps(run, r, robots[i].state)
             k += 1
-    end_iteration(g, rb, run, r)
+        if rb.beacon_set[i] >= 1 and rb.beacon_on[i] == 0:
+            last = i
+    end_iteration(g, rb, run, r, last)
 
 
 def order_seed(seed):
@@ -901,22 +953,12 @@ def apply_robot(g, rb, run, r, i):
     rb.ys[i] = ny
 
 
-def last_finder(rb, run, r):
-    """The last robot in this iteration's order whose beacon turns on (go's
-    `found`, set by the last LookForObject of the iteration), -1 if none."""
-    last = -1
-    for j in range(run.lo[r], run.hi[r]):
-        i = rb.order[j]
-        if rb.beacon_set[i] >= 1 and rb.beacon_on[i] == 0:
-            last = i
-    return last
-
-
-def end_iteration(g, rb, run, r):
+def end_iteration(g, rb, run, r, last):
     """After every robot's turn: the beacons of the iteration (go's Signal
-    after the ask; the last finder in the drawn order), the carried group
-    (with the arena's `rules`, as in apply_tick), occupancy recounted."""
-    beacons_last(g, rb, run, r, last_finder(rb, run, r))
+    after the ask; `last`, the last finder in the drawn order, -1: none), the
+    carried group (with the arena's `rules`, as in apply_tick), occupancy
+    recounted."""
+    beacons_last(g, rb, run, r, last)
     if carry_group(g, rb, run, r) and (run.rules[r] & DYNAMIC) != 0:
         carry_beacons(g, rb, run, r)
     recount(g, rb, run, r)

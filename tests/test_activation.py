@@ -123,6 +123,29 @@ def test_summaries_report_convergence_in_go_iterations_and_in_moves():
     assert net["converged_tick"] < net["converged_moves"] < 5 * net["converged_tick"]
 
 
+def test_reading_a_big_runs_robots_ahead_changes_nothing(monkeypatch):
+    """A run of kernel.WARM_MIN robots fetches each robot's row and patches a
+    few turns ahead of its turn (kernel.prefetch: a cache hint when
+    compiled, nothing here): the run is the one without, robots on the
+    arena's edge rows among them."""
+    sc = validate({"agents": kernel.WARM_MIN, "worldSize": 24, "objectWeight": 3,
+                   "activation": "netlogo", "maxTicks": 20})
+
+    def run():
+        e = Engine(sc, 5)
+        for _ in range(6):
+            e.step()
+        w = e.world
+        return (list(w.xs), list(w.ys), list(w.held), list(w.field), list(w.obj),
+                [r.state for r in e.robots], [r.heading for r in e.robots])
+
+    warm = run()
+    monkeypatch.setattr(kernel, "WARM_MIN", kernel.WARM_MIN + 1)
+    assert run() == warm
+    rows = {(y + 128) >> 8 for y in warm[1]}
+    assert {-24, 24} <= rows, "no robot on an edge row: a weak test"
+
+
 @pytest.mark.parametrize("model", ["firefly", "ant"])
 def test_batch_equals_reference_under_netlogo_activation(model):
     scs, seeds = [], []

@@ -56,11 +56,6 @@ FIELDS = 6      # message fields a HAL send() carries
 AHEAD = 4
 
 
-def prefetch(a, k):
-    """A hint that a[k] is read soon: nothing here; the compiled step asks
-    the cache for it (transform.INTRINSICS, borrow.prefetch)."""
-
-
 class BatchBody:
     def __init__(self, grid, rb, runs, robots, out_i, out_kind, out_f, out_n,
                  in_kind, in_nf, in_f):
@@ -93,9 +88,9 @@ class BatchBody:
             k = self.runs.base[r] + kernel.cell(self.runs.w[r], n, fx.patch(self.rb.xs[j]),
                                                 fx.patch(self.rb.ys[j]))
             for d in range(-1, 2):
-                prefetch(self.g.obj, k + d * n)
-                prefetch(self.g.occ, k + d * n)
-                prefetch(self.g.field, k + d * n)
+                kernel.prefetch(self.g.obj, k + d * n)
+                kernel.prefetch(self.g.occ, k + d * n)
+                kernel.prefetch(self.g.field, k + d * n)
         self.i = i
         robot.step(self)
 

@@ -57,23 +57,40 @@ class NoAlias(Compiler):
 
 
 @intrinsic
-def prefetch(typingctx, array, index):
-    """Ask the cache for array[index] ahead of its read (`llvm.prefetch`:
-    never faults, so an index off the array is harmless); the compiled form
-    of body.prefetch."""
-    if not isinstance(array, types.Array) or not isinstance(index, types.Integer):
+def prefetch(typingctx, ary, index):
+    """kernel.prefetch compiled: a cache prefetch of `ary[index]` (of every
+    line of row `index` when `ary` is 2-D, an object table's row), which
+    unlike a read never waits for its line (a random order's reads ahead
+    would stall the core as long as the misses they spare)."""
+    if not isinstance(ary, types.Array) or ary.ndim not in (1, 2) or \
+            not isinstance(index, types.Integer):
         return None
 
     def codegen(context, builder, sig, args):
-        ary = context.make_array(sig.args[0])(context, builder, value=args[0])
-        ptr = builder.gep(ary.data, [builder.sext(args[1], ir.IntType(64))
-                                     if args[1].type.width < 64 else args[1]])
+        aryty = sig.args[0]
+        a = context.make_array(aryty)(context, builder, value=args[0])
+        i64 = ir.IntType(64)
         i8p = ir.IntType(8).as_pointer()
-        i32 = ir.IntType(32)
-        fn = cgutils.get_or_insert_function(
-            builder.module, ir.FunctionType(ir.VoidType(), [i8p, i32, i32, i32]),
-            "llvm.prefetch.p0")
-        # read, the strongest locality (all cache levels), the data cache
-        builder.call(fn, [builder.bitcast(ptr, i8p), i32(0), i32(3), i32(1)])
+        fnty = ir.FunctionType(ir.VoidType(), [i8p, ir.IntType(32), ir.IntType(32),
+                                               ir.IntType(32)])
+        fetch = cgutils.get_or_insert_function(builder.module, fnty, "llvm.prefetch.p0i8")
+        flags = [ir.Constant(ir.IntType(32), v) for v in (0, 3, 1)]   # read, keep, data
+        if aryty.ndim == 1:
+            ptr = cgutils.get_item_pointer(context, builder, aryty, a, [args[1]],
+                                           wraparound=False)
+            builder.call(fetch, [builder.bitcast(ptr, i8p)] + flags)
+            return context.get_dummy_value()
+        zero = context.get_constant(types.intp, 0)
+        ptr = cgutils.get_item_pointer(context, builder, aryty, a, [args[1], zero],
+                                       wraparound=False)
+        start = builder.ptrtoint(ptr, i64)
+        shape = cgutils.unpack_tuple(builder, a.shape, 2)
+        size = builder.mul(builder.sext(shape[1], i64), builder.sext(a.itemsize, i64))
+        first = builder.and_(start, ir.Constant(i64, -64))
+        end = builder.add(builder.add(start, size), ir.Constant(i64, 63))
+        lines = builder.udiv(builder.sub(end, first), ir.Constant(i64, 64))
+        with cgutils.for_range(builder, lines) as loop:
+            at = builder.add(first, builder.mul(loop.index, ir.Constant(i64, 64)))
+            builder.call(fetch, [builder.inttoptr(at, i8p)] + flags)
         return context.get_dummy_value()
-    return types.none(array, index), codegen
+    return types.none(ary, index), codegen

@@ -52,9 +52,10 @@ STATE = "_soa"                      # the state placeholder of every function
 CODEGEN = "borrowed noalias entries, per-robot path inlined, prefetch"
 BUILTINS = {"range", "len", "abs", "min", "max", "int", "bool"}
 CONSTANT_TYPES = (bool, int, float, str, type(None))
-# plain functions the generated code calls as numba intrinsics (borrow.py):
-# their Python body is what the uncompiled code runs
-INTRINSICS = {"sim_backend.batch.body.prefetch": "prefetch"}
+# plain functions the generated code calls as borrow.py's numba intrinsic of
+# the same name (an array, or a list of objects as its table, then ints); their
+# Python body is what the uncompiled code runs
+INTRINSICS = {"sim_backend.kernel.prefetch": "prefetch"}
 
 
 # -- kinds of values -------------------------------------------------------------
@@ -705,10 +706,9 @@ class FunctionTransform:
 
     def call_resolved(self, v: ast.expr, kind: Any, e: ast.Call) -> tuple[ast.expr, Any]:
         if isinstance(kind, tuple) and kind[0] == "function":
-            native = INTRINSICS.get(f"{kind[1].__module__}.{kind[1].__qualname__}")
-            if native is not None:
-                return ast.Call(ast.Name(native, ast.Load()), [self.scalar(a) for a in e.args],
-                                []), SCALAR
+            name = INTRINSICS.get(f"{kind[1].__module__}.{kind[1].__qualname__}")
+            if name is not None:
+                return self.intrinsic(name, e), SCALAR
             return self.invoke(kind[1], None, [], e), SCALAR
         if isinstance(kind, tuple) and kind[0] == "class":
             raise _err(self.fn, e, f"constructing a {kind[1].__name__} (an allocation)")
@@ -717,6 +717,19 @@ class FunctionTransform:
                             [ast.keyword(k.arg, self.scalar(k.value)) for k in e.keywords]
                             ), SCALAR
         raise _err(self.fn, e, "calling a value that is not a function")
+
+    def intrinsic(self, name: str, e: ast.Call) -> ast.expr:
+        args = []
+        for a in e.args:
+            v, kind = self.expr(a)
+            if isinstance(kind, Row):
+                v = ast.Subscript(self._row_arr(kind), kind.index, ast.Load())
+            elif isinstance(kind, ListOf):
+                v = self.state(ints_name(self.p.layout.classes[kind.cls]))
+            elif kind != SCALAR:
+                raise _err(self.fn, e, f"passing a {kind} to {name}")
+            args.append(v)
+        return ast.Call(ast.Name(name, ast.Load()), args, [])
 
     def invoke(self, fn: FunctionType, owner: type | None, bound: list, e: ast.Call) -> ast.expr:
         """A call of a transformed function: objects pass as their indices."""
