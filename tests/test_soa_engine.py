@@ -330,3 +330,14 @@ def test_an_error_that_is_not_the_cache_is_raised_and_the_cache_kept(tmp_path, m
     with pytest.raises(ValueError, match="a bug in the step"):
         c.first_call(boom, ())
     assert list(cache.glob("*.nbi"))
+
+
+def test_a_big_netlogo_run_fetched_ahead_is_the_reference():
+    """From kernel.WARM_MIN robots the compiled netlogo turn asks the cache
+    for the robots and patches a few turns ahead (borrow.prefetch) and the
+    body for the grid rows ahead (both no-ops in the reference): tick by
+    tick the same run."""
+    from sim_backend import kernel
+    sc = validate({"agents": kernel.WARM_MIN, "worldSize": 24, "objectWeight": 3,
+                   "activation": "netlogo", "maxTicks": 8})
+    assert_same([sc], [5])
