@@ -17,6 +17,8 @@ import itertools
 import logging
 import os
 import socket
+import struct
+import sys
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -687,10 +689,62 @@ def _progress_queue(executor: Executor) -> tuple[Any, Callable[[], None]]:
         import queue
         return queue.Queue(), (lambda: None)
     if isinstance(executor, ProcessPoolExecutor):
+        if sys.platform == "linux":
+            inbox = _Inbox()
+            return inbox, inbox.close
         import multiprocessing
         manager = multiprocessing.Manager()
         return manager.Queue(), manager.shutdown
     return None, (lambda: None)
+
+
+class _Inbox:
+    """Progress from worker processes as datagrams on a Unix socket this
+    process reads: no Manager server process to fork and stop (a copy of
+    this process, numba loaded). Abstract-namespace (Linux): nothing on disk,
+    and any worker reaches it by its address, however the pool started it.
+    A full socket drops what a worker sends; harmless, since each message
+    is a chunk's count so far and its result brings the final one."""
+
+    def __init__(self) -> None:
+        self._sock = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+        self._sock.bind("")                 # an unused abstract address
+        self._sock.setblocking(False)
+        self.address: bytes = self._sock.getsockname()
+
+    def __reduce__(self) -> tuple[type, tuple[bytes]]:
+        return _Outbox, (self.address,)     # what a worker gets
+
+    def get_nowait(self) -> tuple[int, int]:
+        import queue
+        try:
+            data = self._sock.recv(_PROGRESS.size)
+        except BlockingIOError:
+            raise queue.Empty from None
+        return _PROGRESS.unpack(data)
+
+    def close(self) -> None:
+        self._sock.close()
+
+
+class _Outbox:
+    """A worker's end of an _Inbox: put((chunk_id, k)) never blocks."""
+
+    def __init__(self, address: bytes) -> None:
+        self.address = address
+
+    def put(self, item: tuple[int, int]) -> None:
+        if not _OUTBOX_SOCKET:              # one unbound socket reaches any inbox
+            _OUTBOX_SOCKET.append(socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM))
+            _OUTBOX_SOCKET[0].setblocking(False)
+        try:
+            _OUTBOX_SOCKET[0].sendto(_PROGRESS.pack(*item), self.address)
+        except (BlockingIOError, ConnectionRefusedError):   # full, or the sweep ended
+            pass
+
+
+_PROGRESS = struct.Struct("<qq")                       # (chunk_id, k)
+_OUTBOX_SOCKET: list[socket.socket] = []               # a worker process's
 
 
 def _run_on(executor: Executor, next_chunk: Callable[[], tuple[list[int], str]],

@@ -82,3 +82,26 @@ def test_cli_prints_progress_lines_when_stderr_is_not_a_terminal(tmp_path, capsy
     # one chunk of 12 runs, yet a line per finished run (every 5% of 12 runs is 1 run)
     assert len(lines) > 1
     assert lines[-1].startswith("sweep: 12/12 runs (100%)") and "runs/s, ETA" in lines[-1]
+
+
+def test_worker_progress_channel_never_blocks_a_worker_and_keeps_order():
+    """A worker's end (what pickling the inbox sends) puts without blocking,
+    even when the sweep is not reading or has ended; the reader gets the
+    counts in the order they were put, then Empty."""
+    import pickle
+    import queue
+    with ProcessPoolExecutor(1) as pool:       # no work submitted: no process starts
+        inbox, close = sweep._progress_queue(pool)
+    out = pickle.loads(pickle.dumps(inbox))
+    assert type(out) is not type(inbox)
+    for k in range(1, 1001):           # far more than a socket holds unread
+        out.put((7, k))
+    got = []
+    while True:
+        try:
+            got.append(inbox.get_nowait())
+        except queue.Empty:
+            break
+    assert got and got == [(7, k) for k in range(1, len(got) + 1)]
+    close()
+    out.put((7, 1001))                 # the sweep has ended: dropped, no error

@@ -144,19 +144,29 @@ class Compiled:
 
 
 def _without_blas() -> None:
-    """Import numba's array maths without asking for scipy's BLAS: it does
-    so once per process to choose np.correlate's and np.convolve's inner
-    loop (the linear algebra asks again itself), importing scipy.linalg, a
-    quarter second of a warm sweep's start. A generated step is integers
-    only (transform.py's subset): it calls neither."""
-    if "numba.np.arraymath" in sys.modules or "scipy.linalg" in sys.modules:
-        return
-    blas = "scipy.linalg.cython_blas"
-    sys.modules[blas] = None            # type: ignore[assignment]  # an ImportError
-    try:
-        import numba.np.arraymath  # noqa: F401
-    finally:
-        del sys.modules[blas]
+    """Import numba's array maths without asking for scipy's BLAS, and its
+    typing of cffi functions without cffi: a generated step is integers only
+    (transform.py's subset) and calls neither.
+
+    The maths asks once per process to choose np.correlate's and
+    np.convolve's inner loop (the linear algebra asks again itself),
+    importing scipy.linalg: a quarter second of a warm sweep's start. The
+    cffi typing imports cffi and pycparser (0.04-0.06 s) when numba's typing
+    context first loads, at a step's first call; imported while cffi is
+    unimportable it records that cffi is missing, as on a machine without it
+    (numba then types no cffi function in this process). Each is blocked
+    only while numba's module imports, only when nothing imported the real
+    one first, so any other importer still gets it."""
+    for module, blocked in (("numba.np.arraymath", ("scipy.linalg.cython_blas", "scipy.linalg")),
+                            ("numba.core.typing.cffi_utils", ("cffi", "cffi"))):
+        stub, real = blocked
+        if module in sys.modules or real in sys.modules:
+            continue
+        sys.modules[stub] = None            # type: ignore[assignment]  # an ImportError
+        try:
+            importlib.import_module(module)
+        finally:
+            del sys.modules[stub]
 
 
 @contextmanager
