@@ -86,6 +86,9 @@ UPHILL_DY = (1, 1, 0, -1, -1, -1, 0, 1)
 WARM_MIN = 512
 WARM_ROW = 4
 WARM_CELL = 2
+# activation sync: apply_tick's moves fetch the cells the robot WARM_MOVE
+# on enters (its loop does little per robot, so it runs further ahead)
+WARM_MOVE = 8
 
 # activation (a run's `act`)
 SYNC = 0            # every robot decides on the tick-start world
@@ -597,7 +600,14 @@ def apply_tick(g, rb, run, r):
     beacons(g, rb, run, r)
     if carry_group(g, rb, run, r) and (rules & DYNAMIC) != 0:
         carry_beacons(g, rb, run, r)
+    # a big run's moves enter patches anywhere in its grids: the cells robot
+    # i + WARM_MOVE enters are fetched ahead (WARM_MIN), as the turns' are
+    far = hi - WARM_MOVE
+    if hi - lo < WARM_MIN:
+        far = lo
     for i in range(lo, hi):
+        if i < far:
+            warm_move(g, rb, run, r, i + WARM_MOVE)
         if rb.mv_on[i] == 0:
             continue
         if held[i] >= 0:
@@ -616,6 +626,23 @@ def apply_tick(g, rb, run, r):
         xs[i] = nx
         ys[i] = ny
     recount(g, rb, run, r)
+
+
+def warm_move(g, rb, run, r, i):
+    """A prefetch of the cells robot i's move intent enters (apply_tick's
+    reads of them): nothing when it has none or leaves the arena."""
+    if rb.mv_on[i] == 0:
+        return
+    w = run.w[r]
+    n = run.n[r]
+    rules = run.rules[r]
+    px = fx.patch(fold_q8(w, n, rb.xs[i] + fx.dx(rb.mv_h[i], rb.mv_step[i]), rules))
+    py = fx.patch(fold_q8(w, n, rb.ys[i] + fx.dy(rb.mv_h[i], rb.mv_step[i]), rules))
+    if inside(w, px, py):
+        k = run.base[r] + cell(w, n, px, py)
+        prefetch(g.obj, k)
+        prefetch(g.occ, k)
+        prefetch(g.stamp, k)
 
 
 def let_go(g, rb, run, r, i):

@@ -123,13 +123,14 @@ def test_summaries_report_convergence_in_go_iterations_and_in_moves():
     assert net["converged_tick"] < net["converged_moves"] < 5 * net["converged_tick"]
 
 
-def test_reading_a_big_runs_robots_ahead_changes_nothing(monkeypatch):
+@pytest.mark.parametrize("activation", ["netlogo", "sync"])
+def test_reading_a_big_runs_robots_ahead_changes_nothing(monkeypatch, activation):
     """A run of kernel.WARM_MIN robots fetches each robot's row and patches a
-    few turns ahead of its turn (kernel.prefetch: a cache hint when
-    compiled, nothing here): the run is the one without, robots on the
-    arena's edge rows among them."""
+    few turns ahead of its turn, and (sync) the cells its move enters a few
+    moves ahead (kernel.prefetch: a cache hint when compiled, nothing here):
+    the run is the one without, robots on the arena's edge rows among them."""
     sc = validate({"agents": kernel.WARM_MIN, "worldSize": 24, "objectWeight": 3,
-                   "activation": "netlogo", "maxTicks": 20})
+                   "activation": activation, "maxTicks": 20})
 
     def run():
         e = Engine(sc, 5)
