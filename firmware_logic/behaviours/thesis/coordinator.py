@@ -424,7 +424,9 @@ class Coordinator(Recognising, Roster):
         it moved), kept between plans: (touches, the last touch, their
         count, lost, body, the points that count for arrival (`_from_home`'s),
         the live holders' points, the live holders (`carriers`), the box
-        round `_footprint()` or None). A touch is appended when accepted and
+        round `_footprint()` or None, and {displacement less home: the least
+        squared distance to home of the arrival points} as `_plan_step`
+        has measured them). A touch is appended when accepted and
         removed when released, and `lost` and `body` are replaced whole when
         they change, so the first five say whether it still holds."""
         h = self.held
@@ -453,7 +455,7 @@ class Coordinator(Recognising, Roster):
         for x, y in live:
             box = _grow(box, x, y)
         h = (touches, last, len(touches), lost, self.body, live if self.by_carrier else segs,
-             live, tuple(nodes), box)
+             live, tuple(nodes), box, {})
         self.held = h
         return h
 
@@ -650,7 +652,10 @@ class Coordinator(Recognising, Roster):
         segments) where they are now, less home."""
         mx = self.moved_x - self.home_x
         my = self.moved_y - self.home_y
-        return [(x + mx, y + my) for x, y in self._held()[5]]
+        out = []
+        for x, y in self._held()[5]:
+            out.append((x + mx, y + my))
+        return out
 
     def _home_reached(self):
         # ours: a robot or a segment within 4 of home (`wayHome < 4` only
@@ -741,13 +746,22 @@ class Coordinator(Recognising, Roster):
         # the points in the object's frame, displaced per step: no list of
         # them is built (filtering them with `_nearest` costs more than it
         # saves when, as here, a handful of touches are nearly all candidates)
-        pts = self._held()[5]
+        # and each distance is kept per displacement while the points stand:
+        # successive plans' nine steps overlap, a blocked retry repeats them
+        h = self._held()
+        pts = h[5]
+        seen = h[9]
         mx = self.moved_x - self.home_x
         my = self.moved_y - self.home_y
-        here = _least_d2(pts, mx, my)
+        here = seen.get((mx, my))
+        if here is None:
+            here = seen[(mx, my)] = _least_d2(pts, mx, my)
         ranked = []
         for ddx, ddy in STEPS:
-            d = _least_d2(pts, mx + ddx, my + ddy)
+            k = (mx + ddx, my + ddy)
+            d = seen.get(k)
+            if d is None:
+                d = seen[k] = _least_d2(pts, k[0], k[1])
             if d < here:
                 ranked.append((d, len(ranked), ddx, ddy))
         ranked.sort()
@@ -806,8 +820,9 @@ class Coordinator(Recognising, Roster):
         # one fields tuple for every holder: a step commands about ten, and
         # a batch plans tens of thousands of steps
         f = (self.step, self.dx, self.dy)
-        kind = msg.TRANSPORT
-        self.outbox += [(node, kind, f) for node in self._held()[7]]
+        out = self.outbox
+        for node in self._held()[7]:
+            out.append((node, msg.TRANSPORT, f))
 
     # -- liveness: holders that fall silent (lost_after > 0) ---------------------
 
