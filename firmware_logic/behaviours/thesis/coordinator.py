@@ -743,11 +743,11 @@ class Coordinator(Recognising, Roster):
             return
         # Every step that brings the object's nearest segment closer to home,
         # best first; each blocked attempt moves on to the next candidate.
-        # the points in the object's frame, displaced per step: no list of
-        # them is built (filtering them with `_nearest` costs more than it
-        # saves when, as here, a handful of touches are nearly all candidates)
-        # and each distance is kept per displacement while the points stand:
-        # successive plans' nine steps overlap, a blocked retry repeats them
+        # The arrival points stay in the object's frame, displaced per step
+        # (`_nearest` kept nearly all of a handful of touches and cost more
+        # than it saved), and each displacement's distance is kept while they
+        # stand, at most one per arena cell: successive plans' nine steps
+        # overlap and a blocked retry repeats them.
         h = self._held()
         pts = h[5]
         seen = h[9]
