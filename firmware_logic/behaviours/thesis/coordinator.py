@@ -149,6 +149,19 @@ def _nearest(rel):
     return out
 
 
+def _least_d2(pts, cx, cy):
+    """The least x * x + y * y of the points `pts` displaced by (cx, cy); -1
+    when there are none."""
+    best = -1
+    for x, y in pts:
+        x += cx
+        y += cy
+        d = x * x + y * y
+        if best < 0 or d < best:
+            best = d
+    return best
+
+
 def _box_of(pts):
     """(x0, x1, y0, y1) round the points, or None when there are none."""
     box = None
@@ -197,7 +210,7 @@ class Touch:
 class Coordinator(Recognising, Roster):
     NOT_SNAPSHOT = Roster.NOT_SNAPSHOT + ("home_x", "home_y", "home_r2", "by_carrier",
                                           "closed", "stall_ticks", "cells_box",
-                                          "leader_heard") \
+                                          "leader_heard", "held") \
         + Recognising.RECOGNITION_NOT_SNAPSHOT
     VOLATILE = ("step_sent_tick",)     # a resend of the same TRANSPORT
 
@@ -286,6 +299,7 @@ class Coordinator(Recognising, Roster):
         # displacements a transport step was blocked at (x, y pairs, flat):
         # the plan goes round them (dead robots stand still; see _bump)
         self.bumps = ()
+        self.held = None             # `_held`'s, kept between plans
         self.setup_recognition()     # off; recognition() turns it on
 
     # -- input -------------------------------------------------------------
@@ -403,11 +417,47 @@ class Coordinator(Recognising, Roster):
     # -- the host's tick ---------------------------------------------------------
 
     def carriers(self):
-        out = []
-        for t in self.touches:
-            if t.node not in out and t.node not in self.lost:
-                out.append(t.node)
-        return out
+        return list(self._held()[7])
+
+    def _held(self):
+        """What a plan reads of the touches, in the object's frame (as before
+        it moved), kept between plans: (touches, the last touch, their
+        count, lost, body, the points that count for arrival (`_from_home`'s),
+        the live holders' points, the live holders (`carriers`), the box
+        round `_footprint()` or None, and {displacement less home: the least
+        squared distance to home of the arrival points} as `_plan_step`
+        has measured them). A touch is appended when accepted and
+        removed when released, and `lost` and `body` are replaced whole when
+        they change, so the first five say whether it still holds."""
+        h = self.held
+        touches = self.touches
+        last = touches[-1] if touches else None
+        if h is not None and h[0] is touches and h[1] is last and h[2] == len(touches) \
+                and h[3] is self.lost and h[4] is self.body:
+            return h
+        lost = self.lost
+        segs = []
+        live = []
+        nodes = []
+        for t in touches:
+            segs.append((t.sx, t.sy))
+            if t.node not in lost:
+                live.append((t.rx, t.ry))
+                if t.node not in nodes:
+                    nodes.append(t.node)
+        if self.cells is not None:
+            box = self.cells_box
+        else:
+            box = _box_of(self.body)
+            if self.body is None:
+                for x, y in segs:
+                    box = _grow(box, x, y)
+        for x, y in live:
+            box = _grow(box, x, y)
+        h = (touches, last, len(touches), lost, self.body, live if self.by_carrier else segs,
+             live, tuple(nodes), box, {})
+        self.held = h
+        return h
 
     def decision(self, before, out):
         """The thesis names its decisions: converged, step, delivered, halt."""
@@ -603,12 +653,8 @@ class Coordinator(Recognising, Roster):
         mx = self.moved_x - self.home_x
         my = self.moved_y - self.home_y
         out = []
-        for t in self.touches:
-            if self.by_carrier:
-                if t.node not in self.lost:
-                    out.append((t.rx + mx, t.ry + my))
-            else:
-                out.append((t.sx + mx, t.sy + my))
+        for x, y in self._held()[5]:
+            out.append((x + mx, y + my))
         return out
 
     def _home_reached(self):
@@ -618,12 +664,13 @@ class Coordinator(Recognising, Roster):
         mx = self.moved_x - self.home_x
         my = self.moved_y - self.home_y
         r2 = self.home_r2
-        for t in self.touches:
-            if not self.by_carrier and (t.sx + mx) * (t.sx + mx) + (t.sy + my) * (t.sy + my) < r2:
-                return True
-            if t.node not in self.lost and \
-                    (t.rx + mx) * (t.rx + mx) + (t.ry + my) * (t.ry + my) < r2:
-                return True
+        h = self._held()
+        for pts in (h[6], h[5]):         # live holders, then the arrival points
+            for x, y in pts:
+                x += mx
+                y += my
+                if x * x + y * y < r2:
+                    return True
         return False
 
     def _stop(self, tick, code):
@@ -696,11 +743,25 @@ class Coordinator(Recognising, Roster):
             return
         # Every step that brings the object's nearest segment closer to home,
         # best first; each blocked attempt moves on to the next candidate.
-        rel = _nearest(self._from_home())     # once: the 9 distances below share it
-        here = self._home_d2(0, 0, rel)
+        # The arrival points stay in the object's frame, displaced per step
+        # (`_nearest` kept nearly all of a handful of touches and cost more
+        # than it saved), and each displacement's distance is kept while they
+        # stand, at most one per arena cell: successive plans' nine steps
+        # overlap and a blocked retry repeats them.
+        h = self._held()
+        pts = h[5]
+        seen = h[9]
+        mx = self.moved_x - self.home_x
+        my = self.moved_y - self.home_y
+        here = seen.get((mx, my))
+        if here is None:
+            here = seen[(mx, my)] = _least_d2(pts, mx, my)
         ranked = []
         for ddx, ddy in STEPS:
-            d = self._home_d2(ddx, ddy, rel)
+            k = (mx + ddx, my + ddy)
+            d = seen.get(k)
+            if d is None:
+                d = seen[k] = _least_d2(pts, k[0], k[1])
             if d < here:
                 ranked.append((d, len(ranked), ddx, ddy))
         ranked.sort()
@@ -730,31 +791,10 @@ class Coordinator(Recognising, Roster):
 
     def _box(self):
         """(x0, x1, y0, y1): the box round `_footprint()`, or None when it is empty."""
-        if self.cells is not None:
-            box = self.cells_box
-        else:
-            box = _box_of(self.body)
-            if self.body is None:
-                for t in self.touches:
-                    box = _grow(box, t.sx, t.sy)
+        box = self._held()[8]
         if box is None:
-            for t in self.touches:
-                if t.node not in self.lost:
-                    box = (t.rx, t.rx, t.ry, t.ry)
-                    break
-            if box is None:
-                return None
+            return None
         x0, x1, y0, y1 = box
-        for t in self.touches:
-            if t.node not in self.lost:
-                if t.rx < x0:
-                    x0 = t.rx
-                elif t.rx > x1:
-                    x1 = t.rx
-                if t.ry < y0:
-                    y0 = t.ry
-                elif t.ry > y1:
-                    y1 = t.ry
         mx = self.moved_x
         my = self.moved_y
         return x0 + mx, x1 + mx, y0 + my, y1 + my
@@ -781,7 +821,7 @@ class Coordinator(Recognising, Roster):
         # a batch plans tens of thousands of steps
         f = (self.step, self.dx, self.dy)
         out = self.outbox
-        for node in self.carriers():
+        for node in self._held()[7]:
             out.append((node, msg.TRANSPORT, f))
 
     # -- liveness: holders that fall silent (lost_after > 0) ---------------------
