@@ -628,6 +628,20 @@ def apply_tick(g, rb, run, r):
     recount(g, rb, run, r)
 
 
+def warm_patches(g, run, r, x, y):
+    """A prefetch of the field, object and occupancy patches a robot at Q8
+    (x, y) reads on its turn (its patch's row and the rows beside it:
+    probes, field, uphill)."""
+    w = run.w[r]
+    n = run.n[r]
+    py = fx.patch(y)
+    c = run.base[r] + cell(w, n, fx.patch(x), py)
+    for d in range(max(-1, -w - py), min(1, w - py) + 1):
+        prefetch(g.field, c + d * n)
+        prefetch(g.obj, c + d * n)
+        prefetch(g.occ, c + d * n)
+
+
 def warm_move(g, rb, run, r, i):
     """A prefetch of the cells robot i's move intent enters (apply_tick's
     reads of them): nothing when it has none or leaves the arena."""
@@ -854,9 +868,6 @@ def go_iteration(robots, hal, g, rb, run, r):
     order = rb.order
     xs = rb.xs
     ys = rb.ys
-    w = run.w[r]
-    n = run.n[r]
-    base = run.base[r]
     # a big run's robots and their patches are fetched ahead of their turns
     # (WARM_MIN): in a random order each turn's data is a cache miss
     far = hi - WARM_ROW
@@ -877,12 +888,7 @@ def go_iteration(robots, hal, g, rb, run, r):
             prefetch(rb.beacon_set, a)
             prefetch(rb.beacon_on, a)
             a = order[j + WARM_CELL]
-            py = fx.patch(ys[a])
-            c = base + cell(w, n, fx.patch(xs[a]), py)
-            for d in range(max(-1, -w - py), min(1, w - py) + 1):
-                prefetch(g.field, c + d * n)     # the rows of patches round it
-                prefetch(g.obj, c + d * n)
-                prefetch(g.occ, c + d * n)
+            warm_patches(g, run, r, xs[a], ys[a])
         i = order[j]
         steps = turn_steps(run, r, robots[i].state)
         k = 0

@@ -11,7 +11,6 @@ numba (sim_backend/batch/transform.py, soa.py); it stays plain Python so it
 can be read, and run uncompiled, like the rest.
 """
 
-from firmware_logic import fixedpoint as fx
 from sim_backend import kernel
 
 # rows of the per-robot table (int64[ROBOT_ROWS, robots]): the kernel's
@@ -83,14 +82,7 @@ class BatchBody:
         these reads missed (docs/performance.md)."""
         j = i + AHEAD
         if j < len(self.run):
-            r = self.run[j]
-            n = self.runs.n[r]
-            k = self.runs.base[r] + kernel.cell(self.runs.w[r], n, fx.patch(self.rb.xs[j]),
-                                                fx.patch(self.rb.ys[j]))
-            for d in range(-1, 2):
-                kernel.prefetch(self.g.obj, k + d * n)
-                kernel.prefetch(self.g.occ, k + d * n)
-                kernel.prefetch(self.g.field, k + d * n)
+            kernel.warm_patches(self.g, self.runs, self.run[j], self.rb.xs[j], self.rb.ys[j])
         self.i = i
         robot.step(self)
 

@@ -638,14 +638,7 @@ class Coordinator(Recognising, Roster):
         less home (`_from_home`), when the caller has them already."""
         if rel is None:
             rel = self._from_home()
-        best = -1
-        for x, y in rel:
-            x += ddx
-            y += ddy
-            d = x * x + y * y
-            if best < 0 or d < best:
-                best = d
-        return best
+        return _least_d2(rel, ddx, ddy)
 
     def _from_home(self):
         """The points that count for arrival (carriers when by_carrier, else
