@@ -79,10 +79,12 @@ UPHILL_H = (0, 45, 90, 135, 180, 225, 270, 315)
 UPHILL_DX = (0, 1, 1, 1, 0, -1, -1, -1)
 UPHILL_DY = (1, 1, 0, -1, -1, -1, 0, 1)
 
-# activation netlogo in a run of WARM_MIN robots or more: the robot WARM_ROW
-# turns on and the patches round the one WARM_CELL turns on are fetched
-# ahead (prefetch), so their cache lines are in when their turns come
-# (docs/performance.md, "The netlogo activation's tick")
+# a run of WARM_MIN robots or more: under activation netlogo the robot
+# WARM_ROW turns on (its rows, the HAL's rows of it) and the patches round
+# and the objects of the one WARM_CELL turns on are fetched ahead
+# (prefetch), so their cache lines are in when their turns come; under sync
+# the patches round robot i + WARM_ROW (docs/performance.md, "The netlogo
+# activation's tick", "Compiled tick at scale")
 WARM_MIN = 512
 WARM_ROW = 4
 WARM_CELL = 2
@@ -186,10 +188,17 @@ def fold_q8(w, n, q, rules):
 
 
 def prefetch(a, k):
-    """A hint that a[k] (robot k's fields when a is the list of robots) is
-    read soon: nothing here; the batch engine compiles it to a cache
-    prefetch (sim_backend/batch/borrow.py), which unlike a read never waits
-    for its line."""
+    """A hint that a[k] is read soon (robot k's fields when a is the list of
+    robots; row k of each per-robot table it holds when a is an object, as
+    the HAL): nothing here; the batch engine compiles it to cache prefetches
+    (sim_backend/batch/borrow.py, transform.py), which unlike a read never
+    wait for their lines."""
+
+
+def prefetch_held(objs, k):
+    """A hint that the objects objs[k]'s fields hold (a robot's random
+    stream) are read soon; as prefetch. Its row must be in by then: the
+    fetch reads it to find them."""
 
 
 def ahead_x(x, h):
@@ -833,7 +842,17 @@ def sync_tick(robots, hal, g, rb, run, r):
     """One synchronous tick of run r: every robot in node order starts its
     turn (start_turn) and steps against the tick-start world, its actions
     intents; then the tick's intents are applied (apply_tick)."""
-    for i in range(run.lo[r], run.hi[r]):
+    lo = run.lo[r]
+    hi = run.hi[r]
+    # a big run's robots stand anywhere in its grids, and its robot tables
+    # stream through the cache every tick: the patches a turn reads would
+    # miss (WARM_MIN); the rows stream in order and need no hint
+    far = hi - WARM_ROW
+    if hi - lo < WARM_MIN:
+        far = lo
+    for i in range(lo, hi):
+        if i < far:
+            warm_patches(g, run, r, rb.xs[i + WARM_ROW], rb.ys[i + WARM_ROW])
         start_turn(g, rb, run, r, i)
         hal.turn(robots[i], i)
     apply_tick(g, rb, run, r)
@@ -878,6 +897,7 @@ def go_iteration(robots, hal, g, rb, run, r):
         if j < far:
             a = order[j + WARM_ROW]
             prefetch(robots, a)
+            prefetch(hal, a)
             prefetch(xs, a)
             prefetch(ys, a)
             prefetch(rb.held, a)
@@ -888,6 +908,7 @@ def go_iteration(robots, hal, g, rb, run, r):
             prefetch(rb.beacon_set, a)
             prefetch(rb.beacon_on, a)
             a = order[j + WARM_CELL]
+            prefetch_held(robots, a)
             warm_patches(g, run, r, xs[a], ys[a])
         i = order[j]
         steps = turn_steps(run, r, robots[i].state)

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from sim_backend import registry
+from sim_backend import kernel, registry
 from sim_backend.batch.soa import SoaEngine
 from sim_backend.errors import CompileError
 from sim_backend.scenario import validate
@@ -332,12 +332,37 @@ def test_an_error_that_is_not_the_cache_is_raised_and_the_cache_kept(tmp_path, m
     assert list(cache.glob("*.nbi"))
 
 
-def test_a_big_netlogo_run_fetched_ahead_is_the_reference():
-    """From kernel.WARM_MIN robots the compiled netlogo turn asks the cache
-    for the robots and patches a few turns ahead (borrow.prefetch) and the
-    body for the grid rows ahead (both no-ops in the reference): tick by
-    tick the same run."""
-    from sim_backend import kernel
+@pytest.mark.parametrize("activation", ["sync", "netlogo"])
+def test_a_big_run_fetched_ahead_is_the_reference(activation):
+    """From kernel.WARM_MIN robots the compiled turn loops ask the cache for
+    the patches (and under netlogo the robots' rows and objects) a few turns
+    ahead (borrow.prefetch; no-ops in the reference): tick by tick the same
+    run."""
     sc = validate({"agents": kernel.WARM_MIN, "worldSize": 24, "objectWeight": 3,
-                   "activation": "netlogo", "maxTicks": 8})
+                   "activation": activation, "maxTicks": 8})
     assert_same([sc], [5])
+
+
+def test_an_object_prefetch_is_a_prefetch_of_each_row():
+    """kernel.prefetch of the HAL fetches robot k's element of each per-robot
+    row the HAL views (its run, inbox head and tail); prefetch_held of the
+    robots, the table row of the object robot k holds (its random stream),
+    found through robot k's own row; read off the generated module (nothing
+    compiles). Anything else is a named error."""
+    import re
+
+    from sim_backend.batch import body as B
+    from sim_backend.batch import transform as T
+
+    text = SoaEngine([(validate({"maxTicks": 50}), 1)]).compiled.path.read_text()
+    loop = text[text.index("def F_sim_backend_kernel__go_iteration"):]
+    loop = loop[:loop.index("\n\n\n")]
+    fetched = re.findall(r"prefetch\(BatchBody__base0\[(\d+)\], a\)", loop)
+    assert sorted(map(int, fetched)) == [B.RUN, B.IN_HEAD, B.IN_TAIL]
+    assert re.search(r"\(prefetch\(Rng__ints, Robot__ints\[a, \d+\]\),\)", loop)
+    with pytest.raises(CompileError, match="prefetch_held of a scalar"):
+        T.generate(T.Layout(), {"f": (_prefetch_held_of_an_int, (T.SCALAR, T.SCALAR))})
+
+
+def _prefetch_held_of_an_int(robots, k):
+    kernel.prefetch_held(k, robots)

@@ -49,10 +49,6 @@ GRID_ROWS = len(kernel.GRID_FIELDS)
 GRID_TYPES = ("int8", "int32", "int32", "int16", "int32")
 
 FIELDS = 6      # message fields a HAL send() carries
-# how many robots ahead of the one stepping the grids are fetched into the
-# cache (BatchBody.turn): a turn is a few hundred cycles, a miss to memory
-# about as long
-AHEAD = 4
 
 
 class BatchBody:
@@ -75,14 +71,7 @@ class BatchBody:
 
     def turn(self, robot, i):
         """Robot i's FSM steps once on this body (the kernel's turn loops ask
-        it). First the cache is asked for the grid rows robot j = i + AHEAD
-        will read (its patch's and the ones beside it: probes, field,
-        uphill): a robot's patch is anywhere in its run's grids and the
-        robots' own tables stream through the cache every tick, so without it
-        these reads missed (docs/performance.md)."""
-        j = i + AHEAD
-        if j < len(self.run):
-            kernel.warm_patches(self.g, self.runs, self.run[j], self.rb.xs[j], self.rb.ys[j])
+        it, and fetch what the turns ahead read: kernel.WARM_MIN)."""
         self.i = i
         robot.step(self)
 

@@ -54,8 +54,10 @@ BUILTINS = {"range", "len", "abs", "min", "max", "int", "bool"}
 CONSTANT_TYPES = (bool, int, float, str, type(None))
 # plain functions the generated code calls as borrow.py's numba intrinsic of
 # the same name (an array, or a list of objects as its table, then ints); their
-# Python body is what the uncompiled code runs
-INTRINSICS = {"sim_backend.kernel.prefetch": "prefetch"}
+# Python body is what the uncompiled code runs. `prefetch` of an object and
+# `prefetch_held` are spelt out as prefetches of rows (FunctionTransform.fetch_rows)
+INTRINSICS = {"sim_backend.kernel.prefetch": "prefetch",
+              "sim_backend.kernel.prefetch_held": "prefetch_held"}
 
 
 # -- kinds of values -------------------------------------------------------------
@@ -719,6 +721,8 @@ class FunctionTransform:
         raise _err(self.fn, e, "calling a value that is not a function")
 
     def intrinsic(self, name: str, e: ast.Call) -> ast.expr:
+        if name == "prefetch_held" or (e.args and isinstance(self.expr(e.args[0])[1], Inst)):
+            return self.fetch_rows(name, e)
         args = []
         for a in e.args:
             v, kind = self.expr(a)
@@ -730,6 +734,36 @@ class FunctionTransform:
                 raise _err(self.fn, e, f"passing a {kind} to {name}")
             args.append(v)
         return ast.Call(ast.Name(name, ast.Load()), args, [])
+
+    def fetch_rows(self, name: str, e: ast.Call) -> ast.expr:
+        """`prefetch(obj, k)`: element k of every row of a per-robot table
+        the object's fields view (the HAL's rows of robot k); `prefetch_held(
+        objs, k)`: the table row (and list rows) of each object objs[k]'s
+        fields hold. A tuple of prefetches, or None when there is nothing."""
+        if len(e.args) != 2 or e.keywords:
+            raise _err(self.fn, e, f"{name} without exactly (objects, index)")
+        _, kind = self.expr(e.args[0])
+        k = self.scalar(e.args[1])
+        fetch = ast.Name("prefetch", ast.Load())
+        calls: list[ast.expr] = []
+        if name == "prefetch" and isinstance(kind, Inst):
+            cl = self.p.layout.classes[kind.cls]
+            for j, row in cl.views.values():
+                view = ast.Subscript(self.state(base_name(cl, j)), ast.Constant(row), ast.Load())
+                calls.append(ast.Call(fetch, [view, k], []))
+        elif name == "prefetch_held" and isinstance(kind, ListOf):
+            cl = self.p.layout.classes[kind.cls]
+            for attr, f in cl.fields.items():
+                if f[0] != "inst":
+                    continue
+                sub = self.p.layout.classes[f[1]]
+                at = self.column(cl, attr, k, ast.Load())
+                calls.append(ast.Call(fetch, [self.state(ints_name(sub)), at], []))
+                calls += [ast.Call(fetch, [self.arr(sub, a), at], [])
+                          for a, g in sub.fields.items() if g[0] == "row"]
+        else:
+            raise _err(self.fn, e, f"{name} of a {kind}")
+        return ast.Tuple(calls, ast.Load()) if calls else ast.Constant(None)
 
     def invoke(self, fn: FunctionType, owner: type | None, bound: list, e: ast.Call) -> ast.expr:
         """A call of a transformed function: objects pass as their indices."""
