@@ -229,6 +229,27 @@ def test_a_borrowed_array_is_the_same_memory_and_other_values_pass_through():
     assert a.tolist() == [0, 7, 0, 0]
 
 
+def test_a_prefetch_takes_any_integer_index_and_changes_nothing():
+    """borrow.prefetch of a 1-D element or a 2-D row, the index read from an
+    int32 table as well as an int64 one (numba's own indexing widens both)."""
+    import numpy as np
+    from numba import njit
+
+    from sim_backend.batch.borrow import prefetch
+
+    @njit
+    def fetch(flat, table, at):
+        for k in range(len(at)):
+            prefetch(flat, at[k])
+            prefetch(table, at[k])
+        return flat.sum() + table.sum()
+
+    flat, table = np.arange(6), np.arange(12).reshape(3, 4)
+    for dtype in (np.int32, np.int64):
+        assert fetch(flat, table, np.array([2, 0], dtype=dtype)) == 15 + 66
+    assert flat.tolist() == list(range(6)) and table.sum() == 66
+
+
 def test_the_robot_loop_is_inlined_and_its_entry_borrows_every_array(monkeypatch):
     """The two rules behind the soa engine's speed (docs/performance.md), read
     off the generated module (nothing is compiled): everything a robot's step

@@ -69,6 +69,8 @@ def prefetch(typingctx, ary, index):
     def codegen(context, builder, sig, args):
         aryty = sig.args[0]
         a = context.make_array(aryty)(context, builder, value=args[0])
+        # an index read from a narrower table (int32) is widened as numba's own indexing does
+        at = context.cast(builder, args[1], sig.args[1], types.intp)
         i64 = ir.IntType(64)
         i8p = ir.IntType(8).as_pointer()
         fnty = ir.FunctionType(ir.VoidType(), [i8p, ir.IntType(32), ir.IntType(32),
@@ -76,12 +78,12 @@ def prefetch(typingctx, ary, index):
         fetch = cgutils.get_or_insert_function(builder.module, fnty, "llvm.prefetch.p0i8")
         flags = [ir.Constant(ir.IntType(32), v) for v in (0, 3, 1)]   # read, keep, data
         if aryty.ndim == 1:
-            ptr = cgutils.get_item_pointer(context, builder, aryty, a, [args[1]],
+            ptr = cgutils.get_item_pointer(context, builder, aryty, a, [at],
                                            wraparound=False)
             builder.call(fetch, [builder.bitcast(ptr, i8p)] + flags)
             return context.get_dummy_value()
         zero = context.get_constant(types.intp, 0)
-        ptr = cgutils.get_item_pointer(context, builder, aryty, a, [args[1], zero],
+        ptr = cgutils.get_item_pointer(context, builder, aryty, a, [at, zero],
                                        wraparound=False)
         start = builder.ptrtoint(ptr, i64)
         shape = cgutils.unpack_tuple(builder, a.shape, 2)
