@@ -36,3 +36,19 @@ def test_commands_reach_their_robots_in_order_and_a_full_ring_is_an_error():
     with pytest.raises(EngineError, match=f"run 1: robot 1 has {INBOX} unread"):
         eng._deliver([(1, [(1, msg.ACK, (k,)) for k in range(INBOX + 1)])])
     assert inbox(eng, 3) == []                 # refused whole: nothing written
+
+
+def test_shared_and_list_fields_each_reach_their_robot_with_their_own_count():
+    """One fields object sent to several robots, equal fields of two kinds,
+    and fields given as a list: each robot's row holds its own kind, count
+    and fields."""
+    sc = validate({"agents": 3, "objectWeight": 2})
+    eng = SoaEngine([(sc, 1), (sc, 2)])
+    step = (4, 1, -1)
+    eng._deliver([(0, [(1, msg.TRANSPORT, step), (3, msg.TRANSPORT, step), (2, msg.ACK, (4,))]),
+                  (1, [(1, msg.ACK, [4]), (2, msg.HALT, (4,)), (3, msg.ACK, [1, 2])])])
+    assert [inbox(eng, i) for i in range(6)] == [
+        [(msg.TRANSPORT, step)], [(msg.ACK, (4,))], [(msg.TRANSPORT, step)],
+        [(msg.ACK, (4,))], [(msg.HALT, (4,))], [(msg.ACK, (1, 2))]]
+    with pytest.raises(EngineError, match="sent 7 fields"):
+        eng._deliver([(0, [(1, msg.ACK, [0] * 7)])])
