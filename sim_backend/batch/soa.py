@@ -41,6 +41,7 @@ import sys
 import threading
 import time
 import traceback
+import weakref
 from collections import defaultdict
 from contextlib import contextmanager
 from functools import partial
@@ -287,6 +288,35 @@ def generated(layout: T.Layout, entries: dict[str, tuple[Any, tuple]]
     return source, names
 
 
+class _Frozen:
+    """A batch's heap as the collector sees it: what is alive when the
+    batch is built (its robots, worlds, coordinators: tens of thousands of
+    objects, most alive until it ends) is moved out of the collector's
+    generations (`gc.freeze`, no pass over it) and back when the batch ends
+    or is dropped (`gc.unfreeze`, when no other live batch froze it too).
+    Without it the first passes after a 20 x 500 batch's build went over
+    all of it: 0.17-0.24 s of the collector's in a batch's 1.2-1.6 s of
+    steps, 0.04-0.05 s with it."""
+
+    holders = 0
+
+    def __init__(self) -> None:
+        self.holding = False
+
+    def freeze(self) -> None:
+        gc.freeze()
+        _Frozen.holders += 1
+        self.holding = True
+
+    def thaw(self) -> None:
+        if not self.holding:
+            return
+        self.holding = False
+        _Frozen.holders -= 1
+        if _Frozen.holders == 0:
+            gc.unfreeze()
+
+
 def _nfields() -> list[int]:
     top = max(msg.SCHEMA) + 1
     return [len(msg.fields(k)) if k in msg.SCHEMA else 0 for k in range(top)]
@@ -395,6 +425,10 @@ class SoaEngine:
         gc.disable()
         try:
             self._build()
+            self._heap = _Frozen()
+            weakref.finalize(self, self._heap.thaw)
+            if collecting:
+                self._heap.freeze()
         finally:
             if collecting:
                 gc.enable()
@@ -609,6 +643,8 @@ class SoaEngine:
             if live[r] == 1:
                 self._result(r, t)
                 live[r] = 0
+        if done and not live.any():
+            self._heap.thaw()
 
     def _result(self, r: int, t: int) -> None:
         """The run's final state into its World and, when its RunResult's
