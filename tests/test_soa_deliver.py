@@ -36,3 +36,46 @@ def test_commands_reach_their_robots_in_order_and_a_full_ring_is_an_error():
     with pytest.raises(EngineError, match=f"run 1: robot 1 has {INBOX} unread"):
         eng._deliver([(1, [(1, msg.ACK, (k,)) for k in range(INBOX + 1)])])
     assert inbox(eng, 3) == []                 # refused whole: nothing written
+
+
+def test_shared_and_list_fields_each_reach_their_robot_with_their_own_count():
+    """One fields object sent to several robots, equal fields of two kinds,
+    and fields given as a list: each robot's row holds its own kind, count
+    and fields."""
+    sc = validate({"agents": 3, "objectWeight": 2})
+    eng = SoaEngine([(sc, 1), (sc, 2)])
+    step = (4, 1, -1)
+    eng._deliver([(0, [(1, msg.TRANSPORT, step), (3, msg.TRANSPORT, step), (2, msg.ACK, (4,))]),
+                  (1, [(1, msg.ACK, [4]), (2, msg.HALT, (4,)), (3, msg.ACK, [1, 2])])])
+    assert [inbox(eng, i) for i in range(6)] == [
+        [(msg.TRANSPORT, step)], [(msg.ACK, (4,))], [(msg.TRANSPORT, step)],
+        [(msg.ACK, (4,))], [(msg.HALT, (4,))], [(msg.ACK, (1, 2))]]
+    with pytest.raises(EngineError, match="sent 7 fields"):
+        eng._deliver([(0, [(1, msg.ACK, [0] * 7)])])
+
+
+def test_a_batch_keeps_its_heap_from_the_collector_until_it_ends_or_is_dropped():
+    """What a batch's build made is frozen (gc.freeze) while the batch may
+    still step, and handed back to the collector when its last run ends or
+    the engine is dropped, whichever comes first; two batches alive hold it
+    frozen until both let go."""
+    import gc
+    from sim_backend.batch.soa import _Frozen
+    sc = validate({"agents": 3, "objectWeight": 2})
+    held = _Frozen.holders                         # batches another test left alive
+    a = SoaEngine([(sc, 1)])
+    assert gc.get_freeze_count() > 0 and _Frozen.holders == held + 1
+    b = SoaEngine([(sc, 2)])
+    del a
+    assert gc.get_freeze_count() > 0 and _Frozen.holders == held + 1    # b still holds it
+    b.rt[B.LIVE] = 0
+    b._finish(1, set())
+    assert _Frozen.holders == held + 1             # no run ended this tick: not by _finish
+    b.rt[B.LIVE, 0] = 1
+    b.max_ticks[:] = 1
+    b.first_cap = 1
+    b._finish(1, set())                            # the run hits its maxTicks
+    assert b.results[0] is not None and _Frozen.holders == held
+    assert gc.get_freeze_count() == 0 or held
+    del b
+    assert _Frozen.holders == held and gc.isenabled()

@@ -41,6 +41,7 @@ import sys
 import threading
 import time
 import traceback
+import weakref
 from collections import defaultdict
 from contextlib import contextmanager
 from functools import partial
@@ -287,6 +288,35 @@ def generated(layout: T.Layout, entries: dict[str, tuple[Any, tuple]]
     return source, names
 
 
+class _Frozen:
+    """A batch's heap as the collector sees it: what is alive when the
+    batch is built (its robots, worlds, coordinators: tens of thousands of
+    objects, most alive until it ends) is moved out of the collector's
+    generations (`gc.freeze`, no pass over it) and back when the batch ends
+    or is dropped (`gc.unfreeze`, when no other live batch froze it too).
+    Without it the first passes after a 20 x 500 batch's build went over
+    all of it: 0.17-0.24 s of the collector's in a batch's 1.2-1.6 s of
+    steps, 0.04-0.05 s with it."""
+
+    holders = 0
+
+    def __init__(self) -> None:
+        self.holding = False
+
+    def freeze(self) -> None:
+        gc.freeze()
+        _Frozen.holders += 1
+        self.holding = True
+
+    def thaw(self) -> None:
+        if not self.holding:
+            return
+        self.holding = False
+        _Frozen.holders -= 1
+        if _Frozen.holders == 0:
+            gc.unfreeze()
+
+
 def _nfields() -> list[int]:
     top = max(msg.SCHEMA) + 1
     return [len(msg.fields(k)) if k in msg.SCHEMA else 0 for k in range(top)]
@@ -395,6 +425,10 @@ class SoaEngine:
         gc.disable()
         try:
             self._build()
+            self._heap = _Frozen()
+            weakref.finalize(self, self._heap.thaw)
+            if collecting:
+                self._heap.freeze()
         finally:
             if collecting:
                 gc.enable()
@@ -526,38 +560,46 @@ class SoaEngine:
         """Commands (run, [(node, kind, fields), ...]) into the robots'
         inbox rings, each robot's in the order given: gathered, then one
         fancy write per array. A tick delivers tens of commands (a
-        transport step's to each holder) to thousands (a HALT to every
-        robot of a run, the first tick's ACK to every robot): from about
-        fifty on, fewer numpy calls cost less than one element write per
-        message, and a field row is written whole (the robot reads its
-        first `in_nf` only, body.py `recv`)."""
+        transport step's to each holder, one fields object for all) to
+        thousands (a HALT to every robot of a run, the first tick's ACK to
+        every robot): each distinct (kind, fields) is checked and padded to
+        a whole row once and a message is its robot and that row's number,
+        so the loop over messages only appends (the robot reads a row's
+        first `in_nf` fields only, body.py `recv`)."""
         to: list[int] = []
-        kinds: list[int] = []
-        nfs: list[int] = []
-        rows: list[tuple] = []
+        which: list[int] = []
+        rows: dict[tuple[int, tuple], int] = {}   # (kind, fields) -> row number
+        table: list[tuple] = []                    # (kind, nf, *padded fields)
         pad = _PAD
         lo_of, agents_of = self.lo, self.agents
+        host = msg.HOST                  # 0: never a robot's node
         for r, out in sends:
             lo, agents = lo_of[r], agents_of[r]
             for node, kind, f in out:
-                nf = len(f)
-                if nf > B.FIELDS:
-                    raise EngineError(f"run {r}: the coordinator sent {nf} fields, more than "
-                                      f"a message holds ({B.FIELDS})")
-                row = tuple(f) + pad[nf]
-                if node == msg.HOST:
-                    to.extend(range(lo, lo + agents))
-                    kinds.extend([kind] * agents)
-                    nfs.extend([nf] * agents)
-                    rows.extend([row] * agents)
-                elif 1 <= node <= agents:
+                key = (kind, f)
+                try:
+                    k = rows.get(key)
+                except TypeError:            # fields as a list
+                    key = (kind, tuple(f))
+                    k = rows.get(key)
+                if k is None:
+                    nf = len(f)
+                    if nf > B.FIELDS:
+                        raise EngineError(f"run {r}: the coordinator sent {nf} fields, more "
+                                          f"than a message holds ({B.FIELDS})")
+                    k = rows[key] = len(table)
+                    table.append((kind, nf) + tuple(f) + pad[nf])
+                if 1 <= node <= agents:
                     to.append(lo + node - 1)
-                    kinds.append(kind)
-                    nfs.append(nf)
-                    rows.append(row)
+                    which.append(k)
+                elif node == host:
+                    to.extend(range(lo, lo + agents))
+                    which.extend([k] * agents)
                 else:
                     raise EngineError(f"run {r}: the coordinator addressed node {node}, "
                                       f"which is not one of its {agents} robots")
+        if not to:
+            return
         head, tail = self.rb[B.IN_HEAD], self.rb[B.IN_TAIL]
         idx = np.array(to, dtype=np.int64)
         pos = tail[idx]
@@ -576,9 +618,12 @@ class SoaEngine:
             r = self.run_of[i]
             raise EngineError(f"run {r}: robot {i - self.lo[r] + 1} has {INBOX} unread messages")
         slot = pos % INBOX
-        self.in_kind[idx, slot] = kinds
-        self.in_nf[idx, slot] = nfs
-        self.in_f[idx, slot] = rows
+        got = np.array(table, dtype=np.int64)
+        if len(table) > 1:
+            got = got[which]
+        self.in_kind[idx, slot] = got[:, 0]
+        self.in_nf[idx, slot] = got[:, 1]
+        self.in_f[idx, slot] = got[:, 2:]
         if once:
             tail[idx] += 1
         else:
@@ -598,6 +643,8 @@ class SoaEngine:
             if live[r] == 1:
                 self._result(r, t)
                 live[r] = 0
+        if done and not live.any():
+            self._heap.thaw()
 
     def _result(self, r: int, t: int) -> None:
         """The run's final state into its World and, when its RunResult's

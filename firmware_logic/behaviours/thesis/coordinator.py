@@ -616,10 +616,7 @@ class Coordinator(Recognising, Roster):
         return {"holders": len(self.carriers()), "home_d2": self._home_d2(0, 0)}
 
     def leader_touch(self):
-        for t in self.touches:
-            if t.node == self.leader:
-                return t
-        return None
+        return self.by_node.get(self.leader)     # one touch per node, as in touches
 
     def _points_now(self):
         """Segments and carriers where they are now."""
@@ -658,13 +655,16 @@ class Coordinator(Recognising, Roster):
         my = self.moved_y - self.home_y
         r2 = self.home_r2
         h = self._held()
-        for pts in (h[6], h[5]):         # live holders, then the arrival points
-            for x, y in pts:
-                x += mx
-                y += my
-                if x * x + y * y < r2:
-                    return True
-        return False
+        # the arrival points' distance here is the one the plan that follows
+        # ranks its steps against: measured once, kept with the others
+        seen = h[9]
+        d = seen.get((mx, my))
+        if d is None:
+            d = seen[(mx, my)] = _least_d2(h[5], mx, my)
+        if 0 <= d < r2:
+            return True
+        d = _least_d2(h[6], mx, my)      # the live holders
+        return 0 <= d < r2
 
     def _stop(self, tick, code):
         """End the mission without delivering: HALT every robot."""
@@ -758,7 +758,8 @@ class Coordinator(Recognising, Roster):
             if d < here:
                 ranked.append((d, len(ranked), ddx, ddy))
         ranked.sort()
-        if ranked and self.world_size is not None and self._walled(ranked):
+        if ranked and self.world_size is not None and not self._inside(h[8], 1) \
+                and self._walled(ranked):
             # against the arena's edge every step toward home would push the
             # object or a carrier off the arena, and retrying them would go on
             # forever (arrival "netlogo", seed 10): from now on plan round the
@@ -767,6 +768,18 @@ class Coordinator(Recognising, Roster):
             self._plan_on_way(tick)
             return
         self._take(tick, ranked)
+
+    def _inside(self, box, margin):
+        """True if the box round `_footprint()` (`_held`'s, None: empty) is
+        `margin` patches or more inside the arena -w..w: any step of at
+        most `margin` each way then keeps it in."""
+        if box is None:
+            return True
+        w = self.world_size - margin
+        mx = self.moved_x
+        my = self.moved_y
+        return -w <= box[0] + mx and box[1] + mx <= w and -w <= box[2] + my \
+            and box[3] + my <= w
 
     def _walled(self, ranked):
         """True if every step in `ranked` would put a cell of the object or a
