@@ -681,8 +681,17 @@ def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None =
         del todo[:n]
         return ch, eng
 
+    heads: dict[tuple[int, int], tuple[dict[str, Any], list[str]]] = {}
+
+    def head(j: int) -> tuple[dict[str, Any], list[str]]:
+        pt, sc, _ = meta[j]               # meta keeps both alive: their ids stay theirs
+        key = (id(pt), id(sc))
+        if key not in heads:
+            heads[key] = row_head(pt, sc)
+        return heads[key]
+
     def finish(ch: list[int], eng: str, sums: list[dict]) -> None:
-        new = [make_row(*meta[j], summ, until, eng) for j, summ in zip(ch, sums)]
+        new = [make_row(*meta[j], summ, until, eng, head(j)) for j, summ in zip(ch, sums)]
         for j, r in zip(ch, new):
             rows[j] = r
         if on_rows is not None:
@@ -907,9 +916,10 @@ def point_behaviours(points: Sequence[Point], base: Scenario | None = None,
     return list(dict.fromkeys(sc.behaviour for sc in point_scenarios(points, base, overrides)))
 
 
-def make_row(pt: Point, sc: Scenario, seed: int, s: dict, until: str,
-             engine: str = "reference") -> dict:
-    """One sweep.csv row: the run's settings, the engine that ran it, its measures."""
+def row_head(pt: Point, sc: Scenario) -> tuple[dict[str, Any], list[str]]:
+    """What a sweep.csv row takes from its point alone (its settings; the
+    same for every seed) and the names of the measures its behaviour
+    declares: make_row's `head`, made once per point by a sweep."""
     row: dict[str, Any] = {"experiment": pt.experiment,
                            "point": ";".join(f"{k}={v}" for k, v in pt.params)}
     for k in SCENARIO_KEYS:
@@ -918,6 +928,17 @@ def make_row(pt: Point, sc: Scenario, seed: int, s: dict, until: str,
     row["pieces"] = " ".join(repr(p) for k in PIECE_KEYS for p in getattr(sc, k))
     row["breeds"] = " ".join(f"{dict(b)['name']}:{dict(b)['count']}" for b in sc.breeds)
     row["required"] = holders_needed(sc, sc.weight_centi)
+    from sim_backend import registry
+    return row, [name for name, _ in registry.load(sc.behaviour).spec.MEASURES]
+
+
+def make_row(pt: Point, sc: Scenario, seed: int, s: dict, until: str,
+             engine: str = "reference",
+             head: tuple[dict[str, Any], list[str]] | None = None) -> dict:
+    """One sweep.csv row: the run's settings, the engine that ran it, its
+    measures (head: row_head(pt, sc), made here when not given)."""
+    settings, measures = head or row_head(pt, sc)
+    row = dict(settings)
     row["seed"] = seed
     row["until"] = until
     row["engine"] = engine
@@ -932,8 +953,7 @@ def make_row(pt: Point, sc: Scenario, seed: int, s: dict, until: str,
         row[name] = s.get(name)
     # the measures the behaviour declares (spec.MEASURES), and only those:
     # a dispersion sweep has no power or shape_iou column
-    from sim_backend import registry
-    for name, _ in registry.load(sc.behaviour).spec.MEASURES:
+    for name in measures:
         if name not in row:
             v = s.get(name)
             row[name] = _cells(v) if isinstance(v, list) else v
