@@ -94,7 +94,7 @@ class Compiled:
                 tmp = folder / f"mod.{os.getpid()}.tmp"
                 tmp.write_text(source)
                 os.replace(tmp, path)        # atomic: another process may read it
-            _without_blas()
+            _without("numba", CFFI)
             spec = importlib.util.spec_from_file_location(name, path)
             assert spec is not None and spec.loader is not None
             mod = importlib.util.module_from_spec(spec)
@@ -129,6 +129,7 @@ class Compiled:
         if key is None or self.on_disk(key):
             with _loading_only(fn):
                 return self._first_call(fn, args)
+        _without(ARRAYMATH)
         with compile_lock(self.path.parent):
             return self._first_call(fn, args)
 
@@ -176,6 +177,7 @@ def _loading_only(fn: Any) -> Iterator[None]:
     except ImportError:
         load = None
     if load is None or guard is None or "load_overload" in vars(cache):
+        _without(ARRAYMATH)              # before the refresh imports it
         yield
         return
 
@@ -183,9 +185,12 @@ def _loading_only(fn: Any) -> Iterator[None]:
         # the part of the refresh a loaded step needs: the runtime its
         # arrays' reference counts call (the refresh's first step)
         rtsys.initialize(target_context)
+        data = None
         with guard():
-            return load(sig, target_context)
-        return None                      # as numba's: the guard swallowed an error
+            data = load(sig, target_context)
+        if data is None:                 # not in the cache: a compile follows
+            _without(ARRAYMATH)
+        return data
 
     cache.load_overload = load_overload
     try:
@@ -194,23 +199,31 @@ def _loading_only(fn: Any) -> Iterator[None]:
         del cache.load_overload
 
 
-def _without_blas() -> None:
-    """Import numba's array maths without asking for scipy's BLAS, and its
-    typing of cffi functions without cffi: a generated step is integers only
-    (transform.py's subset) and calls neither.
+# numba modules imported with a module they ask for made unimportable: `_without`
+ARRAYMATH, CFFI = "numba.np.arraymath", "numba.core.typing.cffi_utils"
+_BLOCKED = {"numba": ("scipy", "scipy"), ARRAYMATH: ("scipy.linalg.cython_blas", "scipy.linalg"),
+            CFFI: ("cffi", "cffi")}
+
+
+def _without(*modules: str) -> None:
+    """Import numba's array maths without asking for scipy's BLAS (ARRAYMATH),
+    and its typing of cffi functions without cffi (CFFI): a generated step
+    is integers only (transform.py's subset) and calls neither. numba
+    itself ("numba") imports scipy only to check its version (0.04 s).
 
     The maths asks once per process to choose np.correlate's and
     np.convolve's inner loop (the linear algebra asks again itself),
-    importing scipy.linalg: a quarter second of a warm sweep's start. The
-    cffi typing imports cffi and pycparser (0.04-0.06 s) when numba's typing
+    importing scipy.linalg: a quarter second. Only a compile imports the
+    maths (numba's refresh of its registries): a step loaded from the cache
+    (_loading_only) needs none of it, 0.08 s of imports left out. The cffi
+    typing imports cffi and pycparser (0.04-0.06 s) when numba's typing
     context first loads, at a step's first call; imported while cffi is
     unimportable it records that cffi is missing, as on a machine without it
     (numba then types no cffi function in this process). Each is blocked
     only while numba's module imports, only when nothing imported the real
     one first, so any other importer still gets it."""
-    for module, blocked in (("numba.np.arraymath", ("scipy.linalg.cython_blas", "scipy.linalg")),
-                            ("numba.core.typing.cffi_utils", ("cffi", "cffi"))):
-        stub, real = blocked
+    for module in modules:
+        stub, real = _BLOCKED[module]
         if module in sys.modules or real in sys.modules:
             continue
         sys.modules[stub] = None            # type: ignore[assignment]  # an ImportError
