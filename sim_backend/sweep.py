@@ -285,11 +285,21 @@ def _start_or_watch(scenarios: Sequence[Scenario], missing: Mapping[str, Path],
     compile), watched."""
     from sim_backend.batch.soa import claim_lock, lock_holder
     folders = list(dict.fromkeys(missing.values()))
-    claims = {d: claim_lock(d) for d in folders}
-    mine = {d: f for d, f in claims.items() if f is not None}
-    if not mine:
-        pids = [p for p in map(lock_holder, folders) if p is not None]
-        return _Watch(scenarios, folders, pids[0] if pids else -1)
+    mine: dict[Path, IO[str]] = {}
+    held = []                            # by another process
+    for d in folders:
+        try:
+            f = claim_lock(d)
+        except OSError as err:           # a cache this user cannot write: nothing to share
+            log.debug("no compile lock in %s (%s)", d, err)
+            continue
+        if f is None:
+            held.append(d)
+        else:
+            mine[d] = f
+    if held and len(held) == len(folders):
+        pids = [p for p in map(lock_holder, held) if p is not None]
+        return _Watch(scenarios, held, pids[0] if pids else -1)
     try:
         return background(scenarios, mine)
     finally:

@@ -340,3 +340,23 @@ def test_the_compile_a_sweep_starts_is_handed_the_lock_it_claimed(tmp_path, monk
                 background=Started)
     assert seen == [([folder], os.getpid(), None)]     # claimed, held while it starts
     assert soa.lock_holder(folder) is None             # the sweep's copy closed after
+
+
+def test_a_cache_without_room_for_the_lock_still_compiles_in_the_background(monkeypatch):
+    from sim_backend.batch import soa
+    warm_folder()
+    monkeypatch.setattr(soa, "cold", lambda scs: {"thesis": Path("/read-only/soa/x")})
+
+    def unwritable(folder):
+        raise PermissionError(13, "Permission denied", str(folder))
+    monkeypatch.setattr(soa, "claim_lock", unwritable)
+    started = []
+
+    class Started(Held):
+        def __init__(self, scenarios, claims):
+            started.append(dict(claims))
+    Held.done = False
+    rows = sweep.sweep(sweep.grid_points({}), [1], overrides={"maxTicks": MAX_TICKS},
+                       background=Started)
+    assert started == [{}]
+    assert [r["engine"] for r in rows] == ["reference"]
