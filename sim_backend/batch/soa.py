@@ -176,7 +176,7 @@ def _loading_only(fn: Any) -> Iterator[None]:
         from numba.core.runtime import rtsys
     except ImportError:
         load = None
-    if load is None or guard is None or "load_overload" in vars(cache):
+    if load is None or guard is None:
         _without(ARRAYMATH)              # before the refresh imports it
         yield
         return
@@ -192,11 +192,17 @@ def _loading_only(fn: Any) -> Iterator[None]:
             _without(ARRAYMATH)
         return data
 
-    cache.load_overload = load_overload
-    try:
-        yield
-    finally:
-        del cache.load_overload
+    # one first call at a time (a thread pool's engines share the step's
+    # dispatchers; numba compiles and loads one at a time anyway)
+    with _FIRST_CALLS:
+        cache.load_overload = load_overload
+        try:
+            yield
+        finally:
+            vars(cache).pop("load_overload", None)
+
+
+_FIRST_CALLS = threading.RLock()
 
 
 # numba modules imported with a module they ask for made unimportable: `_without`
