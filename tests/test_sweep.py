@@ -160,3 +160,14 @@ def test_the_small_sweep_bound_counts_every_run_robot_in_the_soa_engine():
     with ThreadPoolExecutor(1) as threads:
         assert not sweep._small(threads, "soa", fits)
     assert not sweep._small(None, "soa", fits)
+
+
+def test_a_row_with_a_column_the_header_lacks_is_refused_by_name(tmp_path):
+    with pytest.raises(ValueError, match=r"header lacks: \['extra'\]"):
+        sweep.write_csv([{"seed": 1, "extra": 2}], tmp_path / "s.csv", names=["seed"])
+    journal = sweep.CsvAppender(tmp_path / "j.csv", ["seed", "ticks"])
+    journal.append([{"seed": 1}])                     # a missing column is an empty cell
+    with pytest.raises(ValueError, match="header lacks"):
+        journal.append([{"seed": 2, "extra": 3}])
+    journal.close()
+    assert (tmp_path / "j.csv").read_text() == "seed,ticks\n1,\n"
