@@ -13,7 +13,9 @@ against its floor. Every figure is a fresh interpreter timed from outside
 - "sweep_500": the same sweep with `--seeds 500` on the warm cache (the
   step on disk), beside the Mesa port's wall time for 500 runs: measured on
   --mesa-runs of them in one process and scaled (all 500 with
-  --mesa-runs 500). Both in one process each: the sweep's default executor
+  --mesa-runs 500); "sweep_N" for each other N of `--sweep-runs 500,20`
+  (a small sweep: in the sweep's own process, sim_backend.sweep's
+  SMALL_SWEEP_ROBOTS). Both in one process each: the sweep's default executor
   uses every core, so the Mesa figure is given for one process and for as
   many processes as the sweep used (its wall time divided by them, the best
   a process pool could do).
@@ -32,7 +34,7 @@ Every child reads and writes bytecode as a user's install does
 of --reps (the sweeps: one each unless --reps; the run: at least 3).
 Prints one JSON.
 
-    .venv/bin/python bench/sweep_wall.py [--reps N] [--mesa-runs N] [--sweep-runs N] [--skip-fresh]
+    .venv/bin/python bench/sweep_wall.py [--reps N] [--mesa-runs N] [--sweep-runs N[,N...]] [--skip-fresh]
                                          [--skip-run] [--tree DIR]
     .venv/bin/python bench/sweep_wall.py --run-only [--reps N] [--tree DIR]
 """
@@ -140,14 +142,30 @@ def mesa(runs: int, activation: str, scale_to: int | None = None) -> tuple[float
     """Wall and CPU seconds of a process running the Mesa port's seeds
     1..runs; with scale_to, its runs' share scaled to that many runs
     (start-up as measured)."""
+    return mesa_scaled(runs, activation, [scale_to or runs])[0]
+
+
+def mesa_scaled(runs: int, activation: str, sizes: list[int]) -> list[tuple[float, float]]:
+    """mesa(runs, activation, n) for every n of `sizes`, from one process."""
     w, out, _ = wall([sys.executable, "-c", MESA, str(BENCH), str(runs), activation])
     inside, inside_cpu = map(float, out.strip().splitlines()[-1].split())
-    k = 1.0 if scale_to is None else scale_to / runs
-    return w - inside + inside * k, CPU[0] - inside_cpu + inside_cpu * k
+    return [(w - inside + inside * n / runs, CPU[0] - inside_cpu + inside_cpu * n / runs)
+            for n in sizes]
 
 
 def workers() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+
+
+def sizes(text: str) -> list[int]:
+    """--sweep-runs: run counts, each at least 1."""
+    try:
+        out = [int(v) for v in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected N or N,N,... runs") from None
+    if not out or min(out) < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: every count must be at least 1 run")
+    return out
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -156,8 +174,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--mesa-runs", type=int, default=40,
                     help="Mesa runs timed for the 500-run figure, scaled to 500 (default: 40)")
     ap.add_argument("--activation", choices=("sync", "netlogo"), default="sync")
-    ap.add_argument("--sweep-runs", type=int, default=500,
-                    help="runs of the warm-cache sweep (default: 500)")
+    ap.add_argument("--sweep-runs", type=sizes, default=[500], metavar="N[,N...]",
+                    help="runs of each warm-cache sweep, its figure \"sweep_N\" (default: 500; "
+                         "e.g. 500,20 for a small sweep too)")
     ap.add_argument("--skip-fresh", action="store_true", help="no fresh-cache sweep")
     ap.add_argument("--run-only", action="store_true", help="no sweep: the run against its floor")
     ap.add_argument("--skip-run", action="store_true", help="no run against its floor")
@@ -188,7 +207,7 @@ def main(argv: list[str] | None = None) -> int:
                 "sweep_over_mesa": round(s / m, 2), "sweep_over_mesa_cpu": round(sc / mc, 2),
                 "target": "<= 1.5"}
         if not a.run_only:
-            sweep_500(a, out, tmpd)
+            warm_sweeps(a, out, tmpd)
         trees = {"this": ROOT, **{str(t): t.resolve() for t in a.tree}}
         if not a.skip_run:
             out.update(run_vs_floor(trees, max(3, a.reps)))
@@ -197,24 +216,26 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def sweep_500(a: argparse.Namespace, out: dict, tmpd: Path) -> None:
-    """out["sweep_500"] (and "sweep_500 TREE" for each --tree): the
-    warm-cache sweep against the Mesa port, the trees' sweeps and the Mesa
-    port's runs interleaved in rounds so that load hits them alike."""
+def warm_sweeps(a: argparse.Namespace, out: dict, tmpd: Path) -> None:
+    """out["sweep_N"] (and "sweep_N TREE" for each --tree) for every N of
+    --sweep-runs: the warm-cache sweep against the Mesa port, the trees'
+    sweeps and the Mesa port's runs interleaved in rounds so that load
+    hits them alike."""
     act = a.activation
     trees = {"this": ROOT, **{str(t): t.resolve() for t in a.tree}}
     for tree in trees.values():
         sweep(1, act, tmpd / "warmup", tree=tree)        # the step loaded, text kept
-    rows: dict[str, list] = {label: [] for label in trees}
+    rows: dict[tuple[int, str], list] = {(n, label): [] for n in a.sweep_runs for label in trees}
     for k in range(a.reps):
-        mesa_k = mesa(a.mesa_runs, act, scale_to=a.sweep_runs)
-        for label, tree in trees.items():
-            w = sweep(a.sweep_runs, act, tmpd / f"big{k}", tree=tree)[0]
-            rows[label].append((w, CPU[0]) + mesa_k)
-    for label, got in rows.items():
+        mesa_k = mesa_scaled(a.mesa_runs, act, a.sweep_runs)
+        for n, m in zip(a.sweep_runs, mesa_k):
+            for label, tree in trees.items():
+                w = sweep(n, act, tmpd / f"big{k}", tree=tree)[0]
+                rows[(n, label)].append((w, CPU[0]) + m)
+    for (n, label), got in rows.items():
         s, sc, m1, mc = (statistics.median(r[j] for r in got) for j in range(4))
-        out["sweep_500" if label == "this" else f"sweep_500 {label}"] = {
-            "runs": a.sweep_runs, "cache": "warm", "sweep_wall_s": round(s, 2),
+        out[f"sweep_{n}" if label == "this" else f"sweep_{n} {label}"] = {
+            "runs": n, "cache": "warm", "sweep_wall_s": round(s, 2),
             "sweep_cpu_s": round(sc, 2), "mesa_cpu_s": round(mc, 1),
             "speedup_cpu": round(mc / sc, 1),
             "mesa_runs_timed": a.mesa_runs, "mesa_wall_s_one_process": round(m1, 1),

@@ -22,7 +22,7 @@ import sys
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Iterable, Mapping, Sequence
+from typing import IO, Any, Callable, Iterable, Iterator, Mapping, Sequence
 
 from sim_backend import params
 from sim_backend.errors import ScenarioError
@@ -150,9 +150,11 @@ def _compile_main() -> None:
     import traceback
     if hasattr(os, "nice"):
         os.nice(COMPILE_NICE)
-    scenarios = pickle.load(sys.stdin.buffer)
+    scenarios, held = pickle.load(sys.stdin.buffer)
     try:
-        from sim_backend.batch.soa import warm as soa_warm
+        from sim_backend.batch.soa import adopt_lock, warm as soa_warm
+        for folder, fd in held:
+            adopt_lock(Path(folder), fd)
         soa_warm(scenarios)
     except BaseException as err:      # noqa: BLE001 - reported to the sweep in one line
         traceback.print_exc()
@@ -185,10 +187,15 @@ class BackgroundCompile:
     the sweep's), started at once. finished() does not block; after it
     returns True, `error` is None or the failure in one line and `seconds`
     how long it took. A sweep that ends first leaves it running: it fills
-    the disk cache for the next sweep. Two at once compile once: the second
-    waits on the compile lock (soa.compile_lock) and then loads."""
+    the disk cache for the next sweep. `claims` (cache folder -> the open
+    file of its compile lock, soa.claim_lock) go to the process, which holds
+    them until it ends: another sweep watches it instead of starting a
+    compile of its own (the caller closes its copies). Two at once compile
+    once: the second waits on the compile lock (soa.compile_lock) and then
+    loads."""
 
-    def __init__(self, scenarios: Sequence[Scenario]) -> None:
+    def __init__(self, scenarios: Sequence[Scenario],
+                 claims: Mapping[Path, IO[str]] | None = None) -> None:
         import pickle
         import subprocess
         import sys
@@ -204,11 +211,15 @@ class BackgroundCompile:
         env = dict(os.environ)
         env["PYTHONPATH"] = os.pathsep.join(p for p in (root, env.get("PYTHONPATH")) if p)
         self.t0 = self._clock()
+        held = [(str(folder), f.fileno()) for folder, f in (claims or {}).items()]
         self.proc = subprocess.Popen([sys.executable, "-c", COMPILE_MAIN],
                                      stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
-                                     stderr=self._err, env=env)
+                                     stderr=self._err, env=env,
+                                     pass_fds=[fd for _, fd in held] if os.name == "posix"
+                                     else ())
         assert self.proc.stdin is not None
-        self.proc.stdin.write(pickle.dumps(list(first.values())))
+        self.proc.stdin.write(pickle.dumps((list(first.values()),
+                                            held if os.name == "posix" else [])))
         self.proc.stdin.close()
         self.pid = self.proc.pid
         self.error: str | None = None
@@ -264,6 +275,36 @@ class _Watch:
         if cold(self.scenarios):
             self.error = f"the compile in process {self.pid} ended without the step"
         return True
+
+
+def _start_or_watch(scenarios: Sequence[Scenario], missing: Mapping[str, Path],
+                    background: Callable[..., Any]) -> Any:
+    """The background compile of the steps `missing` (behaviour -> cache
+    folder): started, holding the compile locks this sweep could claim,
+    or, when another process holds every one of them (another sweep's
+    compile), watched."""
+    from sim_backend.batch.soa import claim_lock, lock_holder
+    folders = list(dict.fromkeys(missing.values()))
+    mine: dict[Path, IO[str]] = {}
+    held = []                            # by another process
+    for d in folders:
+        try:
+            f = claim_lock(d)
+        except OSError as err:           # a cache this user cannot write: nothing to share
+            log.debug("no compile lock in %s (%s)", d, err)
+            continue
+        if f is None:
+            held.append(d)
+        else:
+            mine[d] = f
+    if held and len(held) == len(folders):
+        pids = [p for p in map(lock_holder, held) if p is not None]
+        return _Watch(scenarios, held, pids[0] if pids else -1)
+    try:
+        return background(scenarios, mine)
+    finally:
+        for f in mine.values():          # the compile's process holds its own copies
+            f.close()
 
 
 def _cold(scenarios: Sequence[Scenario]) -> dict[str, Path]:
@@ -368,6 +409,20 @@ class _Engines:
 # chunk per worker paid again (docs/performance.md)
 MAX_CHUNK = 256
 CHUNKS_PER_WORKER = 1
+
+
+# a sweep of at most this many robots in all (20 seeds of 20 robots: 400)
+# runs in this process when no chunk size is given, not in a process pool:
+# its runs are a fraction of a second in the soa engine, less than a worker's
+# start, its own build of the engine and load of the compiled step
+SMALL_SWEEP_ROBOTS = 1000
+
+
+def _small(executor: Executor | None, engine: str, scenarios: Sequence[Scenario]) -> bool:
+    """Whether the sweep's runs cost less in this process (whose soa step is
+    loaded) than spread over the process pool `executor`."""
+    return (isinstance(executor, ProcessPoolExecutor) and engine == "soa"
+            and sum(sc.agents for sc in scenarios) <= SMALL_SWEEP_ROBOTS)
 
 
 def workers_of(executor: Executor | None) -> int:
@@ -555,7 +610,9 @@ def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None =
       which ran it). A compile that fails leaves the sweep in the reference
       engine. A dask executor's workers do not share this machine's cache:
       auto compiles first there, as soa does.
-    executor: any concurrent.futures.Executor (None: run in this process).
+    executor: any concurrent.futures.Executor (None: run in this process;
+      a process pool too when the runs in the soa engine have at most
+      SMALL_SWEEP_ROBOTS robots in all and chunk_size is None).
     chunk_size: runs per chunk (one call of run_chunk); None: chunk_runs().
     overrides: scenario keys applied to every point (e.g. maxTicks).
     progress: called with the number of runs just finished, as each run
@@ -573,8 +630,10 @@ def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None =
       "compiling" when it starts, "compiled" or "failed" when it ends,
       "left" when the sweep ends first (EVENTS); the log hears them too.
     background: starts the background compile (default BackgroundCompile;
-      tests pass a fake): an object with pid and finished() -> bool, then
-      error (None or the reason in one line) and seconds.
+      tests pass a fake), called with the scenarios and the compile locks
+      this sweep claimed for it (folder -> open file; closed when it
+      returns): an object with pid and finished() -> bool, then error
+      (None or the reason in one line) and seconds.
     """
     if engine not in ENGINES:
         raise ValueError(f"engine: expected one of {ENGINES}, got {engine!r}")
@@ -605,13 +664,7 @@ def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None =
             missing, bg = {}, _Refused(err)
             plan = _Engines(engine, bg, on_event)
         if missing:
-            from sim_backend.batch.soa import lock_holder
-            held = [lock_holder(d) for d in missing.values()]
-            pids = [h for h in held if h is not None]
-            if len(pids) == len(held):       # another sweep compiles them
-                bg = _Watch(scenarios, list(missing.values()), pids[0])
-            else:
-                bg = (background or BackgroundCompile)(scenarios)
+            bg = _start_or_watch(scenarios, missing, background or BackgroundCompile)
             names = ", ".join(repr(b) for b in missing)
             where = ", ".join(str(d) for d in missing.values())
             plan = _Engines(engine, bg, on_event)
@@ -623,6 +676,8 @@ def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None =
         plan = _Engines(engine)
         if jobs and compile_first:
             warm(scenarios, engine, on_compile)
+        if chunk_size is None and _small(executor, plan.fixed, scenarios):
+            executor = None
     if chunk_size is None:
         chunk_size = chunk_runs(len(jobs), executor)
     rows: list[dict | None] = [None] * len(jobs)
@@ -636,8 +691,17 @@ def sweep(points: Sequence[Point], seeds: Iterable[int], base: Scenario | None =
         del todo[:n]
         return ch, eng
 
+    heads: dict[tuple[int, int], tuple[dict[str, Any], list[str]]] = {}
+
+    def head(j: int) -> tuple[dict[str, Any], list[str]]:
+        pt, sc, _ = meta[j]               # meta keeps both alive: their ids stay theirs
+        key = (id(pt), id(sc))
+        if key not in heads:
+            heads[key] = row_head(pt, sc)
+        return heads[key]
+
     def finish(ch: list[int], eng: str, sums: list[dict]) -> None:
-        new = [make_row(*meta[j], summ, until, eng) for j, summ in zip(ch, sums)]
+        new = [make_row(*meta[j], summ, until, eng, head(j)) for j, summ in zip(ch, sums)]
         for j, r in zip(ch, new):
             rows[j] = r
         if on_rows is not None:
@@ -862,9 +926,10 @@ def point_behaviours(points: Sequence[Point], base: Scenario | None = None,
     return list(dict.fromkeys(sc.behaviour for sc in point_scenarios(points, base, overrides)))
 
 
-def make_row(pt: Point, sc: Scenario, seed: int, s: dict, until: str,
-             engine: str = "reference") -> dict:
-    """One sweep.csv row: the run's settings, the engine that ran it, its measures."""
+def row_head(pt: Point, sc: Scenario) -> tuple[dict[str, Any], list[str]]:
+    """What a sweep.csv row takes from its point alone (its settings; the
+    same for every seed) and the names of the measures its behaviour
+    declares: make_row's `head`, made once per point by a sweep."""
     row: dict[str, Any] = {"experiment": pt.experiment,
                            "point": ";".join(f"{k}={v}" for k, v in pt.params)}
     for k in SCENARIO_KEYS:
@@ -873,6 +938,17 @@ def make_row(pt: Point, sc: Scenario, seed: int, s: dict, until: str,
     row["pieces"] = " ".join(repr(p) for k in PIECE_KEYS for p in getattr(sc, k))
     row["breeds"] = " ".join(f"{dict(b)['name']}:{dict(b)['count']}" for b in sc.breeds)
     row["required"] = holders_needed(sc, sc.weight_centi)
+    from sim_backend import registry
+    return row, [name for name, _ in registry.load(sc.behaviour).spec.MEASURES]
+
+
+def make_row(pt: Point, sc: Scenario, seed: int, s: dict, until: str,
+             engine: str = "reference",
+             head: tuple[dict[str, Any], list[str]] | None = None) -> dict:
+    """One sweep.csv row: the run's settings, the engine that ran it, its
+    measures (head: row_head(pt, sc), made here when not given)."""
+    settings, measures = head or row_head(pt, sc)
+    row = dict(settings)
     row["seed"] = seed
     row["until"] = until
     row["engine"] = engine
@@ -887,8 +963,7 @@ def make_row(pt: Point, sc: Scenario, seed: int, s: dict, until: str,
         row[name] = s.get(name)
     # the measures the behaviour declares (spec.MEASURES), and only those:
     # a dispersion sweep has no power or shape_iou column
-    from sim_backend import registry
-    for name, _ in registry.load(sc.behaviour).spec.MEASURES:
+    for name in measures:
         if name not in row:
             v = s.get(name)
             row[name] = _cells(v) if isinstance(v, list) else v
@@ -909,12 +984,22 @@ def write_csv(rows: Sequence[dict], path: Path, names: Sequence[str] | None = No
         if rows or names:
             # rows of different behaviours carry different measures: every column once
             names = list(names or dict.fromkeys(k for r in rows for k in r))
-            wr = csv.DictWriter(f, fieldnames=names, lineterminator="\n")
-            wr.writeheader()
-            for r in rows:
-                wr.writerow({k: _cell(v) for k, v in r.items()})
+            wr = csv.writer(f, lineterminator="\n")
+            wr.writerow(names)
+            wr.writerows(_lines(rows, names))
     os.replace(tmp, path)
     return path
+
+
+def _lines(rows: Iterable[dict], names: Sequence[str]) -> Iterator[list[str]]:
+    """Each row's cells in the order of `names` (empty where it has none);
+    ValueError naming a column of a row that `names` lacks."""
+    known = set(names)
+    for r in rows:
+        if not known.issuperset(r):
+            raise ValueError(f"a sweep row has columns sweep.csv's header lacks: "
+                             f"{sorted(set(r) - known)}")
+        yield [_cell(r.get(k)) for k in names]
 
 
 def read_csv(path: Path) -> list[dict]:
@@ -952,11 +1037,10 @@ class CsvAppender:
         if self.f is None:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             self.f = self.path.open("a" if self.append_to else "w", newline="")
+            self.writer = csv.writer(self.f, lineterminator="\n")
             if not self.append_to:
-                csv.writer(self.f, lineterminator="\n").writerow(self.names)
-            self.writer = csv.DictWriter(self.f, fieldnames=self.names, lineterminator="\n")
-        for r in rows:
-            self.writer.writerow({k: _cell(v) for k, v in r.items()})
+                self.writer.writerow(self.names)
+        self.writer.writerows(_lines(rows, self.names))
         self.f.flush()
         os.fsync(self.f.fileno())
 

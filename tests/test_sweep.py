@@ -1,6 +1,6 @@
 """Sweeps: grid expansion, tidy CSV, executors (processes, dask) give one CSV."""
 
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 
 import pytest
 
@@ -26,7 +26,19 @@ def but_engine(text):
     return [ln[:at] + ln[at + 1:] for ln in lines]
 
 
+def warm_step():
+    """The grid's soa step loaded in this process: compiled first when the
+    cache lacks it, or loaded once another process's compile of it ends
+    (soa.compile_lock). Without it, `auto` found the step missing whenever
+    another test process was compiling it (a clean clone's `make test -n 2`,
+    a kernel edit), ran these sweeps in the reference engine while a
+    background compile started, and the soa rows asserted below were
+    reference rows: an order- and timing-dependent failure."""
+    sweep.warm(sweep.point_scenarios(sweep.grid_points(GRID), overrides=OVR))
+
+
 def test_grid_rows_and_reference_agree(tmp_path):
+    warm_step()
     local, rows = csv_text(tmp_path, "a.csv")
     assert len(rows) == 12
     assert [(r["fieldDefiance"], r["movementModel"], r["seed"]) for r in rows[:4]] == [
@@ -65,9 +77,11 @@ def test_unknown_key_is_refused():
 
 
 def test_cli_sweep_writes_csv_and_plots(tmp_path, capsys):
+    # --chunk: a sweep this small would run in this process without it
+    # (sweep.SMALL_SWEEP_ROBOTS); here its chunks go to the worker processes
     rc = main(["sweep", "--grid", "sigRadius=3,6", "--grid", "movementModel=firefly,ant",
                "--seeds", "3", "--set", "maxTicks=3000", "--executor", "processes:2",
-               "--out", str(tmp_path)])
+               "--chunk", "4", "--out", str(tmp_path)])
     assert rc == 0
     assert (tmp_path / "sweep.csv").read_text().count("\n") == 13
     assert (tmp_path / "by_sigRadius.png").stat().st_size > 1000
@@ -105,3 +119,55 @@ def test_a_grid_over_behaviours_reports_each_behaviours_measures(tmp_path):
     header = text[0].split(",")
     assert header.count("largest") == 1 and "shape_iou" in header
     assert len(text) == 5
+
+
+class CountedPool(ProcessPoolExecutor):
+    """A process pool that counts the chunks it was given."""
+
+    def __init__(self, *args, **kw):
+        super().__init__(*args, **kw)
+        self.chunks = 0
+
+    def submit(self, *args, **kw):
+        self.chunks += 1
+        return super().submit(*args, **kw)
+
+
+def test_a_small_sweep_runs_in_this_process_and_a_chunked_one_in_the_pool():
+    """At most SMALL_SWEEP_ROBOTS robots in all and no chunk size: the runs
+    are cheaper than a worker's start, its build and its load of the step,
+    and run here; given a chunk size, the same sweep goes to the pool's
+    workers. The rows are the same."""
+    pts = sweep.grid_points({"sigRadius": [3, 6]})
+    warm_step()
+    inline = sweep.sweep(pts, SEEDS, overrides=OVR)
+    with CountedPool(2) as pool:
+        here = sweep.sweep(pts, SEEDS, overrides=OVR, executor=pool)
+        assert pool.chunks == 0
+        pooled = sweep.sweep(pts, SEEDS, overrides=OVR, executor=pool, chunk_size=2)
+        assert pool.chunks == 3
+    assert here == pooled == inline
+    assert {r["engine"] for r in here} == {"soa"}
+
+
+def test_the_small_sweep_bound_counts_every_run_robot_in_the_soa_engine():
+    sc = sweep.point_scenarios(sweep.grid_points({}), overrides={"agents": 20})[0]
+    with ProcessPoolExecutor(1) as pool:
+        fits = [sc] * (sweep.SMALL_SWEEP_ROBOTS // 20)
+        assert sweep._small(pool, "soa", fits)
+        assert not sweep._small(pool, "soa", fits + [sc])
+        assert not sweep._small(pool, "reference", fits)   # slow runs: the pool's cores help
+    with ThreadPoolExecutor(1) as threads:
+        assert not sweep._small(threads, "soa", fits)
+    assert not sweep._small(None, "soa", fits)
+
+
+def test_a_row_with_a_column_the_header_lacks_is_refused_by_name(tmp_path):
+    with pytest.raises(ValueError, match=r"header lacks: \['extra'\]"):
+        sweep.write_csv([{"seed": 1, "extra": 2}], tmp_path / "s.csv", names=["seed"])
+    journal = sweep.CsvAppender(tmp_path / "j.csv", ["seed", "ticks"])
+    journal.append([{"seed": 1}])                     # a missing column is an empty cell
+    with pytest.raises(ValueError, match="header lacks"):
+        journal.append([{"seed": 2, "extra": 3}])
+    journal.close()
+    assert (tmp_path / "j.csv").read_text() == "seed,ticks\n1,\n"

@@ -61,7 +61,7 @@ class Fake:
     error = None
     seconds = None
 
-    def __init__(self, scenarios):
+    def __init__(self, scenarios, claims):
         started.append(sorted({str(sc.behaviour) for sc in scenarios}))
 
     def finished(self):
@@ -193,7 +193,7 @@ class Held:
     seconds = None
     done = False
 
-    def __init__(self, scenarios):
+    def __init__(self, scenarios, claims=None):
         pass
 
     def finished(self):
@@ -203,12 +203,12 @@ class Held:
 
 
 @pytest.fixture
-def cold_cache(monkeypatch):
+def cold_cache(monkeypatch, tmp_path):
     """This process sees the soa step as not compiled yet and the compile as
     Held; the step this machine's cache holds stands in for the compiled one."""
     from sim_backend.batch import soa
     warm_folder()
-    monkeypatch.setattr(soa, "cold", lambda scs: {"thesis": Path("/cache/soa/x")})
+    monkeypatch.setattr(soa, "cold", lambda scs: {"thesis": tmp_path / "soa" / "x"})
     monkeypatch.setattr(sweep, "BackgroundCompile", Held)
     Held.done = False
     return Held
@@ -281,7 +281,7 @@ def test_a_compile_another_sweep_runs_is_watched_not_started_again(tmp_path, mon
         compiled[0] = True
         stack.close()
 
-    def no_second_compile(scenarios):
+    def no_second_compile(scenarios, claims):
         raise AssertionError("a second compile was started")
     events = []
     rows = sweep.sweep(sweep.grid_points({}), [1, 2, 3], overrides={"maxTicks": MAX_TICKS},
@@ -291,3 +291,72 @@ def test_a_compile_another_sweep_runs_is_watched_not_started_again(tmp_path, mon
     assert [r["engine"] for r in rows] == ["reference", "reference", "soa"]
     assert [k for k, _ in events] == ["compiling", "compiled"]
     assert f"pid {os.getpid()}" in events[0][1]
+
+
+def test_two_sweeps_that_find_the_step_missing_at_once_start_one_compile(tmp_path,
+                                                                          monkeypatch):
+    """A sweep claims the step's compile lock without waiting before it
+    starts a compile; the claim, not a look at who holds the lock, decides.
+    Here the other sweep's compile holds the lock but the look comes too
+    early to see it (as when both sweeps looked before either compile
+    began): this sweep still starts none, and watches the other's."""
+    from sim_backend.batch import soa
+    warm_folder()
+    folder = tmp_path / "soa" / "x"
+    other = soa.claim_lock(folder)                     # the other sweep's claim
+    compiled = [False]
+    monkeypatch.setattr(soa, "cold", lambda scs: {} if compiled[0] else {"thesis": folder})
+    real = soa.lock_holder
+    looks = []
+
+    def too_early(f):
+        looks.append(f)
+        return None if len(looks) == 1 else real(f)
+    monkeypatch.setattr(soa, "lock_holder", too_early)
+
+    def on_rows(rows):
+        compiled[0] = True
+        other.close()
+
+    def no_second_compile(scenarios, claims):
+        raise AssertionError("a second compile was started")
+    rows = sweep.sweep(sweep.grid_points({}), [1, 2, 3], overrides={"maxTicks": MAX_TICKS},
+                       chunk_size=2, on_rows=on_rows, background=no_second_compile)
+    assert [r["engine"] for r in rows] == ["reference", "reference", "soa"]
+
+
+def test_the_compile_a_sweep_starts_is_handed_the_lock_it_claimed(tmp_path, monkeypatch):
+    from sim_backend.batch import soa
+    warm_folder()
+    folder = tmp_path / "soa" / "x"
+    monkeypatch.setattr(soa, "cold", lambda scs: {"thesis": folder})
+    seen = []
+
+    class Started(Held):
+        def __init__(self, scenarios, claims):
+            seen.append((list(claims), soa.lock_holder(folder), soa.claim_lock(folder)))
+    Held.done = True
+    sweep.sweep(sweep.grid_points({}), [1], overrides={"maxTicks": MAX_TICKS},
+                background=Started)
+    assert seen == [([folder], os.getpid(), None)]     # claimed, held while it starts
+    assert soa.lock_holder(folder) is None             # the sweep's copy closed after
+
+
+def test_a_cache_without_room_for_the_lock_still_compiles_in_the_background(monkeypatch):
+    from sim_backend.batch import soa
+    warm_folder()
+    monkeypatch.setattr(soa, "cold", lambda scs: {"thesis": Path("/read-only/soa/x")})
+
+    def unwritable(folder):
+        raise PermissionError(13, "Permission denied", str(folder))
+    monkeypatch.setattr(soa, "claim_lock", unwritable)
+    started = []
+
+    class Started(Held):
+        def __init__(self, scenarios, claims):
+            started.append(dict(claims))
+    Held.done = False
+    rows = sweep.sweep(sweep.grid_points({}), [1], overrides={"maxTicks": MAX_TICKS},
+                       background=Started)
+    assert started == [{}]
+    assert [r["engine"] for r in rows] == ["reference"]

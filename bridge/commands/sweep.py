@@ -12,7 +12,7 @@ from typing import Any
 
 from bridge.commands.paths import path_arg
 from bridge.errors import UsageError
-from sim_backend.sweep import ENGINES, SOA_COLD_COMPILE
+from sim_backend.sweep import ENGINES, SMALL_SWEEP_ROBOTS, SOA_COLD_COMPILE
 
 
 def register(sub) -> None:
@@ -88,8 +88,10 @@ def register(sub) -> None:
                         "the cache). reference: the per-robot engine, bit-identical and over "
                         "100x slower at 10,000 robots (docs/performance.md)")
     p.add_argument("--executor", default=None, metavar="SPEC",
-                   help="processes[:N] (default: one per core), inline, or dask://HOST:PORT "
-                        "(a dask.distributed scheduler)")
+                   help="processes[:N] (default: one per core; a sweep of at most "
+                        f"{SMALL_SWEEP_ROBOTS:,} robots in all in the soa engine runs in this "
+                        "process unless --chunk is given), inline, or dask://HOST:PORT (a "
+                        "dask.distributed scheduler)")
     p.add_argument("--chunk", type=int, default=None, metavar="RUNS",
                    help="runs per task, at least 1 (default: one task per worker, at most 256 runs)")
     p.add_argument("--out", type=path_arg, default=None, metavar="DIR",

@@ -47,7 +47,7 @@ from contextlib import contextmanager
 from functools import partial
 from pathlib import Path
 from types import ModuleType
-from typing import Any, Callable, Iterable, Iterator, Sequence
+from typing import IO, Any, Callable, Iterable, Iterator, Sequence
 
 import numpy as np
 
@@ -95,7 +95,7 @@ class Compiled:
                 tmp = folder / f"mod.{os.getpid()}.tmp"
                 tmp.write_text(source)
                 os.replace(tmp, path)        # atomic: another process may read it
-            _without_blas()
+            _without("numba", CFFI)
             spec = importlib.util.spec_from_file_location(name, path)
             assert spec is not None and spec.loader is not None
             mod = importlib.util.module_from_spec(spec)
@@ -126,8 +126,11 @@ class Compiled:
         compile lock: processes that need the same step (a sweep's
         background compile, its workers, another sweep) compile it once,
         the others wait and load it."""
+        _freeze_at_exit()
         if key is None or self.on_disk(key):
-            return self._first_call(fn, args)
+            with _loading_only(fn):
+                return self._first_call(fn, args)
+        _without(ARRAYMATH)
         with compile_lock(self.path.parent):
             return self._first_call(fn, args)
 
@@ -144,23 +147,90 @@ class Compiled:
             return fn(*args)
 
 
-def _without_blas() -> None:
-    """Import numba's array maths without asking for scipy's BLAS, and its
-    typing of cffi functions without cffi: a generated step is integers only
-    (transform.py's subset) and calls neither.
+_FREEZING: list[bool] = []
+
+
+def _freeze_at_exit() -> None:
+    """At this process's exit, every object out of the collector's sight:
+    the interpreter's last collections would walk numba's heap of a loaded
+    step (its types, IR and LLVM objects: a quarter second) to free memory
+    the exit frees anyway."""
+    if not _FREEZING:
+        _FREEZING.append(True)
+        import atexit
+        atexit.register(gc.freeze)
+
+
+@contextmanager
+def _loading_only(fn: Any) -> Iterator[None]:
+    """fn's first call without the refresh numba's disk cache runs before it
+    loads an entry: the refresh installs every typing and lowering registry
+    of the target (about 0.1-0.3 s, half a warm step's load), which only a
+    compile reads, and a compile refreshes for itself (numba's CompilerBase),
+    so a load that misses still compiles as before. Where fn's cache is not
+    the numba 0.5x-0.6x one this was written against, fn's call is left
+    as it is."""
+    cache: Any = getattr(fn, "_cache", None)
+    load = getattr(cache, "_load_overload", None)
+    guard = getattr(cache, "_guard_against_spurious_io_errors", None)
+    try:
+        from numba.core.runtime import rtsys
+    except ImportError:
+        load = None
+    if load is None or guard is None:
+        _without(ARRAYMATH)              # before the refresh imports it
+        yield
+        return
+
+    def load_overload(sig: Any, target_context: Any) -> Any:
+        # the part of the refresh a loaded step needs: the runtime its
+        # arrays' reference counts call (the refresh's first step)
+        rtsys.initialize(target_context)
+        data = None
+        with guard():
+            data = load(sig, target_context)
+        if data is None:                 # not in the cache: a compile follows
+            _without(ARRAYMATH)
+        return data
+
+    # one first call at a time (a thread pool's engines share the step's
+    # dispatchers; numba compiles and loads one at a time anyway)
+    with _FIRST_CALLS:
+        cache.load_overload = load_overload
+        try:
+            yield
+        finally:
+            vars(cache).pop("load_overload", None)
+
+
+_FIRST_CALLS = threading.RLock()
+
+
+# numba modules imported with a module they ask for made unimportable: `_without`
+ARRAYMATH, CFFI = "numba.np.arraymath", "numba.core.typing.cffi_utils"
+_BLOCKED = {"numba": ("scipy", "scipy"), ARRAYMATH: ("scipy.linalg.cython_blas", "scipy.linalg"),
+            CFFI: ("cffi", "cffi")}
+
+
+def _without(*modules: str) -> None:
+    """Import numba's array maths without asking for scipy's BLAS (ARRAYMATH),
+    and its typing of cffi functions without cffi (CFFI): a generated step
+    is integers only (transform.py's subset) and calls neither. numba
+    itself ("numba") imports scipy only to check its version (0.04 s).
 
     The maths asks once per process to choose np.correlate's and
     np.convolve's inner loop (the linear algebra asks again itself),
-    importing scipy.linalg: a quarter second of a warm sweep's start. The
-    cffi typing imports cffi and pycparser (0.04-0.06 s) when numba's typing
+    importing scipy.linalg: a quarter second. Only a compile imports the
+    maths (numba's refresh of its registries): a step loaded from the cache
+    (_loading_only) needs none of it, 0.08 s of imports left out. The cffi
+    typing imports cffi and pycparser (0.04-0.06 s) when numba's typing
     context first loads, at a step's first call; imported while cffi is
     unimportable it records that cffi is missing, as on a machine without it
     (numba then types no cffi function in this process). Each is blocked
     only while numba's module imports, only when nothing imported the real
     one first, so any other importer still gets it."""
-    for module, blocked in (("numba.np.arraymath", ("scipy.linalg.cython_blas", "scipy.linalg")),
-                            ("numba.core.typing.cffi_utils", ("cffi", "cffi"))):
-        stub, real = blocked
+    for module in modules:
+        stub, real = _BLOCKED[module]
         if module in sys.modules or real in sys.modules:
             continue
         sys.modules[stub] = None            # type: ignore[assignment]  # an ImportError
@@ -170,10 +240,28 @@ def _without_blas() -> None:
             del sys.modules[stub]
 
 
+# compile locks a sweep claimed (claim_lock) and handed to this process, its
+# background compile: held until it exits, so compile_lock does not wait on them
+_HELD: dict[Path, IO[str]] = {}
+
+
+def _mark(f: IO[str], pid: int) -> None:
+    f.seek(0)
+    f.truncate()
+    f.write(str(pid))                    # who compiles, for lock_holder
+    f.flush()
+
+
 @contextmanager
 def compile_lock(folder: Path) -> Iterator[None]:
     """Hold `folder`/compile.lock (an flock: the kernel frees it when the
-    holder dies) for the duration; no lock where fcntl is missing."""
+    holder dies) for the duration; no lock where fcntl is missing, none to
+    take when this process was handed it (adopt_lock)."""
+    held = _HELD.get(folder)
+    if held is not None:
+        _mark(held, os.getpid())
+        yield
+        return
     try:
         import fcntl
     except ImportError:          # not POSIX: compiles may overlap, numba copes
@@ -183,13 +271,40 @@ def compile_lock(folder: Path) -> Iterator[None]:
     with open(folder / "compile.lock", "a+") as f:
         fcntl.flock(f, fcntl.LOCK_EX)
         try:
-            f.seek(0)
-            f.truncate()
-            f.write(str(os.getpid()))        # who compiles, for lock_holder
-            f.flush()
+            _mark(f, os.getpid())
             yield
         finally:
             fcntl.flock(f, fcntl.LOCK_UN)
+
+
+def claim_lock(folder: Path) -> IO[str] | None:
+    """`folder`'s compile lock taken without waiting: the open file that holds
+    it (closed, it frees the lock; inherited by a child process, it is the
+    child's too), or None when another process holds it. Taking it is the
+    test: two sweeps that find the same step missing at once cannot both
+    see it free, as two lock_holder probes could before either compile
+    began. Where fcntl is missing, an open file that locks nothing."""
+    folder.mkdir(parents=True, exist_ok=True)
+    f = open(folder / "compile.lock", "a+")
+    try:
+        import fcntl
+    except ImportError:
+        return f
+    try:
+        fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        f.close()
+        return None
+    _mark(f, os.getpid())
+    return f
+
+
+def adopt_lock(folder: Path, fd: int) -> None:
+    """Hold, until this process exits, `folder`'s compile lock that the
+    process which started it claimed (claim_lock) and passed as fd."""
+    f = os.fdopen(fd, "a+")
+    _mark(f, os.getpid())
+    _HELD[folder] = f
 
 
 def lock_holder(folder: Path) -> int | None:

@@ -863,7 +863,8 @@ def generate_with_inputs(layout: Layout, entries: dict[str, tuple[FunctionType, 
 # read from, so a warm engine skips the transform (about 0.2 s of CPU, most of
 # an engine's build). Its key is `shape(layout, entries)`: this file's own
 # text, the Python version, the inlining switch, and the classes, fields and
-# entry points (what the live instances say). Under one key, a text is used
+# entry points (what the live instances say) with the files they are defined
+# in (so each source tree has its own). Under one key, a text is used
 # again only while `Inputs.hold()`: every source file a transformed function
 # was read from (and every file defining a class of the layout) has the same
 # content, and every global name and method the transform resolved still
@@ -913,19 +914,32 @@ def _kind_key(kind: Any) -> str:
     return repr(kind)
 
 
+def _where(cls: type) -> str:
+    try:
+        return inspect.getfile(cls)
+    except (TypeError, OSError):
+        return "?"
+
+
 def shape(layout: Layout, entries: dict[str, tuple[FunctionType, tuple]]) -> str:
     """The cache key of the text `generate(layout, entries)` makes, given that
-    its `Inputs` hold: everything it depends on that is not a source file."""
+    its `Inputs` hold: everything it depends on that is not a source file.
+    The files the classes and entry points are defined in are part of it: two
+    source trees sharing one cache (two checkouts, an install and a clone)
+    each keep their own text, where one key would have each tree's build
+    overwrite the other's and transform again."""
     if not _SELF:
         _SELF.append(_file_hash(__file__) or "")
     parts = [_SELF[0], CODEGEN, repr(sys.version_info[:2]),
              os.environ.get("TOUCHSWARM_SOA_INLINE", "1")]
     for cl in layout.classes.values():
         cl.finish()
-        parts.append(f"{cl.cls.__module__}.{cl.cls.__qualname__} as {cl.name}: " + ", ".join(
-            f"{a}={_kind_key(k)}" for a, k in cl.fields.items()) + f" views {cl.views}")
+        parts.append(f"{cl.cls.__module__}.{cl.cls.__qualname__} in {_where(cl.cls)} as "
+                     f"{cl.name}: " + ", ".join(
+                         f"{a}={_kind_key(k)}" for a, k in cl.fields.items())
+                     + f" views {cl.views}")
     for key, (fn, kinds) in entries.items():
-        parts.append(f"{key}: {fn.__module__}.{fn.__qualname__}"
+        parts.append(f"{key}: {fn.__module__}.{fn.__qualname__} in {fn.__code__.co_filename}"
                      f"({', '.join(_kind_key(k) for k in kinds)})")
     return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:24]
 
