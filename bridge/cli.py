@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import logging
 import os
 import sys
 from typing import NoReturn
@@ -189,11 +188,21 @@ def _log_argv(argv: list[str], rc: int | str | None) -> None:
         os.close(fd)
 
 
+def configure_logging(verbose: int) -> None:
+    """Records of WARNING and above (-v: INFO, -vv: DEBUG) on stderr, one
+    line each naming the logger."""
+    import logging
+    logging.basicConfig(level=logging.WARNING - 10 * min(verbose, 2),
+                        format="%(levelname)s %(name)s: %(message)s")
+
+
 def _main(argv: list[str]) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    logging.basicConfig(level=logging.WARNING - 10 * min(args.verbose, 2),
-                        format="%(levelname)s %(name)s: %(message)s")
+    # a command may set quiet_logging: it configures logging itself on the
+    # paths whose modules log, so its plain path imports no logging
+    if args.verbose or not getattr(args, "quiet_logging", False):
+        configure_logging(args.verbose)
     if not getattr(args, "func", None):
         parser.print_help()
         return EXIT_USAGE

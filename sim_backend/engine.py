@@ -16,7 +16,6 @@ Tick semantics (docs/tick-semantics.md):
 
 from __future__ import annotations
 
-import logging
 import sys
 from collections import deque
 from dataclasses import dataclass, field
@@ -32,8 +31,6 @@ from sim_backend.exchange import exchange
 from sim_backend.measures import polygon_iou, power_held, shape_iou
 from sim_backend.scenario import Scenario
 from sim_backend.world import World
-
-log = logging.getLogger(__name__)
 
 
 class InprocLink:

@@ -24,9 +24,11 @@ NOT_FOR_RUN = ("matplotlib", "numba", "llvmlite", "can", "cantools", "serial", "
 # entry points; a built-in is found without them) and the email and zipfile
 # modules it loads, package resources, temporary files, child processes,
 # digests, sockets; shutil (argparse's terminal width, asked only to print
-# help) and the compression modules it loads
+# help) and the compression modules it loads; logging (nothing of a plain
+# run logs unless -v asks: perception.detail)
 STDLIB_NOT_FOR_RUN = ("importlib.metadata", "importlib.resources", "email", "zipfile",
-                      "tempfile", "subprocess", "hashlib", "socket", "shutil", "bz2", "lzma")
+                      "tempfile", "subprocess", "hashlib", "socket", "shutil", "bz2", "lzma",
+                      "logging")
 
 PROBE = """
 import contextlib, io, json, sys
@@ -93,6 +95,16 @@ def test_a_run_loads_no_can_compiler_serial_plot_or_parquet_package():
     assert commands(got["modules"]) == ["bridge.commands.run"]
     assert sorted(set(got["modules"]) & set(STDLIB_NOT_FOR_RUN)) == []
     assert "sim_backend.animate" not in got["modules"]     # read by --animate and its help only
+
+
+def test_a_verbose_run_still_logs_what_it_recognised():
+    """-v configures logging before the run: the tracker's INFO record is one
+    line naming its logger, as before the plain run stopped importing logging."""
+    done = subprocess.run([sys.executable, "-m", "bridge.cli", "-v", "run", "--json", "--set",
+                           "maxTicks=200"], cwd=ROOT, capture_output=True, text=True,
+                          timeout=300)
+    assert done.returncode == 0
+    assert done.stderr.startswith("INFO perception.tracker: recognised bar (p ")
 
 
 def test_a_sweep_without_a_preset_loads_no_plotting_module(tmp_path):
