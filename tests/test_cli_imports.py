@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from bridge import cli
+from bridge import cli, cli_parser
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -66,6 +66,39 @@ def test_version_imports_no_command_and_no_heavy_package():
     assert got["code"] == 0 and got["out"].startswith("touchswarm ")
     assert loaded(got["modules"], HEAVY) == []
     assert commands(got["modules"]) == []
+
+
+def test_version_alone_needs_no_parser_and_no_metadata_library():
+    got = probe("--version")
+    from importlib.metadata import version
+    assert got["code"] == 0 and got["out"] == f"touchswarm {version('touchswarm')}\n"
+    assert [m for m in ("argparse", "importlib.metadata", "sim_backend.api", "logging")
+            if m in got["modules"]] == []
+
+
+@pytest.mark.parametrize("layout", [
+    {"a": {"touchswarm-9.1.dist-info": ("METADATA", "9.1")}},
+    {"a": {"TouchSwarm-9.2.dist-info": ("METADATA", "9.2")}},
+    # the first folder on the path decides, of either form
+    {"a": {"touchswarm.egg-info": ("PKG-INFO", "9.3")},
+     "b": {"touchswarm-9.4.dist-info": ("METADATA", "9.4")}},
+    {"a": {"touch_swarm-1.0.dist-info": ("METADATA", "1.0"), "other-2.0.dist-info":
+           ("METADATA", "2.0")}, "b": {"touchswarm-9.5.dist-info": ("METADATA", "9.5")}},
+])
+def test_the_version_is_what_importlib_metadata_reads(tmp_path, monkeypatch, layout):
+    """sim_backend.version reads the metadata file importlib.metadata would
+    (without importing it) for installs as wheels, editable or not."""
+    from importlib.metadata import version as dist_version
+
+    from sim_backend import version
+    for entry, folders in layout.items():
+        for folder, (name, number) in folders.items():
+            (tmp_path / entry / folder).mkdir(parents=True)
+            (tmp_path / entry / folder / name).write_text(
+                f"Metadata-Version: 2.1\nName: x\nVersion: {number}\n\nVersion: 0.0\n")
+    monkeypatch.setattr(sys, "path", [str(tmp_path / e) for e in layout])
+    assert version._from_info_folder() == dist_version("touchswarm")
+    assert version.version() == dist_version("touchswarm")
 
 
 def test_help_lists_every_command_without_building_one():
@@ -131,7 +164,7 @@ def test_importing_the_facade_reads_the_version_only_when_asked():
 def test_no_command_parser_needs_a_heavy_package():
     """Every command's --help (all parsers built, as for docs/cli.md) loads
     none of them: heavy imports are inside the handlers."""
-    code = ("import json, sys; from bridge.cli import build_parser; build_parser(full=True); "
+    code = ("import json, sys; from bridge.cli_parser import build_parser; build_parser(full=True); "
             "print(json.dumps(sorted(sys.modules)))")
     done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True,
                           text=True, timeout=300, check=True)
@@ -141,7 +174,7 @@ def test_no_command_parser_needs_a_heavy_package():
 def test_help_still_wraps_at_the_terminal_width(monkeypatch):
     """add_argument's metavar check formats with a fixed width (no shutil on
     a run); the help a user reads keeps the terminal's."""
-    sub = next(a for a in cli.build_parser()._actions if isinstance(a, cli.LazyCommands))
+    sub = next(a for a in cli_parser.build_parser()._actions if isinstance(a, cli_parser.LazyCommands))
     sub.load("run")
     for columns in (50, 120):
         monkeypatch.setenv("COLUMNS", str(columns))
@@ -154,19 +187,19 @@ def test_help_still_wraps_at_the_terminal_width(monkeypatch):
 def test_the_lazy_help_is_the_full_help():
     """`touchswarm --help` from the table alone equals the help with every
     command's parser built (the one-line helps are written once, in COMMANDS)."""
-    assert cli.build_parser().format_help() == cli.build_parser(full=True).format_help()
+    assert cli_parser.build_parser().format_help() == cli_parser.build_parser(full=True).format_help()
 
 
 def test_every_command_in_the_table_is_built_by_its_module():
-    p = cli.build_parser(full=True)
-    sub = next(a for a in p._actions if isinstance(a, cli.LazyCommands))
+    p = cli_parser.build_parser(full=True)
+    sub = next(a for a in p._actions if isinstance(a, cli_parser.LazyCommands))
     assert list(sub.choices) == list(cli.COMMANDS)
     for name, parser in sub.choices.items():
         assert parser is not None and parser.prog == f"touchswarm {name}"
 
 
 def test_a_command_module_may_not_write_its_own_help_or_an_unlisted_name():
-    sub = next(a for a in cli.build_parser()._actions if isinstance(a, cli.LazyCommands))
+    sub = next(a for a in cli_parser.build_parser()._actions if isinstance(a, cli_parser.LazyCommands))
     with pytest.raises(ValueError, match="COMMANDS"):
         sub.add_parser("run", help="a second one-line help")
     with pytest.raises(ValueError, match="not in bridge/cli.py COMMANDS"):
@@ -174,8 +207,8 @@ def test_a_command_module_may_not_write_its_own_help_or_an_unlisted_name():
 
 
 def test_a_parse_builds_the_named_command_only():
-    p = cli.build_parser()
-    sub = next(a for a in p._actions if isinstance(a, cli.LazyCommands))
+    p = cli_parser.build_parser()
+    sub = next(a for a in p._actions if isinstance(a, cli_parser.LazyCommands))
     args = p.parse_args(["scenarios"])
     assert args.command == "scenarios" and args.func
     built = [name for name, parser in sub.choices.items() if parser is not None]
