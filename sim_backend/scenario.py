@@ -12,7 +12,6 @@ range.
 from __future__ import annotations
 
 import dataclasses
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -475,6 +474,60 @@ def _check_consistency(sc: Scenario) -> None:
     arena.check_crowd(sc, len(cells))
 
 
+_BARE_KEY = frozenset("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789_-")
+
+
+def flat_toml(text: str) -> dict[str, Any] | None:
+    """The table of a flat TOML text whose lines are each blank, a comment,
+    or `key = value` with a bare key and a plain value: a string without
+    escapes, an integer or decimal without underscores, true or false (the
+    built-in scenarios, --set values). None for any other text, which
+    tomllib reads (its import and first parse are 9 M instructions, more
+    than a run's scenario needs)."""
+    out: dict[str, Any] = {}
+    for line in text.replace("\r\n", "\n").split("\n"):
+        if not line.replace("\t", " ").isprintable():
+            return None         # a control character (tomllib's error), or rare text
+        line = line.strip(" \t")
+        if not line or line[0] == "#":
+            continue
+        key, eq, rest = line.partition("=")
+        key, rest = key.rstrip(" \t"), rest.lstrip(" \t")
+        if not eq or not key or not set(key) <= _BARE_KEY or key in out:
+            return None
+        if rest[:1] == '"':
+            end = rest.find('"', 1)
+            if end < 0 or "\\" in rest[:end]:
+                return None
+            value: Any = rest[1:end]
+            tail = rest[end + 1:].lstrip(" \t")
+        else:
+            word, hash_, comment = rest.partition("#")
+            value, tail = _plain(word.rstrip(" \t")), hash_ + comment
+            if value is None:
+                return None
+        if tail and tail[0] != "#":
+            return None
+        out[key] = value
+    return out
+
+
+def _plain(word: str) -> bool | int | float | None:
+    """A TOML boolean, integer or decimal in its plainest spelling; None
+    for anything else."""
+    if word in ("true", "false"):
+        return word == "true"
+    whole, dot, frac = word.lstrip("+-").partition(".")
+    if not whole.isdigit() or not whole.isascii() or (whole[0] == "0" and len(whole) > 1) \
+            or len(word) - len(word.lstrip("+-")) > 1:
+        return None
+    if not dot:
+        return int(word)
+    if not frac.isdigit() or not frac.isascii():
+        return None
+    return float(word)
+
+
 # the package's own folder, not importlib.resources: that module imports
 # tempfile, zipfile and shutil, a tenth of `touchswarm run`'s imports, and the
 # package is always installed as files (wheel or editable)
@@ -507,10 +560,13 @@ def load(spec: str | Path | None = None) -> Scenario:
     else:
         raise ScenarioError(f"scenario: {str(spec)!r} is neither a built-in "
                             f"({', '.join(builtin_names())}) nor a .toml file")
-    try:
-        raw = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as err:
-        raise ScenarioError(f"{source}: not valid TOML: {err}") from err
+    raw = flat_toml(text)
+    if raw is None:
+        import tomllib
+        try:
+            raw = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as err:
+            raise ScenarioError(f"{source}: not valid TOML: {err}") from err
     if "behaviour" in raw:
         # a file names, never imports: a folder only when the user trusted it
         from sim_backend import registry

@@ -25,10 +25,11 @@ NOT_FOR_RUN = ("matplotlib", "numba", "llvmlite", "can", "cantools", "serial", "
 # modules it loads, package resources, temporary files, child processes,
 # digests, sockets; shutil (argparse's terminal width, asked only to print
 # help) and the compression modules it loads; logging (nothing of a plain
-# run logs unless -v asks: perception.detail)
+# run logs unless -v asks: perception.detail); tomllib (a built-in
+# scenario and plain --set values are flat: scenario.flat_toml)
 STDLIB_NOT_FOR_RUN = ("importlib.metadata", "importlib.resources", "email", "zipfile",
                       "tempfile", "subprocess", "hashlib", "socket", "shutil", "bz2", "lzma",
-                      "logging")
+                      "logging", "tomllib")
 
 PROBE = """
 import contextlib, io, json, sys
@@ -241,3 +242,48 @@ def test_the_start_up_bench_runs_and_reports_every_command():
             assert f"{tree}: touchswarm {name}" in got["seconds"]
             assert got["imports"][f"{tree}: touchswarm {name}"]["modules"] > 0
     assert "python -c 'import numpy'" in got["seconds"]
+
+
+FLAT = ['a = 1', 'a=-0', 'a = +7 # c', 'a = 0.50', 'a = "x # y" # z', 'a = true\r\nb = false',
+        'k_-9 = "\u00e9"', '# only\n\n\t', 'a = ""', '1 = 2']
+NOT_FLAT = ['a = 01', 'a = 1_000', 'a = 1e3', 'a = .5', 'a = 5.', "a = 'x'", 'a = "x\\ty"',
+            'a = 1\na = 2', '[t]\na = 1', 'a.b = 1', 'a = "x" y', 'a = [1]', 'a = inf',
+            'a = \u0661', 'a = 1\rb = 2', 'a = "\x01"', 'a = +-1', 'a = """x"""']
+
+
+@pytest.mark.parametrize("text", FLAT + NOT_FLAT)
+def test_the_flat_reader_reads_what_tomllib_reads_or_leaves_it(text):
+    """scenario.flat_toml (a run's scenario without tomllib's import) gives
+    tomllib's table, types included, or None: tomllib reads it then."""
+    import tomllib
+
+    from sim_backend.scenario import flat_toml
+    got = flat_toml(text)
+    assert (got is not None) == (text in FLAT)
+    if got is not None:
+        want = tomllib.loads(text)
+        assert got == want and [type(v) for v in got.values()] == [type(v) for v in want.values()]
+
+
+def test_the_flat_reader_agrees_with_tomllib_on_every_built_in_and_random_texts():
+    import random
+    import tomllib
+
+    from sim_backend.scenario import SCENARIOS_DIR, flat_toml
+    texts = [p.read_text(encoding="utf-8") for p in sorted(SCENARIOS_DIR.glob("*.toml"))]
+    assert flat_toml(texts[[p.name for p in sorted(SCENARIOS_DIR.glob("*.toml"))]
+                           .index("default.toml")]) is not None
+    bits = ["a", "1", "0", "=", " ", '"', "#", ".", "-", "+", "\n", "\t", "\\", "true",
+            "[", "_", "e", "'", "\r", "9"]
+    rnd = random.Random(28)
+    texts += ["".join(rnd.choice(bits) for _ in range(rnd.randint(1, 12))) for _ in range(20000)]
+    read = 0
+    for text in texts:
+        got = flat_toml(text)
+        if got is None:
+            continue
+        read += 1
+        want = tomllib.loads(text)      # raises if flat_toml took an invalid text
+        assert got == want and [type(v) for v in got.values()] == \
+            [type(v) for v in want.values()], repr(text)
+    assert read > 500

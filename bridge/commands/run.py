@@ -50,6 +50,10 @@ def trust_from_args(args: argparse.Namespace) -> None:
 
 
 def parse_value(text: str):
+    from sim_backend.scenario import flat_toml
+    flat = flat_toml(f"v = {text}")
+    if flat is not None:
+        return flat["v"]
     import tomllib
     try:
         return tomllib.loads(f"v = {text}")["v"]
