@@ -14,9 +14,9 @@ from __future__ import annotations
 
 import os
 import sys
-from typing import Any
-
-from bridge.errors import BridgeError, UsageError
+TYPE_CHECKING = False           # typing's, for mypy: `touchswarm --version` imports no typing
+if TYPE_CHECKING:
+    from typing import Any
 
 # Every command: its name, the module whose register(subparsers) builds its
 # parser, and its one-line help (listed by `touchswarm --help`; written only
@@ -115,6 +115,7 @@ def _main(argv: list[str]) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return EXIT_USAGE
+    from bridge.errors import BridgeError, UsageError
     from sim_backend.errors import SimError
     from sim_backend import registry
     registry.untrust_all()     # only this command line's folders are trusted

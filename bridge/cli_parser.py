@@ -7,7 +7,11 @@ from __future__ import annotations
 
 import argparse
 import importlib
-from typing import NoReturn
+import os
+import sys
+TYPE_CHECKING = False           # typing's, for mypy: `touchswarm --help` imports no typing
+if TYPE_CHECKING:
+    from typing import NoReturn
 
 from bridge.cli import COMMANDS, EXIT_USAGE
 
@@ -19,25 +23,30 @@ class OneLineParser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:
         self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see `{self.prog} --help`)\n")
 
-    # add_argument checks each metavar with a throw-away formatter, whose
-    # default width is the terminal's: shutil (and with it bz2, lzma, zlib),
-    # about 7 M instructions of a run's start-up for text nobody reads. The
-    # check formats no line, so its formatter gets a fixed width; help and
-    # usage keep the terminal's.
-    _checking = False
-
-    def add_argument(self, *args, **kwargs) -> argparse.Action:
-        self._checking = True
-        try:
-            return super().add_argument(*args, **kwargs)
-        finally:
-            self._checking = False
-
+    # argparse sizes every formatter (add_argument's metavar check too) by
+    # shutil.get_terminal_size, and shutil imports bz2, lzma and zlib: ~7 M
+    # instructions of start-up, for `run` as for --help. terminal_columns
+    # is that function's width without that import.
     def _get_formatter(self) -> argparse.HelpFormatter:
-        if self._checking:
-            # every HelpFormatter takes width (typeshed types the class by prog alone)
-            return self.formatter_class(prog=self.prog, width=80)  # type: ignore[call-arg]
-        return super()._get_formatter()
+        # every HelpFormatter takes width (typeshed types the class by prog alone)
+        return self.formatter_class(prog=self.prog,  # type: ignore[call-arg]
+                                    width=terminal_columns() - 2)
+
+
+def terminal_columns() -> int:
+    """shutil.get_terminal_size().columns: $COLUMNS when a positive number,
+    else the terminal's width on standard output, else 80."""
+    try:
+        columns = int(os.environ["COLUMNS"])
+    except (KeyError, ValueError):
+        columns = 0
+    out = sys.__stdout__
+    if columns <= 0 and out is not None:
+        try:
+            columns = os.get_terminal_size(out.fileno()).columns
+        except (ValueError, OSError):
+            columns = 0
+    return columns if columns > 0 else 80
 
 
 class LazyCommands(argparse._SubParsersAction):

@@ -112,6 +112,23 @@ def test_help_lists_every_command_without_building_one():
     assert commands(got["modules"]) == []
 
 
+def test_help_loads_no_typing_nor_shutil_and_its_compressors():
+    got = probe("--help")
+    assert got["code"] == 0
+    assert [m for m in ("typing", "shutil", "bz2", "lzma", "zlib", "logging", "dataclasses",
+                        "sim_backend") if m in got["modules"]] == []
+
+
+@pytest.mark.parametrize("columns", [None, "", "0", "-3", "x", "57", "131"])
+def test_the_terminal_width_is_shutils(monkeypatch, columns):
+    import shutil
+    if columns is None:
+        monkeypatch.delenv("COLUMNS", raising=False)
+    else:
+        monkeypatch.setenv("COLUMNS", columns)
+    assert cli_parser.terminal_columns() == shutil.get_terminal_size().columns
+
+
 def test_run_help_builds_only_run():
     got = probe("run", "--help")
     assert got["code"] == 0 and "--animate FILE" in got["out"]
