@@ -66,6 +66,11 @@ class InprocLink:
 
 @dataclass
 class RunResult:
+    """One finished run: its scenario and seed, the world and the
+    coordinator as the run left them, the robots, and what the observers
+    kept (trajectories, states per tick, measures); summary() is what
+    `touchswarm run --json` prints."""
+
     scenario: Scenario
     seed: int
     ticks: int

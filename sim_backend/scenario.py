@@ -76,8 +76,19 @@ def check_seed(seed: Any, source: str = "seed") -> int:
     return seed
 
 
-@dataclass(frozen=True)
+# A dataclass (fields(), replace(), asdict() work on it) whose __init__,
+# __repr__, __eq__, __hash__ and frozen __setattr__ are written once below
+# for every field: the decorator's generated ones, compiled for these 44
+# fields at each import, were ~12 M instructions of every command's
+# start-up. The behaviour is the decorator's (frozen=True).
+@dataclass(init=False, repr=False, eq=False)
 class Scenario:
+    """A validated scenario: the world's keys as fields (their defaults the
+    default scenario's world), the behaviour's own keys in `params`, read
+    as attributes too (`sc.<name>`). Made by load() or validate(); changed
+    by replace(), which validates again. Frozen: assigning a field raises
+    dataclasses.FrozenInstanceError."""
+
     name: str = "default"
     description: str = ""
     agents: int = 20             # the thesis's (5.2.4, "Total Robot Population was 20")
@@ -136,6 +147,38 @@ class Scenario:
     # the behaviour's own keys (its spec.PARAMS), ((name, value), ...) in
     # declaration order; read as attributes: sc.<name> (sim_backend/params.py)
     params: tuple = ()
+
+    def __init__(self, **keys: Any) -> None:
+        unknown = keys.keys() - _DEFAULTS.keys()
+        if unknown:
+            raise TypeError(f"Scenario.__init__() got an unexpected keyword argument "
+                            f"{min(unknown)!r}")
+        d = self.__dict__
+        d.update(_DEFAULTS)
+        d.update(keys)
+        self.__post_init__()
+
+    def _fields(self) -> tuple:
+        d = self.__dict__
+        return tuple([d[k] for k in _DEFAULTS])
+
+    def __repr__(self) -> str:
+        return "Scenario(" + ", ".join(f"{k}={v!r}" for k, v in zip(_DEFAULTS, self._fields())) \
+            + ")"
+
+    def __eq__(self, other: Any) -> bool:       # (`object` here is the field)
+        if other.__class__ is not self.__class__:
+            return NotImplemented
+        return self._fields() == other._fields()
+
+    def __hash__(self) -> int:
+        return hash(self._fields())
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        raise dataclasses.FrozenInstanceError(f"cannot assign to field {name!r}")
+
+    def __delattr__(self, name: str) -> None:
+        raise dataclasses.FrozenInstanceError(f"cannot delete field {name!r}")
 
     def __post_init__(self) -> None:
         if not self.params:
@@ -264,10 +307,12 @@ LINK_FAULT_KEYS = ("linkLoss", "linkDup", "linkReorder", "linkDelay")
 
 def link_faults(sc: "Scenario") -> list[str]:
     """The link fault keys `sc` sets (they need a real link: --link can)."""
-    return [k for k in LINK_FAULT_KEYS if getattr(sc, k) != Scenario.__dataclass_fields__[k].default]
+    return [k for k in LINK_FAULT_KEYS if getattr(sc, k) != _DEFAULTS[k]]
 
 
-FIELDS = {f.name for f in dataclasses.fields(Scenario)} - {"params"}
+# every field and its default, in declaration order (Scenario.__init__)
+_DEFAULTS: dict[str, Any] = {f.name: f.default for f in dataclasses.fields(Scenario)}
+FIELDS = set(_DEFAULTS) - {"params"}
 WORLD_KEYS = frozenset(FIELDS)
 
 

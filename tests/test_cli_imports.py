@@ -304,3 +304,33 @@ def test_the_flat_reader_agrees_with_tomllib_on_every_built_in_and_random_texts(
         assert got == want and [type(v) for v in got.values()] == \
             [type(v) for v in want.values()], repr(text)
     assert read > 500
+
+
+def test_the_scenario_behaves_as_the_frozen_dataclass_it_was():
+    """Scenario's hand-written methods (no generated ones to compile at
+    import) keep the frozen dataclass's behaviour: keyword construction with
+    defaults, equality and hash over the fields, a frozen instance, the
+    dataclasses functions, pickling, and the repr."""
+    import dataclasses
+    import pickle
+
+    from sim_backend.scenario import Scenario, load
+    a, b = Scenario(), Scenario(agents=5)
+    assert a == Scenario() and hash(a) == hash(Scenario()) and a != b and a != 5
+    assert b.agents == 5 and b.worldSize == 18 and a.params == b.params != ()
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        a.agents = 3
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        del a.agents
+    with pytest.raises(TypeError, match="unexpected keyword argument 'agentz'"):
+        Scenario(agentz=3)
+    names = [f.name for f in dataclasses.fields(Scenario)]
+    assert names[:3] == ["name", "description", "agents"] and names[-1] == "params"
+    assert list(Scenario.__dataclass_fields__) == names
+    assert dataclasses.replace(a, agents=7) == Scenario(agents=7)
+    assert list(dataclasses.asdict(a)) == names
+    ant = load("ant")
+    assert pickle.loads(pickle.dumps(ant)) == ant and ant.robotVisionSpan == ant.params[1][1]
+    assert repr(b).startswith("Scenario(name='default', description='', agents=5, sigRadius=5, ")
+    assert repr(b).endswith(f"breeds=(), params={b.params!r})")
+    assert {a: 1}[Scenario()] == 1
