@@ -16,23 +16,6 @@ if TYPE_CHECKING:
 from bridge.cli import COMMANDS, EXIT_USAGE
 
 
-def _translate_once() -> None:
-    """argparse translates each of its messages with gettext.gettext, which
-    looks for the locale's catalogue again at every call (the locale's
-    names expanded, a file checked per language): half of what building
-    and parsing `touchswarm run --json` costs, ~5 M instructions. The
-    catalogue cannot change while a command runs, so it is looked up once
-    here and argparse is given its gettext and ngettext: the same text."""
-    import gettext
-    domain = gettext.textdomain()
-    catalogue = gettext.translation(domain, gettext.bindtextdomain(domain), fallback=True)
-    argparse._ = catalogue.gettext                  # type: ignore[attr-defined]
-    argparse.ngettext = catalogue.ngettext          # type: ignore[attr-defined]
-
-
-_translate_once()
-
-
 class OneLineParser(argparse.ArgumentParser):
     """argparse prints the whole usage block before an error; a user who
     mistyped one option needs the one line naming it, and where to look."""

@@ -5,7 +5,6 @@ what is in sys.modules after the command, in a fresh interpreter: no
 timing."""
 
 import json
-import os
 import subprocess
 import sys
 from pathlib import Path
@@ -335,40 +334,3 @@ def test_the_scenario_behaves_as_the_frozen_dataclass_it_was():
     assert repr(b).startswith("Scenario(name='default', description='', agents=5, sigRadius=5, ")
     assert repr(b).endswith(f"breeds=(), params={b.params!r})")
     assert {a: 1}[Scenario()] == 1
-
-
-def _write_mo(path: Path, messages: dict[str, str]) -> None:
-    """A GNU gettext catalogue (.mo) of `messages`."""
-    import struct
-    pairs = sorted({"": "Content-Type: text/plain; charset=UTF-8\n", **messages}.items())
-    ids = b"".join(k.encode() + b"\0" for k, _ in pairs)
-    strs = b"".join(v.encode() + b"\0" for _, v in pairs)
-    start = 28 + 16 * len(pairs)
-    table_ids, table_strs, at_id, at_str = [], [], start, start + len(ids)
-    for k, v in pairs:
-        table_ids += [len(k.encode()), at_id]
-        table_strs += [len(v.encode()), at_str]
-        at_id += len(k.encode()) + 1
-        at_str += len(v.encode()) + 1
-    path.parent.mkdir(parents=True)
-    path.write_bytes(struct.pack("<7I", 0x950412de, 0, len(pairs), 28, 28 + 8 * len(pairs), 0, 0)
-                     + struct.pack(f"<{4 * len(pairs)}I", *table_ids, *table_strs) + ids + strs)
-
-
-def test_the_parser_speaks_the_locales_catalogue(tmp_path):
-    """cli_parser looks gettext's catalogue up once for argparse: a locale
-    with a catalogue of argparse's messages still gets them, in help and in
-    errors."""
-    _write_mo(tmp_path / "xx" / "LC_MESSAGES" / "messages.mo",
-              {"usage: ": "Gebrauch: ", "show this help message and exit": "Hilfe zeigen",
-               "unrecognized arguments: %s": "unbekannte Argumente: %s"})
-    code = ("import gettext, sys; gettext.bindtextdomain('messages', sys.argv[1]); "
-            "from bridge.cli import main; main(sys.argv[2:])")
-    env = {**os.environ, "LANGUAGE": "xx"}
-    helped = subprocess.run([sys.executable, "-c", code, str(tmp_path), "run", "--help"],
-                            cwd=ROOT, env=env, capture_output=True, text=True, timeout=120)
-    assert helped.stdout.startswith("Gebrauch: touchswarm run ")
-    assert "-h, --help            Hilfe zeigen" in helped.stdout
-    wrong = subprocess.run([sys.executable, "-c", code, str(tmp_path), "run", "--frob"],
-                           cwd=ROOT, env=env, capture_output=True, text=True, timeout=120)
-    assert "unbekannte Argumente: --frob" in wrong.stderr
