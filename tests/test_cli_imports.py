@@ -5,6 +5,7 @@ what is in sys.modules after the command, in a fresh interpreter: no
 timing."""
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -259,6 +260,31 @@ def test_the_start_up_bench_runs_and_reports_every_command():
             assert f"{tree}: touchswarm {name}" in got["seconds"]
             assert got["imports"][f"{tree}: touchswarm {name}"]["modules"] > 0
     assert "python -c 'import numpy'" in got["seconds"]
+
+
+# valgrind's summary line, with a count the bench's arithmetic can be checked
+# by: 100 M, +300 M for `import numpy`, +10 M for each call of main
+FAKE_VALGRIND = """#!{python}
+import sys
+text = " ".join(sys.argv)
+n = 100_000_000 + 300_000_000 * text.count("import numpy") + 10_000_000 * text.count("main(")
+print(f"==1== I   refs:      {{n:,}}", file=sys.stderr)
+"""
+
+
+def test_the_bench_counts_instructions_as_valgrind_reports_them(tmp_path, monkeypatch):
+    """--instructions reads cachegrind's I refs line; the run's floor is
+    import numpy plus the second of two runs in one process."""
+    tool = tmp_path / "valgrind"
+    tool.write_text(FAKE_VALGRIND.format(python=sys.executable))
+    tool.chmod(0o755)
+    monkeypatch.syspath_prepend(str(ROOT / "bench"))
+    import cli_startup
+    monkeypatch.setitem(cli_startup.ENV, "PATH", f"{tmp_path}{os.pathsep}{os.environ['PATH']}")
+    got = cli_startup.count_instructions({"this": ROOT})
+    assert got["python -c pass"] == 100.0 and got["python -c 'import numpy'"] == 400.0
+    assert got["this: touchswarm run --json"] == 110.0 and got["this: run in process"] == 10.0
+    assert got["this: run --json over its floor"] == round(110 / (400 + 10), 4)
 
 
 FLAT = ['a = 1', 'a=-0', 'a = +7 # c', 'a = 0.50', 'a = "x # y" # z', 'a = true\r\nb = false',
