@@ -6,7 +6,8 @@ re-exports it under the project's name.
 
 from typing import Any
 
-from sim_backend.api import Result, run, sweep, version
+from sim_backend.api import Result, run, sweep
+from sim_backend.version import version
 
 __all__ = ["Result", "run", "sweep", "__version__"]   # noqa: F822 - __version__: __getattr__
 

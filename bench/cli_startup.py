@@ -13,6 +13,12 @@ tree too, e.g. an export of an older commit
 bridge.cli import main; ..."` from that folder with this interpreter.
 Prints one JSON object. Nothing here is asserted: tests/test_cli_imports.py
 checks *what* is imported, never how long it takes.
+
+`--instructions` adds what no load moves: instructions (valgrind's
+cachegrind, `OPENBLAS_NUM_THREADS=1` and `PYTHONHASHSEED=0` so they repeat)
+of each command and of `touchswarm run --json` against its floor, `python
+-c "import numpy"` plus the run itself (a process running it twice less one
+running it once: the second run, everything imported and warm).
 """
 
 from __future__ import annotations
@@ -71,6 +77,40 @@ def import_time(args: list[str], cwd: Path) -> dict:
     return {"modules": len(rows), "import_s": round(sum(top) / 1e6, 3)}
 
 
+RUN_ONCE = ("import contextlib, io\nfrom bridge.cli import main\n"
+            "with contextlib.redirect_stdout(io.StringIO()):\n    main(['run', '--json'])\n")
+
+
+def instructions(argv: list[str], cwd: Path) -> int:
+    """Instructions a child process executes, by cachegrind."""
+    env = {**ENV, "OPENBLAS_NUM_THREADS": "1", "PYTHONHASHSEED": "0"}
+    err = subprocess.run(["valgrind", "--tool=cachegrind", "--cache-sim=no",
+                          "--cachegrind-out-file=/dev/null", *argv], cwd=cwd, env=env,
+                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True).stderr
+    refs = [line for line in err.splitlines() if "I   refs:" in line or "I refs:" in line]
+    if not refs:
+        raise SystemExit(f"bench/cli_startup.py: no instruction count from valgrind: "
+                         f"{err.strip().splitlines()[-1:]}")
+    return int(refs[-1].split(":")[1].replace(",", ""))
+
+
+def count_instructions(trees: dict[str, Path]) -> dict:
+    """Instructions (M) of every command and floor, and run --json over its floor."""
+    py = sys.executable
+    numpy = instructions([py, "-c", "import numpy"], Path("/"))
+    out: dict = {"python -c pass": instructions([py, "-c", "pass"], Path("/")),
+                 "python -c 'import numpy'": numpy}
+    for label, tree in trees.items():
+        for name, args in COMMANDS.items():
+            out[f"{label}: touchswarm {name}"] = instructions([py, "-c", CLI, *args], tree)
+        inside = (instructions([py, "-c", RUN_ONCE * 2], tree)
+                  - instructions([py, "-c", RUN_ONCE], tree))
+        run = out[f"{label}: touchswarm run --json"]
+        out[f"{label}: run in process"] = inside
+        out[f"{label}: run --json over its floor"] = round(run / (numpy + inside), 4)
+    return {k: v if isinstance(v, float) else round(v / 1e6, 1) for k, v in out.items()}
+
+
 def median(rows: list[tuple[float, float]]) -> dict:
     return {"wall_s": round(statistics.median(r[0] for r in rows), 3),
             "cpu_s": round(statistics.median(r[1] for r in rows), 3)}
@@ -81,12 +121,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--reps", type=int, default=5, help="calls per figure (default: 5)")
     ap.add_argument("--tree", action="append", default=[], type=Path,
                     help="another source tree to time beside this one")
+    ap.add_argument("--instructions", action="store_true",
+                    help="also count instructions with valgrind's cachegrind (M)")
     a = ap.parse_args(argv)
     trees = {"this": ROOT, **{str(t): t.resolve() for t in a.tree}}
     with tempfile.TemporaryDirectory() as pycache:
         ENV.clear()
         ENV.update(user_env(Path(pycache)))
         out = measure(trees, a.reps)
+        if a.instructions:
+            out["instructions_M"] = count_instructions(trees)
     print(json.dumps(out, indent=1))
     return 0
 

@@ -51,7 +51,7 @@ def _status() -> str:
 
 
 def text() -> str:
-    from bridge.cli import build_parser
+    from bridge.cli_parser import build_parser
     old = os.environ.get("COLUMNS")
     os.environ["COLUMNS"] = WIDTH
     try:

@@ -5,7 +5,21 @@ firmware_logic imports this package (docs/perception.md).
 """
 
 import importlib
+import sys
 from typing import Any
+
+DEBUG, INFO = 10, 20        # logging's levels, without importing it
+
+
+def detail(name: str, level: int, msg: str, *args: Any) -> None:
+    """Log a detail of the work (a recognition, a cluster's odds) at
+    `level`, through `logging` only once something imported it: until then
+    no handler is set up, and Python's last-resort handler drops records
+    below WARNING anyway, so `touchswarm run` need not import logging
+    (several M instructions of start-up) to drop them."""
+    logging = sys.modules.get("logging")
+    if logging is not None:
+        logging.getLogger(name).log(level, msg, *args)
 
 
 def host_coordinator(behaviour: Any, sc: Any, **kw: Any) -> Any:

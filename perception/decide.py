@@ -29,16 +29,13 @@ called a decoy only when its touches rule the target out more firmly.
 
 from __future__ import annotations
 
-import logging
-from typing import Any, Iterable
+from typing import Any, Iterable, NamedTuple
 
-from typing import NamedTuple
-
+from perception import DEBUG, detail
 from perception.evidence import Evidence
 from perception.recognise import estimate, recognise
 from perception.shapes import Library, orientations
 
-log = logging.getLogger(__name__)
 
 Cell = tuple[int, int]
 
@@ -100,8 +97,8 @@ class Decider:
         else:
             odds = p / (1 - p) * self.odds
             q = odds / (1 + odds)
-            log.debug("cluster %s: target p %.3f, with the scenario's prior %.3f (best %s %.3f)",
-                      sorted(ev.touched), p, q, rec.best, rec.p)
+            detail(__name__, DEBUG, "cluster %s: target p %.3f, with the scenario's prior %.3f "
+                   "(best %s %.3f)", sorted(ev.touched), p, q, rec.best, rec.p)
             permille = int(q * 1000)
         call = Call(ev, permille, rec, estimate(ev, rec))
         self.answers[key(cells)] = call

@@ -14,15 +14,14 @@ the truth per tick. It adds trace columns (COLUMNS) and summary fields
 
 from __future__ import annotations
 
-import logging
 from typing import Any, NamedTuple
 
 from firmware_logic import fixedpoint as fx
+from perception import INFO, detail
 from perception.evidence import Evidence, iou
 from perception.recognise import THRESHOLD, Recognition, estimate, recognise
 from perception.shapes import Library
 
-log = logging.getLogger(__name__)
 
 COLUMNS = (("estimate_iou", "IoU of the new shape estimate (recognised shape's MAP placement, "
                             "else the hull minus known-free cells) with the true shape"),
@@ -136,7 +135,8 @@ class Perceiver:
         if self.recognised_tick is None and self.rec.recognised(self.threshold):
             self.recognised_tick = e.tick
             self.recognised_as = self.rec.best
-            log.info("recognised %s (p %.3f) at tick %d", self.rec.best, self.rec.p, e.tick)
+            detail(__name__, INFO, "recognised %s (p %.3f) at tick %d", self.rec.best,
+                   self.rec.p, e.tick)
 
     def verdict(self) -> tuple[set, str | None, float, str]:
         """The run's verdict now: (estimate cells, recognised or None, p,

@@ -21,16 +21,6 @@ from typing import Any, Callable, Iterable, Mapping
 from sim_backend.errors import ScenarioError
 
 
-def version() -> str:
-    """The installed package's version (pyproject.toml's, the one place)."""
-    from importlib.metadata import PackageNotFoundError
-    from importlib.metadata import version as dist_version
-    try:
-        return dist_version("touchswarm")
-    except PackageNotFoundError:       # a source tree that was never installed
-        return "0+unknown"
-
-
 def _frame(rows: list[dict]) -> Any:
     """A pandas DataFrame of rows when pandas is installed, else the rows."""
     try:

@@ -16,7 +16,6 @@ Tick semantics (docs/tick-semantics.md):
 
 from __future__ import annotations
 
-import logging
 import sys
 from collections import deque
 from dataclasses import dataclass, field
@@ -32,8 +31,6 @@ from sim_backend.exchange import exchange
 from sim_backend.measures import polygon_iou, power_held, shape_iou
 from sim_backend.scenario import Scenario
 from sim_backend.world import World
-
-log = logging.getLogger(__name__)
 
 
 class InprocLink:
@@ -69,6 +66,11 @@ class InprocLink:
 
 @dataclass
 class RunResult:
+    """One finished run: its scenario and seed, the world and the
+    coordinator as the run left them, the robots, and what the observers
+    kept (trajectories, states per tick, measures); summary() is what
+    `touchswarm run --json` prints."""
+
     scenario: Scenario
     seed: int
     ticks: int

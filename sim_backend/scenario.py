@@ -12,7 +12,6 @@ range.
 from __future__ import annotations
 
 import dataclasses
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -77,8 +76,20 @@ def check_seed(seed: Any, source: str = "seed") -> int:
     return seed
 
 
-@dataclass(frozen=True)
+# A dataclass (fields(), replace(), asdict() work on it) whose __init__,
+# __repr__, __eq__, __hash__ and frozen __setattr__ are written once below
+# for every field: the decorator's generated ones, compiled for these 44
+# fields at each import, made this module's import 21 M instructions of
+# every command's start-up (3.6 M now). The behaviour is the decorator's
+# (frozen=True).
+@dataclass(init=False, repr=False, eq=False)
 class Scenario:
+    """A validated scenario: the world's keys as fields (their defaults the
+    default scenario's world), the behaviour's own keys in `params`, read
+    as attributes too (`sc.<name>`). Made by load() or validate(); changed
+    by replace(), which validates again. Frozen: assigning a field raises
+    dataclasses.FrozenInstanceError."""
+
     name: str = "default"
     description: str = ""
     agents: int = 20             # the thesis's (5.2.4, "Total Robot Population was 20")
@@ -137,6 +148,38 @@ class Scenario:
     # the behaviour's own keys (its spec.PARAMS), ((name, value), ...) in
     # declaration order; read as attributes: sc.<name> (sim_backend/params.py)
     params: tuple = ()
+
+    def __init__(self, **keys: Any) -> None:
+        unknown = keys.keys() - _DEFAULTS.keys()
+        if unknown:
+            raise TypeError(f"Scenario.__init__() got an unexpected keyword argument "
+                            f"{min(unknown)!r}")
+        d = self.__dict__
+        d.update(_DEFAULTS)
+        d.update(keys)
+        self.__post_init__()
+
+    def _fields(self) -> tuple:
+        d = self.__dict__
+        return tuple([d[k] for k in _DEFAULTS])
+
+    def __repr__(self) -> str:
+        return "Scenario(" + ", ".join(f"{k}={v!r}" for k, v in zip(_DEFAULTS, self._fields())) \
+            + ")"
+
+    def __eq__(self, other: Any) -> bool:       # (`object` here is the field)
+        if other.__class__ is not self.__class__:
+            return NotImplemented
+        return self._fields() == other._fields()
+
+    def __hash__(self) -> int:
+        return hash(self._fields())
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        raise dataclasses.FrozenInstanceError(f"cannot assign to field {name!r}")
+
+    def __delattr__(self, name: str) -> None:
+        raise dataclasses.FrozenInstanceError(f"cannot delete field {name!r}")
 
     def __post_init__(self) -> None:
         if not self.params:
@@ -265,10 +308,12 @@ LINK_FAULT_KEYS = ("linkLoss", "linkDup", "linkReorder", "linkDelay")
 
 def link_faults(sc: "Scenario") -> list[str]:
     """The link fault keys `sc` sets (they need a real link: --link can)."""
-    return [k for k in LINK_FAULT_KEYS if getattr(sc, k) != Scenario.__dataclass_fields__[k].default]
+    return [k for k in LINK_FAULT_KEYS if getattr(sc, k) != _DEFAULTS[k]]
 
 
-FIELDS = {f.name for f in dataclasses.fields(Scenario)} - {"params"}
+# every field and its default, in declaration order (Scenario.__init__)
+_DEFAULTS: dict[str, Any] = {f.name: f.default for f in dataclasses.fields(Scenario)}
+FIELDS = set(_DEFAULTS) - {"params"}
 WORLD_KEYS = frozenset(FIELDS)
 
 
@@ -475,6 +520,60 @@ def _check_consistency(sc: Scenario) -> None:
     arena.check_crowd(sc, len(cells))
 
 
+_BARE_KEY = frozenset("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789_-")
+
+
+def flat_toml(text: str) -> dict[str, Any] | None:
+    """The table of a flat TOML text whose lines are each blank, a comment,
+    or `key = value` with a bare key and a plain value: a string without
+    escapes, an integer or decimal without underscores, true or false (the
+    built-in scenarios, --set values). None for any other text, which
+    tomllib reads (its import and first parse are 9 M instructions, more
+    than a run's scenario needs)."""
+    out: dict[str, Any] = {}
+    for line in text.replace("\r\n", "\n").split("\n"):
+        if not line.replace("\t", " ").isprintable():
+            return None         # a control character (tomllib's error), or rare text
+        line = line.strip(" \t")
+        if not line or line[0] == "#":
+            continue
+        key, eq, rest = line.partition("=")
+        key, rest = key.rstrip(" \t"), rest.lstrip(" \t")
+        if not eq or not key or not set(key) <= _BARE_KEY or key in out:
+            return None
+        if rest[:1] == '"':
+            end = rest.find('"', 1)
+            if end < 0 or "\\" in rest[:end]:
+                return None
+            value: Any = rest[1:end]
+            tail = rest[end + 1:].lstrip(" \t")
+        else:
+            word, hash_, comment = rest.partition("#")
+            value, tail = _plain(word.rstrip(" \t")), hash_ + comment
+            if value is None:
+                return None
+        if tail and tail[0] != "#":
+            return None
+        out[key] = value
+    return out
+
+
+def _plain(word: str) -> bool | int | float | None:
+    """A TOML boolean, integer or decimal in its plainest spelling; None
+    for anything else."""
+    if word in ("true", "false"):
+        return word == "true"
+    whole, dot, frac = word.lstrip("+-").partition(".")
+    if not whole.isdigit() or not whole.isascii() or (whole[0] == "0" and len(whole) > 1) \
+            or len(word) - len(word.lstrip("+-")) > 1:
+        return None
+    if not dot:
+        return int(word)
+    if not frac.isdigit() or not frac.isascii():
+        return None
+    return float(word)
+
+
 # the package's own folder, not importlib.resources: that module imports
 # tempfile, zipfile and shutil, a tenth of `touchswarm run`'s imports, and the
 # package is always installed as files (wheel or editable)
@@ -507,10 +606,13 @@ def load(spec: str | Path | None = None) -> Scenario:
     else:
         raise ScenarioError(f"scenario: {str(spec)!r} is neither a built-in "
                             f"({', '.join(builtin_names())}) nor a .toml file")
-    try:
-        raw = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as err:
-        raise ScenarioError(f"{source}: not valid TOML: {err}") from err
+    raw = flat_toml(text)
+    if raw is None:
+        import tomllib
+        try:
+            raw = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as err:
+            raise ScenarioError(f"{source}: not valid TOML: {err}") from err
     if "behaviour" in raw:
         # a file names, never imports: a folder only when the user trusted it
         from sim_backend import registry

@@ -50,6 +50,10 @@ def trust_from_args(args: argparse.Namespace) -> None:
 
 
 def parse_value(text: str):
+    from sim_backend.scenario import flat_toml
+    flat = flat_toml(f"v = {text}")
+    if flat is not None:
+        return flat["v"]
     import tomllib
     try:
         return tomllib.loads(f"v = {text}")["v"]
@@ -168,7 +172,7 @@ def register(sub) -> None:
     p.add_argument("--frame-every", type=count(1, what="ticks per frame"), metavar="K",
                    help="with --animate: one frame every K ticks (default: automatic, see "
                         "--animate)")
-    p.set_defaults(func=cmd_run)
+    p.set_defaults(func=cmd_run, quiet_logging=True)
 
 
 def check_outputs(args: argparse.Namespace) -> None:
@@ -224,6 +228,11 @@ def _check_media(path: Path, option: str, example: str, fmt: Callable[[Path], st
 def cmd_run(args: argparse.Namespace) -> int:
     from sim_backend.engine import Engine
 
+    if args.link != "inproc" or args.record or args.out or args.trace or args.animate:
+        # the CAN link, the recorder and matplotlib log; the plain run's
+        # modules do not (perception.detail), so it leaves logging unloaded
+        from bridge.cli import configure_logging
+        configure_logging(args.verbose)
     sc = scenario_from_args(args)
     if args.link == "can":
         check_link_limits(sc, "CAN")
