@@ -29,7 +29,8 @@ NO_PATH = 1
 STALLED = 2
 STOP_REASONS = ("", "no path home", "stalled")
 # host-side logic: portable, but allowed to allocate
-SUBSET_SETUP = ("Touch", "Coordinator", "way_home", "_free", "_nearest", "_box_of", "_grow")
+SUBSET_SETUP = ("Touch", "Coordinator", "way_home", "_free", "_nearest", "_closer", "_box_of",
+                "_grow")
 STEPS = ((-1, -1), (-1, 0), (0, -1), (1, -1), (-1, 1), (1, 0), (0, 1), (1, 1))
 
 
@@ -160,6 +161,61 @@ def _least_d2(pts, cx, cy):
         if best < 0 or d < best:
             best = d
     return best
+
+
+def _closer(pts, mx, my):
+    """The steps of STEPS that bring the least x * x + y * y of the points
+    `pts` displaced by (mx, my) below where it is, best first: (that least
+    distance, the order among them, dx, dy), ties to the earlier step. One
+    pass over the points for all nine displacements: a plan measures each
+    once (a path rarely comes back), and nine `_least_d2` calls cost twice
+    as much in call and loop overhead."""
+    h = a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = -1
+    for x, y in pts:
+        x += mx
+        y += my
+        xx = x * x
+        yy = y * y
+        xm = xx - 2 * x + 1          # (x - 1) ** 2
+        xp = xx + 2 * x + 1
+        ym = yy - 2 * y + 1
+        yp = yy + 2 * y + 1
+        d = xx + yy
+        if h < 0 or d < h:
+            h = d
+        d = xm + ym
+        if a0 < 0 or d < a0:
+            a0 = d
+        d = xm + yy
+        if a1 < 0 or d < a1:
+            a1 = d
+        d = xx + ym
+        if a2 < 0 or d < a2:
+            a2 = d
+        d = xp + ym
+        if a3 < 0 or d < a3:
+            a3 = d
+        d = xm + yp
+        if a4 < 0 or d < a4:
+            a4 = d
+        d = xp + yy
+        if a5 < 0 or d < a5:
+            a5 = d
+        d = xx + yp
+        if a6 < 0 or d < a6:
+            a6 = d
+        d = xp + yp
+        if a7 < 0 or d < a7:
+            a7 = d
+    ranked = []
+    k = 0
+    for d in (a0, a1, a2, a3, a4, a5, a6, a7):      # STEPS' order
+        if d < h:
+            s = STEPS[k]
+            ranked.append((d, len(ranked), s[0], s[1]))
+        k += 1
+    ranked.sort()
+    return ranked
 
 
 def _box_of(pts):
@@ -423,10 +479,8 @@ class Coordinator(Recognising, Roster):
         """What a plan reads of the touches, in the object's frame (as before
         it moved), kept between plans: (touches, the last touch, their
         count, lost, body, the points that count for arrival (`_from_home`'s),
-        the live holders' points, the live holders (`carriers`), the box
-        round `_footprint()` or None, and {displacement less home: the least
-        squared distance to home of the arrival points} as `_plan_step`
-        has measured them). A touch is appended when accepted and
+        the live holders' points, the live holders (`carriers`) and the box
+        round `_footprint()` or None). A touch is appended when accepted and
         removed when released, and `lost` and `body` are replaced whole when
         they change, so the first five say whether it still holds."""
         h = self.held
@@ -455,7 +509,7 @@ class Coordinator(Recognising, Roster):
         for x, y in live:
             box = _grow(box, x, y)
         h = (touches, last, len(touches), lost, self.body, live if self.by_carrier else segs,
-             live, tuple(nodes), box, {})
+             live, tuple(nodes), box)
         self.held = h
         return h
 
@@ -655,12 +709,7 @@ class Coordinator(Recognising, Roster):
         my = self.moved_y - self.home_y
         r2 = self.home_r2
         h = self._held()
-        # the arrival points' distance here is the one the plan that follows
-        # ranks its steps against: measured once, kept with the others
-        seen = h[9]
-        d = seen.get((mx, my))
-        if d is None:
-            d = seen[(mx, my)] = _least_d2(h[5], mx, my)
+        d = _least_d2(h[5], mx, my)
         if 0 <= d < r2:
             return True
         d = _least_d2(h[6], mx, my)      # the live holders
@@ -738,26 +787,9 @@ class Coordinator(Recognising, Roster):
         # best first; each blocked attempt moves on to the next candidate.
         # The arrival points stay in the object's frame, displaced per step
         # (`_nearest` kept nearly all of a handful of touches and cost more
-        # than it saved), and each displacement's distance is kept while they
-        # stand, at most one per arena cell: successive plans' nine steps
-        # overlap and a blocked retry repeats them.
+        # than it saved).
         h = self._held()
-        pts = h[5]
-        seen = h[9]
-        mx = self.moved_x - self.home_x
-        my = self.moved_y - self.home_y
-        here = seen.get((mx, my))
-        if here is None:
-            here = seen[(mx, my)] = _least_d2(pts, mx, my)
-        ranked = []
-        for ddx, ddy in STEPS:
-            k = (mx + ddx, my + ddy)
-            d = seen.get(k)
-            if d is None:
-                d = seen[k] = _least_d2(pts, k[0], k[1])
-            if d < here:
-                ranked.append((d, len(ranked), ddx, ddy))
-        ranked.sort()
+        ranked = _closer(h[5], self.moved_x - self.home_x, self.moved_y - self.home_y)
         if ranked and self.world_size is not None and not self._inside(h[8], 1) \
                 and self._walled(ranked):
             # against the arena's edge every step toward home would push the
