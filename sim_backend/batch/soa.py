@@ -688,22 +688,27 @@ class SoaEngine:
         pad = _PAD
         lo_of, agents_of = self.lo, self.agents
         host = msg.HOST                  # 0: never a robot's node
+        last_f, last_kind, k = None, -1, 0
         for r, out in sends:
             lo, agents = lo_of[r], agents_of[r]
             for node, kind, f in out:
-                key = (kind, f)
-                try:
-                    k = rows.get(key)
-                except TypeError:            # fields as a list
-                    key = (kind, tuple(f))
-                    k = rows.get(key)
-                if k is None:
-                    nf = len(f)
-                    if nf > B.FIELDS:
-                        raise EngineError(f"run {r}: the coordinator sent {nf} fields, more "
-                                          f"than a message holds ({B.FIELDS})")
-                    k = rows[key] = len(table)
-                    table.append((kind, nf) + tuple(f) + pad[nf])
+                # a run's commands to its holders share one fields object:
+                # its row is the last one's, without hashing the key again
+                if f is not last_f or kind != last_kind:
+                    last_f, last_kind = f, kind
+                    key = (kind, f)
+                    try:
+                        k = rows.get(key)
+                    except TypeError:            # fields as a list
+                        key = (kind, tuple(f))
+                        k = rows.get(key)
+                    if k is None:
+                        nf = len(f)
+                        if nf > B.FIELDS:
+                            raise EngineError(f"run {r}: the coordinator sent {nf} fields, "
+                                              f"more than a message holds ({B.FIELDS})")
+                        k = rows[key] = len(table)
+                        table.append((kind, nf) + tuple(f) + pad[nf])
                 if 1 <= node <= agents:
                     to.append(lo + node - 1)
                     which.append(k)

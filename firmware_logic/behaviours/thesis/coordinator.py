@@ -363,19 +363,17 @@ class Coordinator(Recognising, Roster):
     def on_message(self, node, kind, f, tick):
         if self.lost_after and node in self.nodes:
             self.heard[node] = (tick, self.moved_x, self.moved_y)
-        if kind == msg.HELLO:
-            self._hello(node, f, tick)
-        elif kind == msg.TOUCH:
-            self._touch(node, f, tick)
-        elif kind == msg.HEARTBEAT:
+        # HEARTBEAT first: nearly every message a transport hears
+        if kind == msg.HEARTBEAT:
             if node not in self.nodes:
                 self._reject(UNANNOUNCED_HEARTBEAT, node, f)
                 return
-            self._seen(node, f)
+            if self.recognise:           # a call saved per message otherwise
+                self._seen(node, f)
             if node == self.leader and self.step > 0:
                 x = (f[1] + 128) >> 8
                 y = (f[2] + 128) >> 8
-                if (x, y, f[4]) == (self.leader_x, self.leader_y, self.leader_done):
+                if x == self.leader_x and y == self.leader_y and f[4] == self.leader_done:
                     self.leader_heard = tuple(f)
                     return
                 # the leader moves with the object, at most one patch per
@@ -396,6 +394,10 @@ class Coordinator(Recognising, Roster):
                 lead = self.leader_touch()
                 self.moved_x = self.leader_x - lead.rx
                 self.moved_y = self.leader_y - lead.ry
+        elif kind == msg.HELLO:
+            self._hello(node, f, tick)
+        elif kind == msg.TOUCH:
+            self._touch(node, f, tick)
         else:
             self._reject("unexpected kind %d from a robot" % kind, node, f)
 
@@ -602,8 +604,9 @@ class Coordinator(Recognising, Roster):
         if self.step == 0:
             return msg.HEARTBEAT, self.nodes, 0
         f = self.leader_heard
-        if f is not None and ((f[1] + 128) >> 8, (f[2] + 128) >> 8, f[4]) != \
-                (self.leader_x, self.leader_y, self.leader_done):
+        if f is not None and ((f[1] + 128) >> 8 != self.leader_x
+                              or (f[2] + 128) >> 8 != self.leader_y
+                              or f[4] != self.leader_done):
             f = None                  # the pose came from elsewhere (an adopted snapshot)
         return msg.HEARTBEAT, self.nodes, self.leader, f
 
