@@ -724,14 +724,19 @@ class SoaEngine:
         idx = np.array(to, dtype=np.int64)
         pos = tail[idx]
         once = len(set(to)) == len(to)
-        if not once:                     # a robot's second command this tick goes after its first
-            seen: dict[int, int] = {}
-            nth = []
-            for i in to:
-                k = seen.get(i, 0)
-                nth.append(k)
-                seen[i] = k + 1
-            pos += np.array(nth, dtype=np.int64)
+        if not once:
+            # a robot's second command this tick goes after its first (a
+            # holder's ACK and TRANSPORT: most ticks of a batch), counted by
+            # array, not by a loop over every message
+            order = np.argsort(idx, kind="stable")
+            srt = idx[order]
+            new = np.empty(len(srt), dtype=bool)
+            new[0] = True
+            np.not_equal(srt[1:], srt[:-1], out=new[1:])
+            first = np.flatnonzero(new)
+            nth = np.empty_like(idx)
+            nth[order] = np.arange(len(srt)) - first[np.cumsum(new) - 1]
+            pos += nth
         full = pos - head[idx] >= INBOX
         if full.any():
             i = to[int(np.argmax(full))]
@@ -747,7 +752,7 @@ class SoaEngine:
         if once:
             tail[idx] += 1
         else:
-            tail[list(seen)] += list(seen.values())
+            tail[srt[first]] += np.diff(first, append=len(srt))
 
     # -- run ends -----------------------------------------------------------------------------
 
