@@ -98,10 +98,14 @@ class BatchMutes:
             return
         self.mutes[r] = m
         lo, n = self.lo[r], self.agents[r]
-        if prev.same is not None and 1 <= prev.node <= n:
-            self.repeats[lo + prev.node - 1] = -1
-        if m.same is not None and 1 <= m.node <= n:
-            self.repeats[lo + m.node - 1] = m.kind
+        # a new repeat clause of the same sender and kind (each transport
+        # step's): its mark stands
+        if not (prev.same is not None and m.same is not None and prev.node == m.node
+                and prev.kind == m.kind):
+            if prev.same is not None and 1 <= prev.node <= n:
+                self.repeats[lo + prev.node - 1] = -1
+            if m.same is not None and 1 <= m.node <= n:
+                self.repeats[lo + m.node - 1] = m.kind
         if m.drop is prev.drop and m.kind == prev.kind:
             return
         self.muted[lo:lo + n] = -1

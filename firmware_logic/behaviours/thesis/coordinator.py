@@ -659,12 +659,13 @@ class Coordinator(Recognising, Roster):
             else:
                 self.blocked = 0
                 self.last_move_tick = tick
-            if self._home_reached():
+            h = self._held()             # read once for both
+            if self._home_reached(h):
                 self.delivered_tick = tick
                 self.halted = 1
                 self._send(msg.HOST, msg.HALT, (0,))
                 return
-            self._plan_step(tick)
+            self._plan_step(tick, h)
         elif tick - self.step_sent_tick >= RESEND_AFTER:
             self._command(tick)
 
@@ -704,14 +705,16 @@ class Coordinator(Recognising, Roster):
             out.append((x + mx, y + my))
         return out
 
-    def _home_reached(self):
+    def _home_reached(self, h=None):
+        """h: `_held()`, when the caller has it."""
         # ours: a robot or a segment within 4 of home (`wayHome < 4` only
         # sets canTransport in Appendix A); by_carrier: a robot within
         # home_radius, as the thesis's tt.txt (`distancexy -15 -15 < 1`)
         mx = self.moved_x - self.home_x
         my = self.moved_y - self.home_y
         r2 = self.home_r2
-        h = self._held()
+        if h is None:
+            h = self._held()
         d = _least_d2(h[5], mx, my)
         if 0 <= d < r2:
             return True
@@ -782,7 +785,8 @@ class Coordinator(Recognising, Roster):
         side.sort()
         self._take(tick, down + side if self.blocked >= len(down) else down)
 
-    def _plan_step(self, tick):
+    def _plan_step(self, tick, h=None):
+        """h: `_held()`, when the caller has it."""
         if self.closed is not None or self.lost_cells or self.bumps:
             self._plan_on_way(tick)
             return
@@ -791,7 +795,8 @@ class Coordinator(Recognising, Roster):
         # The arrival points stay in the object's frame, displaced per step
         # (`_nearest` kept nearly all of a handful of touches and cost more
         # than it saved).
-        h = self._held()
+        if h is None:
+            h = self._held()
         ranked = _closer(h[5], self.moved_x - self.home_x, self.moved_y - self.home_y)
         if ranked and self.world_size is not None and not self._inside(h[8], 1) \
                 and self._walled(ranked):
