@@ -698,17 +698,18 @@ class SoaEngine:
                     last_f, last_kind = f, kind
                     key = (kind, f)
                     try:
-                        k = rows.get(key)
+                        row = rows.get(key)
                     except TypeError:            # fields as a list
                         key = (kind, tuple(f))
-                        k = rows.get(key)
-                    if k is None:
+                        row = rows.get(key)
+                    if row is None:
                         nf = len(f)
                         if nf > B.FIELDS:
                             raise EngineError(f"run {r}: the coordinator sent {nf} fields, "
                                               f"more than a message holds ({B.FIELDS})")
-                        k = rows[key] = len(table)
+                        row = rows[key] = len(table)
                         table.append((kind, nf) + tuple(f) + pad[nf])
+                    k = row
                 if 1 <= node <= agents:
                     to.append(lo + node - 1)
                     which.append(k)
