@@ -79,3 +79,17 @@ def test_a_batch_keeps_its_heap_from_the_collector_until_it_ends_or_is_dropped()
     assert gc.get_freeze_count() == 0 or held
     del b
     assert _Frozen.holders == held and gc.isenabled()
+
+
+def test_one_fields_object_under_two_kinds_and_runs_keeps_each_kind():
+    """_deliver reuses the last message's row while the fields object and
+    kind stay the same: a change of kind alone, or the same object again
+    after another, gets its own row."""
+    sc = validate({"agents": 3, "objectWeight": 2})
+    eng = SoaEngine([(sc, 1), (sc, 2)])
+    f = (7,)
+    eng._deliver([(0, [(1, msg.ACK, f), (1, msg.HALT, f), (2, msg.HALT, f)]),
+                  (1, [(1, msg.ACK, (8,)), (1, msg.ACK, f), (2, msg.HALT, f)])])
+    assert [inbox(eng, i) for i in range(5)] == [
+        [(msg.ACK, (7,)), (msg.HALT, (7,))], [(msg.HALT, (7,))], [],
+        [(msg.ACK, (8,)), (msg.ACK, (7,))], [(msg.HALT, (7,))]]
