@@ -149,6 +149,22 @@ def test_a_run_loads_no_can_compiler_serial_plot_or_parquet_package():
     assert "sim_backend.animate" not in got["modules"]     # read by --animate and its help only
 
 
+def test_a_text_run_imports_no_json_and_prints_its_summary():
+    """json (5 M instructions of patterns compiled at import) only for --json."""
+    script = ("import contextlib, io, sys\nimport bridge.cli\nout = io.StringIO()\n"
+              "with contextlib.redirect_stdout(out):\n"
+              "    code = bridge.cli.main(['run', '--set', 'maxTicks=40'])\n"
+              "print(code, 'json' in sys.modules, 'bridge.commands.run' in sys.modules)\n"
+              "print(out.getvalue())")
+    # (the suite's record of command lines, TOUCHSWARM_ARGV_LOG, is JSON)
+    env = {k: v for k, v in os.environ.items() if k != "TOUCHSWARM_ARGV_LOG"}
+    done = subprocess.run([sys.executable, "-c", script], cwd=ROOT, capture_output=True,
+                          text=True, timeout=300, check=True, env=env)
+    status, out = done.stdout.split("\n", 1)
+    assert status in ("0 False True", "1 False True")
+    assert out.startswith("scenario default: 20 ") and "  result " in out
+
+
 def test_a_verbose_run_still_logs_what_it_recognised():
     """-v configures logging before the run: the tracker's INFO record is one
     line naming its logger, as before the plain run stopped importing logging."""

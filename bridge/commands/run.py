@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 from typing import Any, Callable
@@ -304,6 +303,7 @@ def _run(args: argparse.Namespace, sc, engine, recorder) -> int:
     if anim is not None:
         frames = anim.write(args.animate, progress=_frames_bar(args))
     if args.json:
+        import json         # only here: its import compiles its patterns (5 M instructions)
         print(json.dumps(summary, sort_keys=True))
     else:
         print(format_summary(summary, engine.behaviour, result.coordinator))
