@@ -376,3 +376,36 @@ def test_the_scenario_behaves_as_the_frozen_dataclass_it_was():
     assert repr(b).startswith("Scenario(name='default', description='', agents=5, sigRadius=5, ")
     assert repr(b).endswith(f"breeds=(), params={b.params!r})")
     assert {a: 1}[Scenario()] == 1
+
+
+def test_the_home_distance_check_refuses_what_trying_every_anchor_refused():
+    """scenario._check_consistency takes each cell's nearest anchor to home
+    instead of trying all: the same scenarios refused, on 400 random homes,
+    objects and anchors against the check that tried every anchor."""
+    import random
+
+    from sim_backend import objects
+    from sim_backend.errors import ScenarioError
+    from sim_backend.scenario import validate
+    rng = random.Random(7)
+    refused = 0
+    for _ in range(400):
+        shape = rng.choice(sorted(objects.SHAPES))
+        keys = {"object": shape, "homeX": rng.randint(-15, 15), "homeY": rng.randint(-15, 15)}
+        if rng.random() < 0.5:
+            keys.update(objectX=rng.randint(-8, 8), objectY=rng.randint(-8, 8))
+        ax = [keys["objectX"]] * 2 if "objectX" in keys else [0, 9]
+        ay = [keys["objectY"]] * 2 if "objectY" in keys else [0, 9]
+        near = any((x + ox - keys["homeX"]) ** 2 + (y + oy - keys["homeY"]) ** 2 < 16
+                   for x, y in objects.offsets(shape)
+                   for ox in range(ax[0], ax[1] + 1) for oy in range(ay[0], ay[1] + 1))
+        try:
+            validate(keys)
+            said = False
+        except ScenarioError as err:
+            said = "within 4 patches of home" in str(err)
+            if "does not fit the arena" in str(err):
+                continue            # refused before the home check
+        assert said == near, keys
+        refused += said
+    assert 20 < refused < 380
