@@ -19,6 +19,7 @@ tick before the host learnt that the object moved).
 
 from __future__ import annotations
 
+import functools
 from typing import Iterable
 
 import numpy as np
@@ -101,7 +102,7 @@ class Evidence:
 
     def hull_cells(self) -> set[Cell]:
         """The thesis-style outline: touched cells and every cell inside their hull."""
-        return perception.outline_cells(self.touched)
+        return outline(self.touched)
 
     def hull_estimate(self) -> set[Cell]:
         """The estimate without a library: the hull minus every known-free
@@ -130,6 +131,9 @@ class Evidence:
         widened by 2. The open-set posterior's leanest hypothesis."""
         if not self.touched:
             return set()
+        if connected(self.touched):
+            # every search below would stop on a touch next to the shape
+            return set(self.touched)
         xs = [c[0] for c in self.touched]
         ys = [c[1] for c in self.touched]
         x0, x1, y0, y1 = min(xs) - 2, max(xs) + 2, min(ys) - 2, max(ys) + 2
@@ -173,6 +177,34 @@ class Evidence:
             v = self.at(*c)
             counts["object" if v == OBJECT else "free" if v == FREE else "unknown"] += 1
         return counts
+
+
+def connected(cells: Iterable[Cell]) -> bool:
+    """Whether the cells form one 4-connected piece (True for none)."""
+    rest = set(cells)
+    if not rest:
+        return True
+    todo = [rest.pop()]
+    while todo:
+        x, y = todo.pop()
+        for c in ((x + 1, y), (x - 1, y), (x, y + 1), (x, y - 1)):
+            if c in rest:
+                rest.remove(c)
+                todo.append(c)
+    return not rest
+
+
+def outline(cells: Iterable[Cell]) -> set[Cell]:
+    """The touched cells' outline, perception.outline_cells (a new set):
+    computed once per process for each set of cells, as a run's summary
+    asks for it twice (shape_iou from the coordinator's segments, the
+    recognition's hull from the evidence's touches)."""
+    return set(_outline(frozenset(cells)))
+
+
+@functools.lru_cache(maxsize=64)
+def _outline(cells: frozenset[Cell]) -> frozenset[Cell]:
+    return frozenset(perception.outline_cells(cells))
 
 
 def iou(a: Iterable[Cell], b: Iterable[Cell]) -> float:

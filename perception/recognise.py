@@ -36,7 +36,7 @@ import numpy as np
 from numpy.lib.stride_tricks import as_strided
 
 from perception.evidence import FREE, OBJECT, Evidence
-from perception.shapes import UNKNOWN, Library, Pose
+from perception.shapes import UNKNOWN, Library, Pose, _masks
 
 EPS_TOUCH = 0.01     # a touch reported on a cell that is not the object's
 EPS_FREE = 0.02      # a pose reported on a cell that is the object's
@@ -127,7 +127,7 @@ def recognise(ev: Evidence, library: Library, eps_touch: float = EPS_TOUCH,
     # for every origin near the touches and every pose: touched cells on the
     # pose's touchable cells, free cells on its cells (integer counts as
     # one exact product of 0/1 matrices; beyond the arena unknown)
-    mh, mw, m_touch, m_cells = library.masks()
+    mh, mw, _, _ = library.masks()
     x0, y0 = max(-w, xmin - mw + 1), max(-w, ymin - mh + 1)
     rw, rh = xmax - x0 + 1, ymax - y0 + 1
     part = ev.grid[y0 + w:y0 + w + rh + mh - 1, x0 + w:x0 + w + rw + mw - 1]
@@ -137,12 +137,14 @@ def recognise(ev: Evidence, library: Library, eps_touch: float = EPS_TOUCH,
     # more than the product on a sweep's small boxes)
     win = as_strided(pad, (rh, rw, mh, mw), pad.strides * 2, writeable=False).reshape(
         rh * rw, mh * mw)
-    c_touch, c_free = ((win == code) @ mask for code, mask in ((OBJECT, m_touch), (FREE, m_cells)))
-    c_touch = c_touch.astype(np.intp).reshape(rh, rw, -1)
-    c_free = c_free.astype(np.intp).reshape(rh, rw, -1)
     ordered, fits, place, far, table, boxes = _table(library.key, n, eps_touch, eps_free, n_obj)
-    ll_all = table[np.arange(len(ordered))[:, None, None],
-                   c_touch.transpose(2, 0, 1), c_free.transpose(2, 0, 1)]   # (poses, rh, rw)
+    # both counts of every origin and pose as the index of their entry in
+    # the flat table (0/1 sums are exact integers in floats; two products,
+    # not one of both: one twice the size is past OpenBLAS's threading
+    # threshold, 30x slower on a loaded machine)
+    w_touch, w_cells, offset = _index_weights(library.key, table.shape)
+    at = (win == OBJECT) @ w_touch + (win == FREE) @ w_cells + offset
+    ll_all = table.reshape(-1).take(at.astype(np.intp)).T.reshape(-1, rh, rw)   # (poses, rh, rw)
     # every pose's placements that overlap the touches' box: origins (patch
     # coordinates) that depend on the pose only through its box, so the poses
     # of one box are summed at once (each row's exp and sum as the pose's
@@ -235,6 +237,21 @@ def _table(key: tuple, n: int, eps_touch: float, eps_free: float, n_obj: int
     # every placement away from the touches, when none is near them
     far = [pl + math.log(f) + n_obj * log_false if f > 0 else 0.0 for pl, f in zip(place, fits)]
     return ordered, fits, place, far, table, boxes
+
+
+@functools.lru_cache(maxsize=32)
+def _index_weights(key: tuple, shape: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """What turns a window's OBJECT and FREE indicators into the flat index
+    into the (poses, touch counts, free counts) table of `shape` for every
+    pose: a touchable cell weighs a touch count's stride, any cell of the
+    pose one, and the pose's own rows are an offset. Built once per process
+    per library (read-only, shared)."""
+    _, _, m_touch, m_cells = _masks(key)
+    out = (m_touch * shape[2], m_cells,
+           np.arange(shape[0], dtype=np.float64) * (shape[1] * shape[2]))
+    for a in out:
+        a.flags.writeable = False
+    return out
 
 
 def _free_form(cells: set[Cell], n: int, n_obj: int, log_true: float) -> float:

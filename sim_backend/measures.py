@@ -6,6 +6,7 @@ from __future__ import annotations
 from typing import Any
 
 from firmware_logic import perception
+from perception.evidence import outline
 from perception.polygon import polygon_iou as _polygon_iou
 
 
@@ -25,8 +26,7 @@ def shape_iou(coordinator: Any, world: Any) -> float:
     (measured against the moved world, default seed 2 alternated 0.35 /
     0.69 during the carry)."""
     mx, my = getattr(coordinator, "moved_x", 0), getattr(coordinator, "moved_y", 0)
-    perceived = perception.outline_cells([(x - mx, y - my)
-                                          for x, y in coordinator.segments_now()])
+    perceived = outline([(x - mx, y - my) for x, y in coordinator.segments_now()])
     inter, union = perception.iou_counts(perceived, world.start_cells)
     return round(inter / union, 6) if union else 0.0
 
