@@ -19,12 +19,13 @@ from sim_backend import objects
 
 Cell = tuple[int, int]
 
-# (x, y) -> the 8 maps of the dihedral group D4
-TRANSFORMS = (
-    lambda x, y: (x, y), lambda x, y: (-y, x), lambda x, y: (-x, -y), lambda x, y: (y, -x),
-    lambda x, y: (-x, y), lambda x, y: (y, x), lambda x, y: (x, -y), lambda x, y: (-y, -x),
-)
-STEPS4 = ((1, 0), (-1, 0), (0, 1), (0, -1))
+# the 8 maps of the dihedral group D4 as (a, b, c, d): (x, y) -> (a x + b y,
+# c x + d y); orientations applies them spelt out (no call per cell)
+MATRICES = ((1, 0, 0, 1), (0, -1, 1, 0), (-1, 0, 0, -1), (0, 1, -1, 0),
+            (-1, 0, 0, 1), (0, 1, 1, 0), (1, 0, 0, -1), (0, -1, -1, 0))
+# the same maps as functions of (x, y)
+TRANSFORMS = tuple((lambda x, y, m=m: (m[0] * x + m[1] * y, m[2] * x + m[3] * y))
+                   for m in MATRICES)
 # the open-set hypothesis's name (recognise.py): "a shape not in the library"
 UNKNOWN = objects.UNKNOWN
 
@@ -34,18 +35,18 @@ def normalise(cells: Iterable[Cell]) -> tuple[Cell, ...]:
     cs = set(cells)
     if not cs:
         raise ValueError("a shape needs at least one cell")
-    mx = min(c[0] for c in cs)
-    my = min(c[1] for c in cs)
-    return tuple(sorted((x - mx, y - my) for x, y in cs))
+    xs, ys = zip(*cs)
+    mx, my = min(xs), min(ys)
+    return tuple(sorted([(x - mx, y - my) for x, y in cs]))
 
 
 def orientations(cells: Iterable[Cell]) -> list[tuple[Cell, ...]]:
     """The distinct normalised images of a shape under the 8 grid maps, in
-    the order of TRANSFORMS (the identity first)."""
+    the order of MATRICES (the identity first)."""
     base = list(cells)
     out: dict[tuple[Cell, ...], None] = {}
-    for t in TRANSFORMS:
-        out.setdefault(normalise(t(x, y) for x, y in base), None)
+    for a, b, c, d in MATRICES:
+        out.setdefault(normalise([(a * x + b * y, c * x + d * y) for x, y in base]), None)
     return list(out)
 
 
@@ -66,10 +67,11 @@ class Pose:
 
 def _pose(name: str, index: int, cells: tuple[Cell, ...]) -> Pose:
     cs = set(cells)
-    touch = tuple(c for c in cells
-                  if any((c[0] + dx, c[1] + dy) not in cs for dx, dy in STEPS4))
-    return Pose(name, index, cells, touch, max(c[0] for c in cells) + 1,
-                max(c[1] for c in cells) + 1)
+    touch = tuple([(x, y) for x, y in cells
+                   if (x + 1, y) not in cs or (x - 1, y) not in cs or (x, y + 1) not in cs
+                   or (x, y - 1) not in cs])
+    xs, ys = zip(*cells)
+    return Pose(name, index, cells, touch, max(xs) + 1, max(ys) + 1)
 
 
 @functools.lru_cache(maxsize=256)
