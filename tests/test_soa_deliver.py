@@ -54,31 +54,40 @@ def test_shared_and_list_fields_each_reach_their_robot_with_their_own_count():
         eng._deliver([(0, [(1, msg.ACK, [0] * 7)])])
 
 
-def test_a_batch_keeps_its_heap_from_the_collector_until_it_ends_or_is_dropped():
-    """What a batch's build made is frozen (gc.freeze) while the batch may
-    still step, and handed back to the collector when its last run ends or
-    the engine is dropped, whichever comes first; two batches alive hold it
-    frozen until both let go."""
+def test_a_batch_keeps_its_heap_from_the_collector_while_a_step_runs_only():
+    """What is alive when a tick steps is frozen (gc.freeze) for that step
+    and handed back to the collector after it, even when the step fails;
+    between steps nothing is frozen, so an engine dropped unfinished inside
+    a reference cycle is collected."""
     import gc
+    import weakref
+
     from sim_backend.batch.soa import _Frozen
     sc = validate({"agents": 3, "objectWeight": 2})
-    held = _Frozen.holders                         # batches another test left alive
+    held = _Frozen.holders
     a = SoaEngine([(sc, 1)])
-    assert gc.get_freeze_count() > 0 and _Frozen.holders == held + 1
-    b = SoaEngine([(sc, 2)])
-    del a
-    assert gc.get_freeze_count() > 0 and _Frozen.holders == held + 1    # b still holds it
-    b.rt[B.LIVE] = 0
-    b._finish(1, set())
-    assert _Frozen.holders == held + 1             # no run ended this tick: not by _finish
-    b.rt[B.LIVE, 0] = 1
-    b.max_ticks[:] = 1
-    b.first_cap = 1
-    b._finish(1, set())                            # the run hits its maxTicks
-    assert b.results[0] is not None and _Frozen.holders == held
-    assert gc.get_freeze_count() == 0 or held
-    del b
-    assert _Frozen.holders == held and gc.isenabled()
+    seen: list[int] = []
+    tick = a._tick
+
+    def watched(t: int) -> None:
+        seen.append(gc.get_freeze_count())
+        tick(t)
+    a._tick = watched                     # the engine now sits in a cycle
+    a.step()                              # the first tick (compiled or loaded)
+    a.step()
+    assert len(seen) == 1 and seen[0] > 0            # frozen while the second tick ran
+    assert _Frozen.holders == held and (gc.get_freeze_count() == 0 or held)
+
+    def failing(t: int) -> None:
+        raise RuntimeError("tick failed")
+    a._tick = failing
+    with pytest.raises(RuntimeError, match="tick failed"):
+        a.step()
+    assert _Frozen.holders == held and (gc.get_freeze_count() == 0 or held)
+    gone = weakref.ref(a)
+    del a, watched, failing, tick
+    gc.collect()
+    assert gone() is None and gc.isenabled()
 
 
 def test_one_fields_object_under_two_kinds_and_runs_keeps_each_kind():
