@@ -67,11 +67,11 @@ def test_a_batch_keeps_its_heap_from_the_collector_while_a_step_runs_only():
     held = _Frozen.holders
     a = SoaEngine([(sc, 1)])
     seen: list[int] = []
-    tick = a._tick
+    inner = [a._tick]
 
     def watched(t: int) -> None:
         seen.append(gc.get_freeze_count())
-        tick(t)
+        inner[0](t)
     a._tick = watched                     # the engine now sits in a cycle
     a.step()                              # the first tick (compiled or loaded)
     a.step()
@@ -85,7 +85,8 @@ def test_a_batch_keeps_its_heap_from_the_collector_while_a_step_runs_only():
         a.step()
     assert _Frozen.holders == held and (gc.get_freeze_count() == 0 or held)
     gone = weakref.ref(a)
-    del a, watched, failing, tick
+    inner.clear()
+    del a, watched, failing
     gc.collect()
     assert gone() is None and gc.isenabled()
 
