@@ -328,6 +328,9 @@ class Coordinator(Recognising, Roster):
         self.delivered_tick = -1
         self.duplicates = 0
         self.outbox = []
+        # TOUCHes heard while a transport step is under way, judged at the
+        # tick's end (`_touch_waiting`): (node, fields) in the order heard
+        self.waiting = []
         # transport
         self.step = 0
         self.step_sent_tick = -1
@@ -397,6 +400,17 @@ class Coordinator(Recognising, Roster):
         elif kind == msg.HELLO:
             self._hello(node, f, tick)
         elif kind == msg.TOUCH:
+            if self.step != self.leader_done:
+                # The object may have moved at the last tick's end, and the
+                # leader's HEARTBEAT saying where it is now may come later
+                # among this tick's messages (NetLogo's random turn order,
+                # or a lower node under sync): judged now, the touch would
+                # be placed on the object from where the object was, at
+                # the cell of another holder or off the object, and its
+                # robot, refused, would hold the object still forever
+                # (docs/tick-semantics.md, "A touch during the transport")
+                self.waiting.append((node, f))
+                return
             self._touch(node, f, tick)
         else:
             self._reject("unexpected kind %d from a robot" % kind, node, f)
@@ -427,6 +441,19 @@ class Coordinator(Recognising, Roster):
         self._adopt(t)
         self._ack(node, f[0])
         self._stray(t, tick)
+
+    def _touch_waiting(self, tick):
+        """Judge the TOUCHes heard during a transport step, in the order
+        heard, once every message of their tick is in: a robot's report is
+        of the world as its tick began, which the leader's HEARTBEAT of the
+        same tick tells (the object moves only at a tick's end, and not at
+        all while a robot holds it unannounced: carry_group waits for every
+        holder). Dated now: the journal holds it from here, after the
+        reports that set its frame, and a replay judges it at once."""
+        waiting = self.waiting
+        self.waiting = []
+        for node, f in waiting:
+            self._touch(node, f, tick)
 
     def _invalid_touch(self, node, f, mx, my):
         """Why the TOUCH fields f (world frame, the object displaced by
@@ -580,7 +607,7 @@ class Coordinator(Recognising, Roster):
         """True when tick() without a new message would neither send nor change
         anything (a batch engine then skips the call): before convergence
         with power short of the weight, and after the HALT went out."""
-        if self.outbox or self.acks:
+        if self.outbox or self.acks or self.waiting:
             return False
         if self.done():
             return self.halted == 1
@@ -614,14 +641,16 @@ class Coordinator(Recognising, Roster):
         """The first tick whose tick() may change anything or send when no
         message comes before it (0: any): while the transport waits for the
         leader to report a step, the step's resend and the stall."""
-        if self.outbox or self.acks or self.lost_after or self.recognise or self.done() \
-                or self.converged_tick < 0 or self.power < self.weight \
+        if self.outbox or self.acks or self.waiting or self.lost_after or self.recognise \
+                or self.done() or self.converged_tick < 0 or self.power < self.weight \
                 or self.last_move_tick < 0 or self.leader_done == self.step:
             return 0
         return min(self.step_sent_tick + RESEND_AFTER, self.last_move_tick + self.stall_ticks)
 
     def tick(self, tick):
         """Advance the centralised phase; return and clear the commands to send."""
+        if self.waiting:
+            self._touch_waiting(tick)
         self._acks_out(self.outbox)
         if self.lost_after and not self.done():
             self._liveness(tick)
@@ -928,6 +957,14 @@ class Coordinator(Recognising, Roster):
 
     def replay(self, node, kind, f, tick):
         Recognising.replay(self, node, kind, f, tick)    # a RELEASE, else the roster's
+        if self.waiting:
+            # a journalled touch was judged at its tick's end, after every
+            # report journalled before it: now, unjournalled and unACKed
+            journal = self.journal
+            self.journal = None
+            self._touch_waiting(tick)
+            self.journal = journal
+            self.acks = {}
         # a journalled report says nothing of who is alive now: a resumed
         # host counts every holder's silence from its own first tick
         self.heard = {}
