@@ -400,15 +400,16 @@ class Coordinator(Recognising, Roster):
         elif kind == msg.HELLO:
             self._hello(node, f, tick)
         elif kind == msg.TOUCH:
-            if self.step != self.leader_done:
+            if self.step != self.leader_done or self.waiting:
                 # The object may have moved at the last tick's end, and the
                 # leader's HEARTBEAT saying where it is now may come later
-                # among this tick's messages (NetLogo's random turn order,
-                # or a lower node under sync): judged now, the touch would
-                # be placed on the object from where the object was, at
-                # the cell of another holder or off the object, and its
-                # robot, refused, would hold the object still forever
-                # (docs/tick-semantics.md, "A touch during the transport")
+                # among this tick's messages (NetLogo's random turn order):
+                # judged now, the touch would be placed on the object from
+                # where the object was, at the cell of another holder or
+                # off the object, and its robot, refused, would hold the
+                # object still forever (docs/tick-semantics.md, "A touch
+                # during the transport"). Once one waits, the tick's later
+                # touches wait behind it: they are accepted in the order heard.
                 self.waiting.append((node, f))
                 return
             self._touch(node, f, tick)

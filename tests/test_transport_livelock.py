@@ -1,0 +1,136 @@
+"""A touch during the transport is placed on the object in the frame its
+robot sensed (docs/tick-semantics.md, "A touch during the transport").
+
+Under activation netlogo a robot claims, grasps and sends its TOUCH within
+its turn, and the leader's HEARTBEAT saying where the object went at the
+last tick's end may come after it in the tick's messages. The host placed
+such a touch from where the object had been: on another holder's cell
+(refused as held) or off the object (refused as not on it). Refused, its
+robot held the object without ever being commanded, so the carried group
+never moved again: 10 of seeds 1..500 of the bench scenario ended at
+maxTicks still "transporting". The host now judges a touch heard while a
+step is under way at the tick's end.
+"""
+
+from firmware_logic import messages as msg
+from firmware_logic.behaviours.thesis.coordinator import CLAIMED, Coordinator
+from sim_backend.engine import Engine
+from sim_backend.scenario import validate
+
+# bench/mesa_baseline.py's soa_scenario: 20 robots, worldSize 18
+BENCH = {"agents": 20, "worldSize": 18, "fieldDefiance": 2, "sigRadius": 5, "rPower": 1.0,
+         "objectWeight": 5.0}
+
+
+def bench_run(activation: str, seed: int, max_ticks: int) -> Engine:
+    """The run stepped to its end, every accepted touch checked each tick
+    against the world: its robot holds the cell the host placed it at."""
+    e = Engine(validate({**BENCH, "activation": activation, "maxTicks": max_ticks}), seed)
+    w, c = e.world, e.coordinator
+    while not e.finished():
+        e.step()
+        dx = w.object_cells[0][0] - w.start_cells[0][0]
+        dy = w.object_cells[0][1] - w.start_cells[0][1]
+        for t in c.touches:
+            k = w.held[t.node - 1]
+            assert k >= 0, (e.tick, t.node)
+            held = (k % w.n - w.w - dx, k // w.n - w.w - dy)
+            assert held == (t.sx, t.sy), (e.tick, t.node, held, (t.sx, t.sy))
+    return e
+
+
+def test_seed_72_under_netlogo_delivers_and_every_touch_is_where_the_world_holds_it() -> None:
+    # before: robot 12's touch of tick 13 placed on robot 5's cell, robot 5
+    # refused (held by another) and the object still from tick 13 on
+    e = bench_run("netlogo", 72, 41)
+    c = e.coordinator
+    assert c.delivered_tick == 41 and c.rejected == {}
+    assert {t.node for t in c.touches} >= {5, 12}
+
+
+def test_seed_72_under_sync_is_as_it_was() -> None:
+    # under sync a grasp reports a tick after its claim, which a carry waits
+    # for: the leader's pose is in before any touch; the run is unchanged
+    e = bench_run("sync", 72, 2000)
+    assert e.coordinator.delivered_tick == 53 and e.coordinator.rejected == {}
+
+
+def hello(c: Coordinator, node: int) -> None:
+    c.on_message(node, msg.HELLO, (1, 100, 1), 1)
+
+
+def touch(c: Coordinator, node: int, seg: tuple[int, int], robot: tuple[int, int],
+          tick: int) -> None:
+    c.on_message(node, msg.TOUCH, (1, robot[0], robot[1], seg[0], seg[1], 100), tick)
+
+
+CELLS = [(5, 5), (6, 5), (7, 5), (7, 6)]
+
+
+def moved_once(c: Coordinator, log: list, late_touch_first: bool) -> list:
+    """Robots 1 (leader) and 2 hold (5, 5) and (6, 5); the transport's first
+    step, (-1, -1), is done; in the tick the leader reports it, robot 3
+    reports the object's cell (7, 6), where the world has it now, (6, 5),
+    before or after the leader's HEARTBEAT. Returns that tick's commands."""
+    def tick(t: int) -> list:
+        before = c.snapshot()
+        out = c.tick(t)
+        if c.decision(before, out) is not None:
+            log.append(("d", c.snapshot()))
+        return out
+    for n in (1, 2, 3):
+        hello(c, n)
+    tick(1)
+    touch(c, 1, (5, 5), (5, 4), 10)
+    touch(c, 2, (6, 5), (6, 4), 10)
+    tick(10)
+    assert c.converged_tick == 10 and (c.step, c.dx, c.dy) == (1, -1, -1)
+    tick(11)                       # the holders carry: the object moves at its end
+    heartbeat = (4, 4 * 256, 3 * 256, 0, 1)
+    if not late_touch_first:
+        c.on_message(1, msg.HEARTBEAT, heartbeat, 12)
+    touch(c, 3, (6, 5), (6, 6), 12)
+    if late_touch_first:
+        c.on_message(1, msg.HEARTBEAT, heartbeat, 12)
+    return tick(12)
+
+
+def test_a_touch_before_the_leaders_heartbeat_is_placed_in_the_frame_the_heartbeat_sets() -> None:
+    placed = []
+    for first in (True, False):
+        log: list = []
+        c = Coordinator(200, cells=CELLS, journal=lambda *r: log.append(("r",) + r))
+        out = moved_once(c, log, first)
+        assert (c.moved_x, c.moved_y) == (-1, -1) and c.rejected == {}
+        t = c.by_node[3]
+        assert (t.sx, t.sy, t.rx, t.ry) == (7, 6, 7, 7) and t.report() == (1, 6, 6, 6, 5, 100)
+        assert (3, msg.ACK, (1,)) in out and 3 in [m[0] for m in out if m[1] == msg.TRANSPORT]
+        placed.append([x.as_tuple() for x in c.touches])
+        # a resumed host (reports replayed, decisions adopted in journal order)
+        r = Coordinator(200, cells=CELLS)
+        for e in log:
+            if e[0] == "r":
+                r.replay(*e[1:])
+            else:
+                r.adopt(e[1])
+        assert [x.as_tuple() for x in r.touches] == placed[-1] and r.rejected == {}
+        assert r.tick(13) == c.tick(13)
+    assert placed[0] == placed[1]
+
+
+def test_a_touch_refused_as_held_is_still_refused_at_the_ticks_end() -> None:
+    # the wait changes the frame a touch is judged in, not the checks: robot
+    # 3 reporting robot 2's segment where the object is now is refused
+    c = Coordinator(200, cells=CELLS)
+    for n in (1, 2, 3):
+        hello(c, n)
+    touch(c, 1, (5, 5), (5, 4), 10)
+    touch(c, 2, (6, 5), (6, 4), 10)
+    c.tick(10)
+    c.tick(11)
+    touch(c, 3, (5, 4), (5, 3), 12)
+    assert c.rejected == {} and 3 not in c.by_node       # waits for the tick's end
+    c.on_message(1, msg.HEARTBEAT, (4, 4 * 256, 3 * 256, 0, 1), 12)
+    out = c.tick(12)
+    assert c.rejected == {CLAIMED: 1} and 3 not in c.by_node
+    assert (3, msg.ACK, (1,)) not in out
