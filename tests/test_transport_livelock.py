@@ -9,13 +9,15 @@ such a touch from where the object had been: on another holder's cell
 robot held the object without ever being commanded, so the carried group
 never moved again: 10 of seeds 1..500 of the bench scenario ended at
 maxTicks still "transporting". The host now judges a touch heard while a
-step is under way at the tick's end.
+step is under way at the tick's end, and a robot it refuses on the
+object's cell (held by another, at home) is told to let go.
 """
 
 from firmware_logic import messages as msg
+from firmware_logic.behaviours.thesis import spec
 from firmware_logic.behaviours.thesis.coordinator import CLAIMED, Coordinator
 from sim_backend.engine import Engine
-from sim_backend.scenario import validate
+from sim_backend.scenario import load, validate
 
 # bench/mesa_baseline.py's soa_scenario: 20 robots, worldSize 18
 BENCH = {"agents": 20, "worldSize": 18, "fieldDefiance": 2, "sigRadius": 5, "rPower": 1.0,
@@ -134,3 +136,15 @@ def test_a_touch_refused_as_held_is_still_refused_at_the_ticks_end() -> None:
     out = c.tick(12)
     assert c.rejected == {CLAIMED: 1} and 3 not in c.by_node
     assert (3, msg.ACK, (1,)) not in out
+    # never counted, robot 3 would hold the object still: it lets go
+    assert (3, spec.RELEASE, (5, 4, 5, 4)) in out
+
+
+def test_a_robot_refused_at_home_lets_go_and_the_object_is_delivered() -> None:
+    # the X object under sync, seed 207: a robot grasps an untouched cell
+    # already within the home radius; refused (at home), it held the object
+    # still until the transport stalled at tick 2128
+    e = Engine(validate({**load("X").to_dict(), "activation": "sync"}), 207)
+    r = e.run()
+    assert r.delivered and r.ticks == 134
+    assert e.coordinator.rejected == {"segment at home": 1}
