@@ -37,7 +37,7 @@ MODELS = ((FIREFLY, "firefly"), (ANT, "ant"), (LEVY, "levy"), (MOTH, "moth"), (F
 # codec, the DBC, recordings, replay and the journal derive from this row):
 # A command is at most 4 bytes, so a SecOC-sealed frame (bridge/links/secoc.py)
 # keeps room for its MAC and freshness.
-RELEASE = 8  # host -> holder: a decoy (scenario recognise = true)
+RELEASE = 8  # host -> holder: a decoy (scenario recognise = true), or a refused touch
 RELEASE_TICKS = 300   # ticks a released robot claims nothing in the RELEASE box
 MESSAGES = (
     (RELEASE, "RELEASE", DOWN,
