@@ -433,12 +433,14 @@ class Coordinator(Recognising, Roster):
         why = self._invalid_touch(node, f, self.moved_x, self.moved_y)
         if why is not None:
             self._reject(why, node, f)
-            if why == CLAIMED or why == AT_HOME:
+            if (why == CLAIMED or why == AT_HOME) and self.converged_tick >= 0:
                 # the segment is the carried object's as the host sees it,
                 # but this touch never counts: its robot, never commanded,
                 # would hold the object still for good (the world moves it
                 # only when every holder carries); told to let go, it
-                # leaves that segment alone for spec.RELEASE_TICKS
+                # leaves that segment alone for spec.RELEASE_TICKS. (Before
+                # the transport nothing moves: an honest robot is refused
+                # on the object only where no mission would have started.)
                 self._send(node, spec.RELEASE, (f[3], f[4], f[3], f[4]))
             return
         # stored in the object's frame: it may have moved since the start
