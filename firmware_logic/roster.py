@@ -65,7 +65,8 @@ class Roster:
     def __init__(self, models, journal=None, on_reject=None):
         """models: the movement model codes a HELLO may announce.
         journal: callable(node, kind, fields, tick), see above.
-        on_reject: callable(reason, node, fields) for each refused report."""
+        on_reject: callable(reason, node, fields, kind) for each refused
+        report (kind 0: the report being handed over, as the caller knows)."""
         self.models = models
         self.journal = journal
         self.on_reject = on_reject
@@ -96,10 +97,12 @@ class Roster:
         if self.journal is not None:
             self.journal(node, kind, tuple(f), tick)
 
-    def _reject(self, reason, node=0, f=()):
+    def _reject(self, reason, node=0, f=(), kind=0):
+        """kind: the refused report's, when it was not judged as it was
+        handed over (a report held for the tick's end)."""
         self.rejected[reason] = self.rejected.get(reason, 0) + 1
         if self.on_reject is not None:
-            self.on_reject(reason, node, f)
+            self.on_reject(reason, node, f, kind)
 
     def _ack(self, node, seq):
         # at most one ACK per node per tick, however many frames it (or a

@@ -158,3 +158,28 @@ def test_netlogo_missions_never_refuse_a_real_touch() -> None:
         e = Engine(validate({**BENCH, "activation": "netlogo", "maxTicks": 2000}), seed)
         r = e.run()
         assert r.delivered and e.coordinator.rejected == {}, seed
+
+
+def test_a_touch_refused_at_the_ticks_end_is_journalled_as_evidence(tmp_path) -> None:
+    # the host journals a refused report with its kind (evidence, never
+    # replayed); a touch held for the tick's end is judged in tick(), when
+    # no report is being handed over, so the refusal names its kind itself
+    from bridge.host.journal import Journal
+    from bridge.host.process import HostProcess
+    from tests.test_journal import FakeTransport
+    with Journal(tmp_path / "j.sqlite") as j:
+        h = HostProcess(FakeTransport(), weight=200, journal=j)
+        h.handle([(n, msg.HELLO, (1, 100, 1)) for n in (1, 2, 3)])
+        h.step()
+        h.handle([(1, msg.TOUCH, (1, 5, 4, 5, 5, 100)), (2, msg.TOUCH, (1, 6, 4, 6, 5, 100))])
+        h.step()
+        c = h.coord
+        assert c.converged_tick >= 0 and c.step != c.leader_done    # a step under way
+        h.step()
+        late = (1, 5, 3, 5, 4, 100)        # robot 2's segment once the object moved (-1, -1)
+        h.handle([(3, msg.TOUCH, late),
+                  (1, msg.HEARTBEAT, (4, 4 * 256, 3 * 256, 0, c.step))])
+        assert c.rejected == {}            # held for the tick's end
+        h.step()
+        assert c.rejected == {CLAIMED: 1} and 3 not in c.by_node
+        assert j.rejected() == [(3, msg.TOUCH, h.tick, CLAIMED, late)]   # judged now

@@ -230,14 +230,16 @@ class HostProcess:
             for text in texts:
                 self._event(text)
 
-    def _rejected(self, reason: str, node: int, fields: tuple) -> None:
+    def _rejected(self, reason: str, node: int, fields: tuple, kind: int = 0) -> None:
         # like a bad frame: the first of each reason is logged, the rest counted
         # (`rejected` in the summary), so a flood cannot flood the log; the
-        # first REJECTED_KEPT of each are journalled as evidence (never replayed)
+        # first REJECTED_KEPT of each are journalled as evidence (never replayed).
+        # kind: the report's, when the coordinator judged it later than it
+        # was handed over (at its tick's end), else the one being handled
+        kind = kind or self.kind_now
         if self.journal is not None and self.coord.rejected.get(reason, 0) <= REJECTED_KEPT \
-                and self.kind_now:
-            self.journal.add_rejected(node, self.kind_now, fields, self.tick, reason,
-                                      commit=False)
+                and kind:
+            self.journal.add_rejected(node, kind, fields, self.tick, reason, commit=False)
         if reason not in self.rejects_logged:
             self.rejects_logged.add(reason)
             log.warning("tick %d: rejected a report from robot %d (%s): %s; further ones "

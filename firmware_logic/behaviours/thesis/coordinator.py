@@ -428,11 +428,11 @@ class Coordinator(Recognising, Roster):
                 # one touch per node: a second report (a new seq, or the same
                 # seq about another segment) is a forgery or a fault; it
                 # neither counts twice nor turns the real one into a duplicate
-                self._reject(SECOND_TOUCH, node, f)
+                self._reject(SECOND_TOUCH, node, f, msg.TOUCH)
             return
         why = self._invalid_touch(node, f, self.moved_x, self.moved_y)
         if why is not None:
-            self._reject(why, node, f)
+            self._reject(why, node, f, msg.TOUCH)
             if (why == CLAIMED or why == AT_HOME) and self.converged_tick >= 0:
                 # the segment is the carried object's as the host sees it,
                 # but this touch never counts: its robot, never commanded,
