@@ -70,7 +70,11 @@ class Behaviour:
     # up once per Behaviour (an engine builds one robot per node through them)
     @functools.cached_property
     def robot_module(self) -> ModuleType:
-        return importlib.import_module(self.module_name + "." + self.package.ROBOT.split(":")[0])
+        try:
+            return importlib.import_module(self.module_name + "."
+                                           + self.package.ROBOT.split(":")[0])
+        except Exception as err:      # noqa: BLE001 - the user's file, one line
+            raise code_error(repr(self.name), self.folder, err) from err
 
     @functools.cached_property
     def robot_class(self) -> type:
@@ -87,7 +91,12 @@ class Behaviour:
         BehaviourError when their number does not fit the constructor."""
         if getattr(sc, "breeds", ()):
             sc = sc.for_node(node)
-        args = tuple(self.package.robot_args(node, seed, sc))
+        try:
+            args = tuple(self.package.robot_args(node, seed, sc))
+        except SimError:
+            raise
+        except Exception as err:      # noqa: BLE001 - the user's code, one line
+            raise code_error(repr(self.name), self.folder, err) from err
         lo, hi = self.arity
         if not lo <= len(args) <= hi:
             takes = str(lo) if lo == hi else f"{lo}..{hi}"
@@ -102,8 +111,8 @@ class Behaviour:
         """(fewest, most) positional arguments the FSM's constructor takes
         (after self); most is infinite with *args."""
         import inspect
+        cls: Any = self.robot_class        # a robot.py that fails to import: its one line
         try:
-            cls: Any = self.robot_class
             sig = inspect.signature(cls.__init__)
         except (TypeError, ValueError):
             return 0, float("inf")
@@ -119,7 +128,12 @@ class Behaviour:
         return self.robot_class(*self.robot_args(node, seed, sc))
 
     def coordinator(self, sc: Any, **kw: Any) -> Any:
-        return self.package.make_coordinator(sc, **kw)
+        try:
+            return self.package.make_coordinator(sc, **kw)
+        except SimError:
+            raise
+        except Exception as err:      # noqa: BLE001 - the user's code, one line
+            raise code_error(repr(self.name), self.folder, err) from err
 
     def state_name(self, code: int) -> str:
         states = self.spec.STATES
@@ -239,6 +253,23 @@ def module_of(ref: str) -> str | None:
     return found
 
 
+def code_error(where: str, folder: Path, err: BaseException) -> BehaviourError:
+    """An error raised by the behaviour's own code (a syntax error, an import
+    or a call that fails) as one line naming its file and line: the deepest
+    frame in the behaviour's folder, where the user can fix it."""
+    import traceback
+    if isinstance(err, SyntaxError):
+        file, line, text = err.filename, err.lineno, f"SyntaxError: {err.msg}"
+    else:
+        frames = traceback.extract_tb(err.__traceback__)
+        own = [f for f in frames if Path(f.filename).resolve().is_relative_to(folder)]
+        last = (own or frames or [None])[-1]
+        file, line = (last.filename, last.lineno) if last is not None else (None, None)
+        text = f"{type(err).__name__}: {err}".splitlines()[0]
+    at = f"{file} line {line}: " if file else ""
+    return BehaviourError(f"behaviour {where}: {at}{text}")
+
+
 def _check(mod: ModuleType, spec: ModuleType, where: str) -> None:
     missing = [k for k in SPEC_KEYS if not hasattr(spec, k)]
     if missing:
@@ -354,12 +385,20 @@ def _load(ref: str | Path) -> Behaviour:
         if not path.is_dir():
             raise BehaviourError(f"behaviour {str(ref)!r}: not an installed behaviour "
                                  f"({', '.join(sorted(names()))}) nor a folder")
-        mod = _import_folder(path.resolve())
         where = repr(str(path))
+        try:
+            mod = _import_folder(path.resolve())
+        except BehaviourError:
+            raise
+        except Exception as err:      # noqa: BLE001 - the user's __init__.py, one line
+            raise code_error(where, path.resolve(), err) from err
+    folder = Path(mod.__file__ or ".").resolve().parent
+    if not (folder / "spec.py").is_file():
+        raise BehaviourError(f"behaviour {where}: no spec.py in {folder}")
     try:
         spec = importlib.import_module(mod.__name__ + ".spec")
-    except ImportError as err:
-        raise BehaviourError(f"behaviour {where}: no spec.py ({err})") from err
+    except Exception as err:      # noqa: BLE001 - the user's spec.py, one line
+        raise code_error(where, folder, err) from err
     _check(mod, spec, where)
     from firmware_logic import messages
     try:

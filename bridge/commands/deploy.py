@@ -121,7 +121,9 @@ def cmd_deploy(args: argparse.Namespace) -> int:
     from sim_backend import registry
     if args.behaviour is not None:
         try:
-            registry.load(args.behaviour)
+            # its robot module too: a file that fails here fails on the board,
+            # so refuse before anything is copied
+            registry.load(args.behaviour).robot_class
         except registry.BehaviourError as err:
             raise UsageError(f"--behaviour: {err}") from None
     sc = deploy_scenario(args)
