@@ -347,6 +347,18 @@ def named_by_data(ref: Any, source: str) -> None:
         f"--behaviour {ref} or --trust-behaviour {ref}")
 
 
+def beside(ref: Any, here: Path) -> Any:
+    """The behaviour a file in folder `here` names (a scenario, an
+    experiment, a recording's sidecar): an installed one as it is; a folder
+    relative to the file's folder, so the file and the behaviour travel
+    together (relative to where the command runs, as older files meant it,
+    only when just that one exists)."""
+    if module_of(str(ref)) is not None:
+        return ref
+    own = Path(os.path.normpath(here / str(ref)))
+    return str(own) if own.is_dir() or not Path(str(ref)).is_dir() else ref
+
+
 # load()'s answers, by the reference, the working folder and the built-in
 # folder's mtime (a folder added or removed there changes it): a sweep's run
 # loads its behaviour some six times (scenario, world, engine, summary, row),

@@ -133,6 +133,9 @@ def cmd_check(args: argparse.Namespace) -> int:
             raise UsageError(f"behaviour {str(folder)!r}: no such folder nor an installed "
                              f"behaviour ({', '.join(sorted(known))})")
         folder = registry.load(str(folder)).folder
+    elif not folder.is_dir():
+        raise UsageError(f"behaviour {str(folder)!r}: a file; give the behaviour's folder "
+                         f"({folder.parent})")
     bad = [s for s in args.only if s not in bc.STEPS]
     if bad:
         raise UsageError(f"--only {bad[0]!r}: expected one of {', '.join(bc.STEPS)}")
