@@ -104,7 +104,7 @@ def cmd_host(args: argparse.Namespace) -> int:
     with transport:
         try:
             host.transport = transport
-            event(f"host on {where}: object weight {sc.weight_centi}, home "
+            event(f"host on {where}: {_load_words(host.behaviour, sc)}home "
                   f"({sc.homeX},{sc.homeY}), journal {args.journal or args.resume or 'none'}")
             try:
                 summary = host.run(stop=lambda: bool(stopping), max_ticks=args.max_ticks,
@@ -274,6 +274,13 @@ def refuse_appending(journal, resume: Path | None = None) -> None:
     raise JournalError(f"--journal {journal.path} already holds {held} entries ({state}), "
                        f"not a journal{into} for a new mission; go on with that mission "
                        f"with --resume {journal.path}, or give a new --journal")
+
+
+def _load_words(behaviour, sc) -> str:
+    """The object's weight, for a behaviour that declares a load (spec.LOAD,
+    the thesis's power against weight); nothing for one that carries nothing."""
+    from sim_backend import words
+    return f"object weight {sc.weight_centi}, " if words.of(behaviour).load else ""
 
 
 def host_line(behaviour, summary: dict) -> str:
