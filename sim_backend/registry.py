@@ -267,6 +267,11 @@ def code_error(where: str, folder: Path, err: BaseException) -> BehaviourError:
         file, line = (last.filename, last.lineno) if last is not None else (None, None)
         text = f"{type(err).__name__}: {err}".splitlines()[0]
     at = f"{file} line {line}: " if file else ""
+    if isinstance(err, ModuleNotFoundError) and str(err.name).split(".")[0] in (
+            folder.name, where.strip("'")):
+        # its own name exists on no board and in no other process
+        text += ("; import the behaviour's own modules relatively (from .spec import ...; "
+                 "docs/writing-a-behaviour.md, \"Imports\")")
     return BehaviourError(f"behaviour {where}: {at}{text}")
 
 

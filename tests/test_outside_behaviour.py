@@ -218,6 +218,9 @@ MISTAKES = {
                r"spec\.py line \d+: SyntaxError: '\(' was never closed"),
     "raises": ("robot.py", "class Robot:\n", "raise RuntimeError('half-saved')\n\n\nclass Robot:\n",
                r"robot\.py line \d+: RuntimeError: half-saved"),
+    "absolute": ("robot.py", "from .spec import CLIMB", "from absolute.spec import CLIMB",
+                 r"robot\.py line \d+: ModuleNotFoundError: No module named 'absolute'; import "
+                 r"the behaviour's own modules relatively"),
     "typo": ("__init__.py", "sc.fieldDefiance, 100)", "sc.fieldDefyance, 100)",
              r"__init__\.py line \d+: AttributeError: scenario has no key 'fieldDefyance'"),
 }
