@@ -42,6 +42,7 @@ from sim_backend.errors import SimError
 
 GROUP = "touchswarm.behaviours"
 BEHAVIOURS_DIR = Path(firmware_logic.behaviours.__file__).resolve().parent
+BUILTIN_PREFIX = "firmware_logic.behaviours."
 SPEC_KEYS = ("NAME", "TITLE", "STATES", "MODELS", "PARAMS", "MEASURES")
 
 
@@ -217,7 +218,7 @@ def builtin() -> dict[str, str]:
     where = str(BEHAVIOURS_DIR)
     with os.scandir(where) as it:
         found = sorted(e.name for e in it if e.is_dir())
-    return {name: "firmware_logic.behaviours." + name for name in found
+    return {name: BUILTIN_PREFIX + name for name in found
             if os.path.isfile(os.path.join(where, name, "__init__.py"))
             and os.path.isfile(os.path.join(where, name, "spec.py"))}
 
@@ -273,6 +274,31 @@ def code_error(where: str, folder: Path, err: BaseException) -> BehaviourError:
         text += ("; import the behaviour's own modules relatively (from .spec import ...; "
                  "docs/writing-a-behaviour.md, \"Imports\")")
     return BehaviourError(f"behaviour {where}: {at}{text}")
+
+
+def failed_in(err: BaseException) -> BehaviourError | None:
+    """An error raised by the code of a behaviour that is not built in (a
+    folder, an installed package) while it ran (its step, its coordinator),
+    as one line naming the behaviour and its file and line; None when no
+    frame of such a behaviour's code raised it. A process pool's error
+    carries the worker's frames as text (its cause), read here too."""
+    import traceback
+    own = {b.folder: b for b in list(_LOADS.values())
+           if not b.module_name.startswith(BUILTIN_PREFIX)}
+    if not own:
+        return None
+    frames = [(f.filename, f.lineno, f.name) for f in traceback.extract_tb(err.__traceback__)]
+    if err.__cause__ is not None and type(err.__cause__).__name__ == "_RemoteTraceback":
+        frames += [(f, int(n), fn) for f, n, fn in
+                   re.findall(r'File "([^"]+)", line (\d+), in (\S+)', str(err.__cause__))]
+    for file, line, func in reversed(frames):
+        path = Path(file).resolve()
+        for folder, b in own.items():
+            if path.is_relative_to(folder):
+                text = f"{type(err).__name__}: {err}".splitlines()[0]
+                return BehaviourError(f"behaviour {b.name!r} failed: {file} line {line} "
+                                      f"in {func}: {text}")
+    return None
 
 
 def _check(mod: ModuleType, spec: ModuleType, where: str) -> None:

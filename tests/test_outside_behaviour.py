@@ -257,3 +257,23 @@ def test_behaviour_check_of_a_file_is_one_line(tmp_path: Path,
     folder = scaffold(tmp_path, "filed")
     assert main(["behaviour", "check", str(folder / "spec.py")]) == 2
     one_line(capsys, "a file; give the behaviour's folder", str(folder))
+
+
+def test_a_bug_in_the_users_step_is_one_line_naming_file_and_line(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The behaviour loads and fails while it runs (robot 1's 20th step),
+    in this process and in a sweep's worker process alike: exit 1."""
+    folder = broken(tmp_path, "buggy", "robot.py", "        self.ticks += 1\n",
+                    "        self.ticks += 1\n        if self.ticks == 20:\n"
+                    "            self.rxbuf[self.ticks] = 1\n")
+    says = (re.escape(f"behaviour 'buggy' failed: {folder}/robot.py line ") + r"\d+"
+            + re.escape(" in step: IndexError: list assignment index out of range"))
+    capsys.readouterr()
+    for argv in (["run", "--behaviour", str(folder), *SMALL],
+                 ["run", "--behaviour", str(folder), *SMALL, "--link", "can"],
+                 ["sweep", "--set", f"behaviour={folder}", "--seeds", "1", "--engine",
+                  "reference", "--executor", "processes:1", "--no-plots", "--out",
+                  str(tmp_path / "sw")],
+                 ["firmware", "check", "--behaviour", str(folder)]):
+        assert main(argv) == 1, argv
+        assert re.search(says, one_line(capsys)), argv
