@@ -123,6 +123,13 @@ def test_every_step_from_the_folder(tmp_path: Path, micropython_device,  # noqa:
                  "--json"]) == 0
     assert json.loads(capsys.readouterr().out.strip().splitlines()[-1]) == s
 
+    # its records speak of no power, leader or convergence it does not have
+    assert main(["run", *sc, "--out", str(tmp_path / "out")]) == 0
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [
+        "indstats.csv", "summary.json", "tt.csv", "world.png"]
+    assert (tmp_path / "out" / "indstats.csv").read_text().startswith(
+        "seed,node,tick,rx,ry,sx,sy\n")
+
     # sweep: the compiled soa engine gives the reference engine's runs
     swept = {}
     for engine in ("soa", "reference"):
