@@ -284,3 +284,15 @@ def test_a_bug_in_the_users_step_is_one_line_naming_file_and_line(
                  ["firmware", "check", "--behaviour", str(folder)]):
         assert main(argv) == 1, argv
         assert re.search(says, one_line(capsys)), argv
+
+
+def test_a_scaffold_made_here_is_named_as_a_path(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    """`--into .`: the hint names ./NAME (a bare NAME reads as an installed
+    behaviour's), and that runs from here."""
+    monkeypatch.chdir(tmp_path)
+    assert main(["behaviour", "new", "here", "--into", "."]) == 0
+    hint = capsys.readouterr().out.splitlines()[-1]
+    assert hint.startswith("use it as --behaviour ./here;"), hint
+    assert main(["run", "--behaviour", "./here", *SMALL, "--json"]) in (0, 1)
+    assert json.loads(capsys.readouterr().out.strip().splitlines()[-1])["ticks"] > 0

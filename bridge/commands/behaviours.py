@@ -115,7 +115,9 @@ def cmd_new(args: argparse.Namespace) -> int:
     for file, text in texts.items():
         (dest / file).write_text(text)
     print(f"created {dest}/ ({', '.join(p.name for p in sorted(dest.glob('*.py')))})")
-    print(f"use it as --behaviour {name if inside else dest}; guide: "
+    # a relative folder as ./NAME: a bare NAME reads as an installed behaviour's
+    where = dest if dest.is_absolute() or str(dest).startswith(".") else f"./{dest}"
+    print(f"use it as --behaviour {name if inside else where}; guide: "
           "docs/writing-a-behaviour.md")
     return 0
 
