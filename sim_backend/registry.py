@@ -264,8 +264,9 @@ def code_error(where: str, folder: Path, err: BaseException) -> BehaviourError:
     else:
         frames = traceback.extract_tb(err.__traceback__)
         own = [f for f in frames if Path(f.filename).resolve().is_relative_to(folder)]
-        last = (own or frames or [None])[-1]
-        file, line = (last.filename, last.lineno) if last is not None else (None, None)
+        where_from = own or frames
+        file, line = ((where_from[-1].filename, where_from[-1].lineno) if where_from
+                      else (None, None))
         text = f"{type(err).__name__}: {err}".splitlines()[0]
     at = f"{file} line {line}: " if file else ""
     if isinstance(err, ModuleNotFoundError) and str(err.name).split(".")[0] in (
