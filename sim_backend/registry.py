@@ -284,8 +284,8 @@ def failed_in(err: BaseException) -> BehaviourError | None:
     frame of such a behaviour's code raised it. A process pool's error
     carries the worker's frames as text (its cause), read here too."""
     import traceback
-    own = {b.folder: b for b in list(_LOADS.values())
-           if not b.module_name.startswith(BUILTIN_PREFIX)}
+    own = {Path(b.package.__file__).resolve().parent: b for b in list(_LOADS.values())
+           if not b.module_name.startswith(BUILTIN_PREFIX) and b.package.__file__}
     if not own:
         return None
     frames = [(f.filename, f.lineno, f.name) for f in traceback.extract_tb(err.__traceback__)]
