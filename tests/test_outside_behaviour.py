@@ -296,3 +296,34 @@ def test_a_scaffold_made_here_is_named_as_a_path(tmp_path: Path, monkeypatch: py
     assert hint.startswith("use it as --behaviour ./here;"), hint
     assert main(["run", "--behaviour", "./here", *SMALL, "--json"]) in (0, 1)
     assert json.loads(capsys.readouterr().out.strip().splitlines()[-1])["ticks"] > 0
+
+
+def test_the_host_speaks_of_no_weight_or_leader_it_does_not_have(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`touchswarm host --behaviour DIR`, resuming its journal on an adapter
+    with no robots (3 ticks, then it gives up): the folder's journal resumes
+    only with the folder on the command line, and neither the first line nor
+    the result names the thesis's object weight or leader."""
+    from bridge.host.journal import Journal
+    from bridge.links import open_bus
+    from firmware_logic import messages as msg
+    folder = outside(scaffold(tmp_path, "quiet"))
+    old = tmp_path / "old.sqlite"
+    with Journal(old) as j:
+        j.bind(str(folder))
+        j.add_report(2, msg.HELLO, (1, 100, 1), 8)
+        j.add_report(2, msg.TOUCH, (1, 3, 3, 4, 3, 100), 9)
+    bus = f"slcan://{tmp_path / 'ada'}?settle_ms=0"
+    with open_bus(f"slcan-pty://{tmp_path / 'ada'}"):        # an adapter, no robots
+        assert main(["host", "--bus", bus, "--resume", str(old)]) == 2
+        one_line(capsys, f"resume it with --behaviour {folder}")
+        rc = main(["host", "--bus", bus, "--behaviour", str(folder), "--resume", str(old),
+                   "--journal", str(tmp_path / "new.sqlite"), "--max-ticks", "3",
+                   "--tick-ms", "1"])
+    out = capsys.readouterr().out
+    assert rc == 1
+    first = next(ln for ln in out.splitlines() if ln.startswith("host on "))
+    assert "home (-15,-15)" in first and "weight" not in first, first
+    last = out.strip().splitlines()[-1]
+    assert last.startswith("NOT done (") and ": 1 touches, ended at tick" in last, last
+    assert "leader" not in last and "power" not in last

@@ -285,14 +285,16 @@ def _load_words(behaviour, sc) -> str:
 
 def host_line(behaviour, summary: dict) -> str:
     """The host's one-line result in the behaviour's words (sim_backend/words.py):
-    its RESULT word, the touches, its load when it declares one (the thesis:
-    power), the leader, the end tick, duplicates and bad frames."""
+    its RESULT word, the touches, its load and leader when it declares a load
+    (the thesis: power), the end tick, duplicates and bad frames."""
     from sim_backend import words
     w = words.of(behaviour)
     key, yes, no = w.result
     load = f", {w.load[0]} {summary[w.load[0]]:g}" if w.load and w.load[0] in summary else ""
+    # the leader carries the load (the thesis's transport): no word for one that carries nothing
+    leader = f", leader {summary['leader']}" if w.load else ""
     done = summary[key] and summary["outcome"] == "delivered"
     why = "" if done else f" ({summary['outcome']}: {summary['reason']})"
-    return (f"{yes if done else no}{why}: {len(summary['touches'])} touches{load}, "
-            f"leader {summary['leader']}, ended at tick {summary['home_tick']}, "
+    return (f"{yes if done else no}{why}: {len(summary['touches'])} touches{load}"
+            f"{leader}, ended at tick {summary['home_tick']}, "
             f"{summary['duplicates']} duplicates ignored, bad frames {summary['bad_frames']}")
