@@ -137,6 +137,17 @@ def _main(argv: list[str]) -> int:
         return EXIT_FAILED
     except KeyboardInterrupt:
         return EXIT_INTERRUPTED
+    except Exception as err:
+        # a bug in the user's own behaviour (its step, its coordinator) while
+        # it ran: one line naming its file and line (-vv logs the traceback);
+        # anything else is ours, and its traceback is the report
+        own = registry.failed_in(err)
+        if own is None:
+            raise
+        import logging
+        logging.getLogger("touchswarm").debug("the behaviour's error", exc_info=True)
+        print(f"touchswarm: error: {own} (touchswarm -vv: the traceback)", file=sys.stderr)
+        return EXIT_FAILED
 
 
 if __name__ == "__main__":

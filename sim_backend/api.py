@@ -64,7 +64,8 @@ def scenario_of(scenario: str | Path | Mapping[str, Any] = "default",
         raise ScenarioError(f"scenario: expected a built-in name, a .toml path or a dict, "
                             f"got {type(scenario).__name__}")
     if overrides:
-        sc = scn.validate({**sc.to_dict(), **overrides}, "overrides")
+        # merge: overrides naming another behaviour leave the old one's parameters behind
+        sc = scn.validate(scn.merge(sc.to_dict(), dict(overrides)), "overrides")
     return sc
 
 

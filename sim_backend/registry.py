@@ -42,6 +42,7 @@ from sim_backend.errors import SimError
 
 GROUP = "touchswarm.behaviours"
 BEHAVIOURS_DIR = Path(firmware_logic.behaviours.__file__).resolve().parent
+BUILTIN_PREFIX = "firmware_logic.behaviours."
 SPEC_KEYS = ("NAME", "TITLE", "STATES", "MODELS", "PARAMS", "MEASURES")
 
 
@@ -70,7 +71,11 @@ class Behaviour:
     # up once per Behaviour (an engine builds one robot per node through them)
     @functools.cached_property
     def robot_module(self) -> ModuleType:
-        return importlib.import_module(self.module_name + "." + self.package.ROBOT.split(":")[0])
+        try:
+            return importlib.import_module(self.module_name + "."
+                                           + self.package.ROBOT.split(":")[0])
+        except Exception as err:      # noqa: BLE001 - the user's file, one line
+            raise code_error(repr(self.name), self.folder, err) from err
 
     @functools.cached_property
     def robot_class(self) -> type:
@@ -87,7 +92,12 @@ class Behaviour:
         BehaviourError when their number does not fit the constructor."""
         if getattr(sc, "breeds", ()):
             sc = sc.for_node(node)
-        args = tuple(self.package.robot_args(node, seed, sc))
+        try:
+            args = tuple(self.package.robot_args(node, seed, sc))
+        except SimError:
+            raise
+        except Exception as err:      # noqa: BLE001 - the user's code, one line
+            raise code_error(repr(self.name), self.folder, err) from err
         lo, hi = self.arity
         if not lo <= len(args) <= hi:
             takes = str(lo) if lo == hi else f"{lo}..{hi}"
@@ -102,8 +112,8 @@ class Behaviour:
         """(fewest, most) positional arguments the FSM's constructor takes
         (after self); most is infinite with *args."""
         import inspect
+        cls: Any = self.robot_class        # a robot.py that fails to import: its one line
         try:
-            cls: Any = self.robot_class
             sig = inspect.signature(cls.__init__)
         except (TypeError, ValueError):
             return 0, float("inf")
@@ -119,7 +129,12 @@ class Behaviour:
         return self.robot_class(*self.robot_args(node, seed, sc))
 
     def coordinator(self, sc: Any, **kw: Any) -> Any:
-        return self.package.make_coordinator(sc, **kw)
+        try:
+            return self.package.make_coordinator(sc, **kw)
+        except SimError:
+            raise
+        except Exception as err:      # noqa: BLE001 - the user's code, one line
+            raise code_error(repr(self.name), self.folder, err) from err
 
     def state_name(self, code: int) -> str:
         states = self.spec.STATES
@@ -203,7 +218,7 @@ def builtin() -> dict[str, str]:
     where = str(BEHAVIOURS_DIR)
     with os.scandir(where) as it:
         found = sorted(e.name for e in it if e.is_dir())
-    return {name: "firmware_logic.behaviours." + name for name in found
+    return {name: BUILTIN_PREFIX + name for name in found
             if os.path.isfile(os.path.join(where, name, "__init__.py"))
             and os.path.isfile(os.path.join(where, name, "spec.py"))}
 
@@ -237,6 +252,54 @@ def module_of(ref: str) -> str | None:
     if found is None:
         found = next((value for name, value in _entry_points() if name == ref), None)
     return found
+
+
+def code_error(where: str, folder: Path, err: BaseException) -> BehaviourError:
+    """An error raised by the behaviour's own code (a syntax error, an import
+    or a call that fails) as one line naming its file and line: the deepest
+    frame in the behaviour's folder, where the user can fix it."""
+    import traceback
+    if isinstance(err, SyntaxError):
+        file, line, text = err.filename, err.lineno, f"SyntaxError: {err.msg}"
+    else:
+        frames = traceback.extract_tb(err.__traceback__)
+        own = [f for f in frames if Path(f.filename).resolve().is_relative_to(folder)]
+        where_from = own or frames
+        file, line = ((where_from[-1].filename, where_from[-1].lineno) if where_from
+                      else (None, None))
+        text = f"{type(err).__name__}: {err}".splitlines()[0]
+    at = f"{file} line {line}: " if file else ""
+    if isinstance(err, ModuleNotFoundError) and str(err.name).split(".")[0] in (
+            folder.name, where.strip("'")):
+        # its own name exists on no board and in no other process
+        text += ("; import the behaviour's own modules relatively (from .spec import ...; "
+                 "docs/writing-a-behaviour.md, \"Imports\")")
+    return BehaviourError(f"behaviour {where}: {at}{text}")
+
+
+def failed_in(err: BaseException) -> BehaviourError | None:
+    """An error raised by the code of a behaviour that is not built in (a
+    folder, an installed package) while it ran (its step, its coordinator),
+    as one line naming the behaviour and its file and line; None when no
+    frame of such a behaviour's code raised it. A process pool's error
+    carries the worker's frames as text (its cause), read here too."""
+    import traceback
+    own = {Path(b.package.__file__).resolve().parent: b for b in list(_LOADS.values())
+           if not b.module_name.startswith(BUILTIN_PREFIX) and b.package.__file__}
+    if not own:
+        return None
+    frames = [(f.filename, f.lineno, f.name) for f in traceback.extract_tb(err.__traceback__)]
+    if err.__cause__ is not None and type(err.__cause__).__name__ == "_RemoteTraceback":
+        frames += [(f, int(n), fn) for f, n, fn in
+                   re.findall(r'File "([^"]+)", line (\d+), in (\S+)', str(err.__cause__))]
+    for file, line, func in reversed(frames):
+        path = Path(file).resolve()
+        for folder, b in own.items():
+            if path.is_relative_to(folder):
+                text = f"{type(err).__name__}: {err}".splitlines()[0]
+                return BehaviourError(f"behaviour {b.name!r} failed: {file} line {line} "
+                                      f"in {func}: {text}")
+    return None
 
 
 def _check(mod: ModuleType, spec: ModuleType, where: str) -> None:
@@ -316,6 +379,18 @@ def named_by_data(ref: Any, source: str) -> None:
         f"--behaviour {ref} or --trust-behaviour {ref}")
 
 
+def beside(ref: Any, here: Path) -> Any:
+    """The behaviour a file in folder `here` names (a scenario, an
+    experiment, a recording's sidecar): an installed one as it is; a folder
+    relative to the file's folder, so the file and the behaviour travel
+    together (relative to where the command runs, as older files meant it,
+    only when just that one exists)."""
+    if module_of(str(ref)) is not None:
+        return ref
+    own = Path(os.path.normpath(here / str(ref)))
+    return str(own) if own.is_dir() or not Path(str(ref)).is_dir() else ref
+
+
 # load()'s answers, by the reference, the working folder and the built-in
 # folder's mtime (a folder added or removed there changes it): a sweep's run
 # loads its behaviour some six times (scenario, world, engine, summary, row),
@@ -354,12 +429,20 @@ def _load(ref: str | Path) -> Behaviour:
         if not path.is_dir():
             raise BehaviourError(f"behaviour {str(ref)!r}: not an installed behaviour "
                                  f"({', '.join(sorted(names()))}) nor a folder")
-        mod = _import_folder(path.resolve())
         where = repr(str(path))
+        try:
+            mod = _import_folder(path.resolve())
+        except BehaviourError:
+            raise
+        except Exception as err:      # noqa: BLE001 - the user's __init__.py, one line
+            raise code_error(where, path.resolve(), err) from err
+    folder = Path(mod.__file__ or ".").resolve().parent
+    if not (folder / "spec.py").is_file():
+        raise BehaviourError(f"behaviour {where}: no spec.py in {folder}")
     try:
         spec = importlib.import_module(mod.__name__ + ".spec")
-    except ImportError as err:
-        raise BehaviourError(f"behaviour {where}: no spec.py ({err})") from err
+    except Exception as err:      # noqa: BLE001 - the user's spec.py, one line
+        raise code_error(where, folder, err) from err
     _check(mod, spec, where)
     from firmware_logic import messages
     try:

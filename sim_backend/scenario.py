@@ -620,6 +620,8 @@ def load(spec: str | Path | None = None) -> Scenario:
     if "behaviour" in raw:
         # a file names, never imports: a folder only when the user trusted it
         from sim_backend import registry
+        if source == str(path):       # a file: its folder, relative to the file
+            raw["behaviour"] = registry.beside(raw["behaviour"], path.resolve().parent)
         try:
             registry.named_by_data(raw["behaviour"], f"scenario file {source!r}")
         except registry.BehaviourError as err:

@@ -115,7 +115,9 @@ def cmd_new(args: argparse.Namespace) -> int:
     for file, text in texts.items():
         (dest / file).write_text(text)
     print(f"created {dest}/ ({', '.join(p.name for p in sorted(dest.glob('*.py')))})")
-    print(f"use it as --behaviour {name if inside else dest}; guide: "
+    # a relative folder as ./NAME: a bare NAME reads as an installed behaviour's
+    where = dest if dest.is_absolute() or str(dest).startswith(".") else f"./{dest}"
+    print(f"use it as --behaviour {name if inside else where}; guide: "
           "docs/writing-a-behaviour.md")
     return 0
 
@@ -133,6 +135,9 @@ def cmd_check(args: argparse.Namespace) -> int:
             raise UsageError(f"behaviour {str(folder)!r}: no such folder nor an installed "
                              f"behaviour ({', '.join(sorted(known))})")
         folder = registry.load(str(folder)).folder
+    elif not folder.is_dir():
+        raise UsageError(f"behaviour {str(folder)!r}: a file; give the behaviour's folder "
+                         f"({folder.parent})")
     bad = [s for s in args.only if s not in bc.STEPS]
     if bad:
         raise UsageError(f"--only {bad[0]!r}: expected one of {', '.join(bc.STEPS)}")

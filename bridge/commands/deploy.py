@@ -110,7 +110,7 @@ def deploy_scenario(args: argparse.Namespace):
 
 def cmd_deploy(args: argparse.Namespace) -> int:
     from bridge import devices
-    from bridge.serial.deploy import Deployer
+    from bridge.serial.deploy import DeployError, Deployer
     why = devices.missing(args.port)
     if why:
         # mpremote would say "may be in use by another program"
@@ -121,7 +121,9 @@ def cmd_deploy(args: argparse.Namespace) -> int:
     from sim_backend import registry
     if args.behaviour is not None:
         try:
-            registry.load(args.behaviour)
+            # its robot module too: a file that fails here fails on the board,
+            # so refuse before anything is copied
+            registry.load(args.behaviour).robot_class
         except registry.BehaviourError as err:
             raise UsageError(f"--behaviour: {err}") from None
     sc = deploy_scenario(args)
@@ -129,6 +131,12 @@ def cmd_deploy(args: argparse.Namespace) -> int:
         (str(sc.behaviour) if sc is not None else "thesis")
     d = Deployer(args.port, mpy_cross=args.mpy_cross, mpremote=args.mpremote,
                  behaviour=behaviour)
+    try:
+        # the robot's arguments on the host, before the board is touched: a
+        # robot_args that fails is the behaviour's mistake, not the board's
+        d.robot_config(config, sc)
+    except DeployError as err:
+        raise UsageError(str(err)) from None
     report = d.deploy(config if config or sc is not None else None, sc)
     for f in report.files:
         print("%-34s %6d bytes  sha256 %s  verified" % (f.remote, f.size, f.sha256[:16]))

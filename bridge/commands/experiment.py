@@ -15,8 +15,10 @@ files"):
     [set]
     maxTicks = 3000
 
-Relative paths in the file (scenario, out) are relative to the file's
-folder, so an experiment and its scenario travel together. Every key is
+Relative paths in the file (scenario, out, a behaviour folder in [set] or
+[grid]) are relative to the file's folder, so an experiment and its
+scenario and behaviour travel together; a folder it names is loaded only
+when the command line trusts it (--trust-behaviour DIR, docs/security.md). Every key is
 checked on load; an unknown key or a wrong type is a one-line UsageError.
 """
 
@@ -78,7 +80,24 @@ def load(path: Path) -> dict[str, Any]:
             raw["scenario"] = str(here / raw["scenario"])
     if "out" in raw:
         raw["out"] = here / raw["out"]
+    if "behaviour" in raw.get("set", {}):
+        raw["set"]["behaviour"] = _named_folder(raw["set"]["behaviour"], here, path)
+    if "behaviour" in raw["grid"]:
+        raw["grid"]["behaviour"] = [_named_folder(v, here, path) for v in raw["grid"]["behaviour"]]
     return raw
+
+
+def _named_folder(ref: Any, here: Path, path: Path) -> Any:
+    """A behaviour the file names, relative to its folder (registry.beside),
+    and named by data: loaded only when the command line trusted it
+    (docs/security.md, "Trusted input")."""
+    from sim_backend import registry
+    ref = registry.beside(ref, here)
+    try:
+        registry.named_by_data(ref, f"experiment {path}")
+    except registry.BehaviourError as err:
+        raise UsageError(str(err)) from None
+    return ref
 
 
 def seeds_text(seeds: int | str | list) -> str:
@@ -97,6 +116,17 @@ def _toml(value: Any) -> str:
         return "[" + ", ".join(_toml(v) for v in value) + "]"
     text = str(value).replace("\\", "\\\\").replace('"', '\\"')
     return f'"{text}"'
+
+
+def _behaviour_text(value: Any, here: Path) -> Any:
+    """A behaviour as the file names it: an installed one by name, a folder
+    relative to the file's folder (load reads it back from there)."""
+    from sim_backend import registry
+    if isinstance(value, list):
+        return [_behaviour_text(v, here) for v in value]
+    if registry.module_of(str(value)) is not None:
+        return value
+    return os.path.relpath(Path(str(value)).resolve(), here)
 
 
 def save(path: Path, settings: dict[str, Any]) -> Path:
@@ -119,6 +149,7 @@ def save(path: Path, settings: dict[str, Any]) -> Path:
         lines.append(f"{key} = {_toml(value)}")
     for key, table in tables:
         lines.append(f"\n[{key}]")
-        lines += [f"{k} = {_toml(v)}" for k, v in table.items()]
+        lines += [f"{k} = {_toml(_behaviour_text(v, here) if k == 'behaviour' else v)}"
+                  for k, v in table.items()]
     path.write_text("\n".join(lines) + "\n")
     return path

@@ -104,7 +104,7 @@ def cmd_host(args: argparse.Namespace) -> int:
     with transport:
         try:
             host.transport = transport
-            event(f"host on {where}: object weight {sc.weight_centi}, home "
+            event(f"host on {where}: {_load_words(host.behaviour, sc)}home "
                   f"({sc.homeX},{sc.homeY}), journal {args.journal or args.resume or 'none'}")
             try:
                 summary = host.run(stop=lambda: bool(stopping), max_ticks=args.max_ticks,
@@ -276,16 +276,25 @@ def refuse_appending(journal, resume: Path | None = None) -> None:
                        f"with --resume {journal.path}, or give a new --journal")
 
 
+def _load_words(behaviour, sc) -> str:
+    """The object's weight, for a behaviour that declares a load (spec.LOAD,
+    the thesis's power against weight); nothing for one that carries nothing."""
+    from sim_backend import words
+    return f"object weight {sc.weight_centi}, " if words.of(behaviour).load else ""
+
+
 def host_line(behaviour, summary: dict) -> str:
     """The host's one-line result in the behaviour's words (sim_backend/words.py):
-    its RESULT word, the touches, its load when it declares one (the thesis:
-    power), the leader, the end tick, duplicates and bad frames."""
+    its RESULT word, the touches, its load and leader when it declares a load
+    (the thesis: power), the end tick, duplicates and bad frames."""
     from sim_backend import words
     w = words.of(behaviour)
     key, yes, no = w.result
     load = f", {w.load[0]} {summary[w.load[0]]:g}" if w.load and w.load[0] in summary else ""
+    # the leader carries the load (the thesis's transport): no word for one that carries nothing
+    leader = f", leader {summary['leader']}" if w.load else ""
     done = summary[key] and summary["outcome"] == "delivered"
     why = "" if done else f" ({summary['outcome']}: {summary['reason']})"
-    return (f"{yes if done else no}{why}: {len(summary['touches'])} touches{load}, "
-            f"leader {summary['leader']}, ended at tick {summary['home_tick']}, "
+    return (f"{yes if done else no}{why}: {len(summary['touches'])} touches{load}"
+            f"{leader}, ended at tick {summary['home_tick']}, "
             f"{summary['duplicates']} duplicates ignored, bad frames {summary['bad_frames']}")

@@ -41,6 +41,14 @@ def register(sub) -> None:
     p.set_defaults(func=cmd_replay)
 
 
+def outcome(tick: int | None) -> str:
+    """The replayed outcome in the recorded behaviour's words (spec.RESULT:
+    the thesis's "delivered at tick N", another's "done at tick N")."""
+    from sim_backend import registry, words
+    _, yes, no = words.of(registry.active()).result
+    return f"{yes.lower()} at tick {tick}" if tick is not None else no.lower()
+
+
 def cmd_replay(args: argparse.Namespace) -> int:
     from bridge.commands.run import trust_from_args
     from bridge.record.replay import replay
@@ -58,6 +66,6 @@ def cmd_replay(args: argparse.Namespace) -> int:
         print(f"{s['recording']}: {s['robots']} robots, {s['ticks']} ticks, {s['frames']} frames; "
               f"{s['sensor_readings']} sensor readings, {s['actions']} actions, "
               f"{s['robot_messages']} robot messages, {s['host_commands']} host commands "
-              f"replayed; {s['touches']} touches, delivered at tick {s['delivered_tick']}; "
+              f"replayed; {s['touches']} touches, {outcome(s['delivered_tick'])}; "
               f"{s['divergences']} divergences")
     return 1 if s["divergences"] else 0

@@ -137,9 +137,7 @@ def behaviour(meta: dict, path: Path, folder: Path | None = None) -> registry.Be
                              f"{path.name} was recorded with {name!r}")
         return b.activate()
     if ref not in registry.names():
-        beside = Path(path).resolve().parent / ref
-        # older recordings: the path as given to `run` (relative to where it ran)
-        ref = str(beside) if beside.is_dir() or not Path(ref).is_dir() else ref
+        ref = str(registry.beside(ref, Path(path).resolve().parent))
         if not Path(ref).is_dir():
             raise UsageError(f"{where}: behaviour {meta['scenario'].get('behaviour')!r}"
                              f"{' (' + repr(name) + ')' if name else ''} is not a folder "
