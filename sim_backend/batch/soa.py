@@ -44,9 +44,11 @@ import traceback
 from collections import defaultdict
 from contextlib import contextmanager
 from functools import partial
+from itertools import repeat
+from operator import add
 from pathlib import Path
 from types import ModuleType
-from typing import IO, Any, Callable, Iterable, Iterator, Sequence
+from typing import IO, Any, Callable, Iterable, Iterator, NoReturn, Sequence
 
 import numpy as np
 
@@ -57,7 +59,7 @@ from sim_backend.batch import body as B
 from sim_backend.batch import transform as T
 from sim_backend.engine import UNTIL, RunResult, run_ended
 from sim_backend.errors import EngineError
-from sim_backend.exchange import HEARS_ALL, BatchMutes, exchange, wake
+from sim_backend.exchange import HEARS_ALL, NEVER, BatchMutes, exchange, wake
 from sim_backend.scenario import Scenario
 from sim_backend.world import World
 
@@ -516,6 +518,7 @@ class SoaEngine:
     """A batch of independent runs (scenario, seed) of one behaviour."""
 
     compile_seconds = 0.0            # this process's, all SoaEngines together
+    _soonest = 0                     # no wake tick is before it (_exchange)
 
     def __init__(self, runs: Sequence[tuple[Scenario, int]], record_trajectories: bool = False,
                  until: str = "delivered") -> None:
@@ -632,16 +635,23 @@ class SoaEngine:
             st = np.zeros(len(self.robot_objs), dtype=np.int64)
             self._states(st)
             self.frames.append((self.rb[B.XS].copy(), self.rb[B.YS].copy(), st))
-        called = self._exchange(t)
-        self._finish(t, called)
+        self._finish(t, self._exchange(t))
 
-    def _exchange(self, t: int) -> set[int]:
+    def _exchange(self, t: int) -> list[int]:
         """This tick's messages to their coordinators in the order they were
         sent and a tick of every coordinator that heard one or whose wake
         tick came (in run order; sim_backend/exchange.py); their commands reach the
-        robots' inboxes together. Returns the runs whose coordinator ticked."""
+        robots' inboxes together. Returns the runs whose coordinator ended
+        them (run_ended), in run order.
+
+        The work is per message and per coordinator asked, not per run of
+        the batch: a sweep's batch steps on for hundreds of ticks with a
+        few runs live, and a pass over every run's wake tick each step cost
+        as much as the live runs' exchange. `_soonest` is a lower bound of
+        every wake tick (a finished run's is NEVER), so the wake ticks are
+        read only on a step that may find one due."""
         n = int(self.out_n[0])
-        ups: dict[int, list[tuple[int, int, tuple]]] = defaultdict(list)
+        ups: dict[int, list[tuple[int, int, tuple]]] = {}
         mutes = self.mutes
         if n:
             run_of, node_of, nfields = self.run_of, self.node_of, self.nfields
@@ -649,78 +659,91 @@ class SoaEngine:
             kept = np.flatnonzero(mutes.keep(ii, kk, self.out_f[:n]))
             for i, kind, f in zip(ii[kept].tolist(), kk[kept].tolist(),
                                   self.out_f[kept].tolist()):
-                ups[run_of[i]].append((node_of[i], kind, tuple(f[:nfields[kind]])))
+                r = run_of[i]
+                up = ups.get(r)
+                if up is None:
+                    up = ups[r] = []
+                up.append((node_of[i], kind, tuple(f[:nfields[kind]])))
         woken = self.wake
-        asked = set(np.flatnonzero((woken <= t) & (self.rt[B.LIVE] == 1)).tolist())
-        coords, conv = self.coords, self.conv_steps
-        called: set[int] = set()
+        due = t >= self._soonest
+        asked = set(np.flatnonzero(woken <= t).tolist()) if due else set()
+        soonest = NEVER if due else self._soonest
+        coords, conv, until = self.coords, self.conv_steps, self.until
+        steps = self.rt[B.STEPS]
+        update = mutes.update
+        ended: list[int] = []
         sends = []
-        for r in sorted(asked.union(ups)):
+        for r in sorted(asked.union(ups)) if asked else sorted(ups):
             c = coords[r]
             out = exchange(c, ups.get(r, ()), t, r in asked, HEARS_ALL)
             if out is None:
                 continue
-            called.add(r)
             if out:
                 sends.append((r, out))
-            woken[r] = wake(c)
-            mutes.update(r, c)
+            w = woken[r] = wake(c)
+            if w < soonest:
+                soonest = w
+            update(r, c)
             if conv[r] < 0 and c.converged_tick >= 0:
-                conv[r] = int(self.rt[B.STEPS, r])
+                conv[r] = int(steps[r])
+            if run_ended(c, until):
+                ended.append(r)
+        # a step that read the wake ticks knows their least exactly
+        self._soonest = int(woken.min()) if due else soonest
         if sends:
             self._deliver(sends)
-        return called
+        return ended
 
-    def _deliver(self, sends: Sequence[tuple[int, Iterable[tuple[int, int, tuple]]]]) -> None:
+    def _deliver(self, sends: Sequence[tuple[int, Sequence[tuple[int, int, Any]]]]) -> None:
         """Commands (run, [(node, kind, fields), ...]) into the robots'
         inbox rings, each robot's in the order given: gathered, then one
         fancy write per array. A tick delivers tens of commands (a
         transport step's to each holder, one fields object for all) to
         thousands (a HALT to every robot of a run, the first tick's ACK to
-        every robot): each distinct (kind, fields) is checked and padded to
-        a whole row once and a message is its robot and that row's number,
-        so the loop over messages only appends (the robot reads a row's
-        first `in_nf` fields only, body.py `recv`)."""
+        every robot). A run's commands are split into nodes, kinds and
+        fields by zip and mapped to robots and table rows by C loops (a
+        Python loop per command was most of this call): a row is one
+        (kind, fields object) pair, padded to a whole row once (the robot
+        reads a row's first `in_nf` fields only, body.py `recv`); the
+        objects are alive for the call, so their ids stay theirs. A
+        command to a node a run lacks, or fields too many, refuses the
+        whole tick (`_refuse` names the first)."""
         to: list[int] = []
-        which: list[int] = []
-        rows: dict[tuple[int, tuple], int] = {}   # (kind, fields) -> row number
-        table: list[tuple] = []                    # (kind, nf, *padded fields)
-        pad = _PAD
+        keys: list[tuple[int, int]] = []           # per message: (kind, id(fields))
+        objs: dict[tuple[int, int], Any] = {}     # its fields object
         lo_of, agents_of = self.lo, self.agents
         host = msg.HOST                  # 0: never a robot's node
-        last_f, last_kind, k = None, -1, 0
         for r, out in sends:
+            if not out:
+                continue
+            nodes, kinds, fs = zip(*out)
+            ks = list(zip(kinds, map(id, fs)))
+            objs.update(zip(ks, fs))
             lo, agents = lo_of[r], agents_of[r]
-            for node, kind, f in out:
-                # a run's commands to its holders share one fields object:
-                # its row is the last one's, without hashing the key again
-                if f is not last_f or kind != last_kind:
-                    last_f, last_kind = f, kind
-                    key = (kind, f)
-                    try:
-                        row = rows.get(key)
-                    except TypeError:            # fields as a list
-                        key = (kind, tuple(f))
-                        row = rows.get(key)
-                    if row is None:
-                        nf = len(f)
-                        if nf > B.FIELDS:
-                            raise EngineError(f"run {r}: the coordinator sent {nf} fields, "
-                                              f"more than a message holds ({B.FIELDS})")
-                        row = rows[key] = len(table)
-                        table.append((kind, nf) + tuple(f) + pad[nf])
-                    k = row
+            if min(nodes) >= 1 and max(nodes) <= agents:
+                to.extend(map(add, nodes, repeat(lo - 1)))
+                keys.extend(ks)
+                continue
+            for node, k in zip(nodes, ks):
                 if 1 <= node <= agents:
                     to.append(lo + node - 1)
-                    which.append(k)
+                    keys.append(k)
                 elif node == host:
                     to.extend(range(lo, lo + agents))
-                    which.extend([k] * agents)
+                    keys.extend([k] * agents)
                 else:
-                    raise EngineError(f"run {r}: the coordinator addressed node {node}, "
-                                      f"which is not one of its {agents} robots")
+                    self._refuse(sends)
         if not to:
             return
+        rows: dict[tuple[int, int], Any] = dict.fromkeys(keys)
+        table: list[tuple] = []                    # (kind, nf, *padded fields)
+        for k in rows:
+            f = objs[k]
+            nf = len(f)
+            if nf > B.FIELDS:
+                self._refuse(sends)
+            rows[k] = len(table)
+            table.append((k[0], nf) + tuple(f) + _PAD[nf])
         head, tail = self.rb[B.IN_HEAD], self.rb[B.IN_TAIL]
         idx = np.array(to, dtype=np.int64)
         pos = tail[idx]
@@ -746,7 +769,7 @@ class SoaEngine:
         slot = pos % INBOX
         got = np.array(table, dtype=np.int64)
         if len(table) > 1:
-            got = got[which]
+            got = got[list(map(rows.__getitem__, keys))]
         self.in_kind[idx, slot] = got[:, 0]
         self.in_nf[idx, slot] = got[:, 1]
         self.in_f[idx, slot] = got[:, 2:]
@@ -755,20 +778,36 @@ class SoaEngine:
         else:
             tail[srt[first]] += np.diff(first, append=len(srt))
 
+    def _refuse(self, sends: Sequence[tuple[int, Sequence[tuple[int, int, Any]]]]) -> NoReturn:
+        """The first command of `sends`, in order, that no inbox takes: too
+        many fields, or a node its run lacks (a run's robots are nodes
+        1..agents; HOST is all of them)."""
+        for r, out in sends:
+            for node, _, f in out:
+                if len(f) > B.FIELDS:
+                    raise EngineError(f"run {r}: the coordinator sent {len(f)} fields, "
+                                      f"more than a message holds ({B.FIELDS})")
+                if not (1 <= node <= self.agents[r] or node == msg.HOST):
+                    raise EngineError(f"run {r}: the coordinator addressed node {node}, "
+                                      f"which is not one of its {self.agents[r]} robots")
+        raise AssertionError("_refuse: every command is deliverable")
+
     # -- run ends -----------------------------------------------------------------------------
 
-    def _finish(self, t: int, called: set[int]) -> None:
+    def _finish(self, t: int, ended: list[int]) -> None:
+        """The runs that ended this tick (`ended`, run order), and from the
+        first maxTicks on those at their cap, into their results."""
         live = self.rt[B.LIVE]
-        done = set(np.flatnonzero((live == 1) & (self.max_ticks <= t)).tolist()) \
-            if t >= self.first_cap else set()
-        for r in called:
-            c = self.coords[r]
-            if run_ended(c, self.until):
-                done.add(r)
-        for r in sorted(done):
+        done: Iterable[int] = ended
+        if t >= self.first_cap:
+            capped = np.flatnonzero((live == 1) & (self.max_ticks <= t)).tolist()
+            if capped:
+                done = sorted(set(ended).union(capped))
+        for r in done:
             if live[r] == 1:
                 self._result(r, t)
                 live[r] = 0
+                self.wake[r] = NEVER     # never asked again
 
     def _result(self, r: int, t: int) -> None:
         """The run's final state into its World and, when its RunResult's
