@@ -44,11 +44,9 @@ import traceback
 from collections import defaultdict
 from contextlib import contextmanager
 from functools import partial
-from itertools import repeat
-from operator import add
 from pathlib import Path
 from types import ModuleType
-from typing import IO, Any, Callable, Iterable, Iterator, NoReturn, Sequence
+from typing import IO, Any, Callable, Iterable, Iterator, Sequence
 
 import numpy as np
 
@@ -694,56 +692,56 @@ class SoaEngine:
             self._deliver(sends)
         return ended
 
-    def _deliver(self, sends: Sequence[tuple[int, Sequence[tuple[int, int, Any]]]]) -> None:
+    def _deliver(self, sends: Sequence[tuple[int, Iterable[tuple[int, int, tuple]]]]) -> None:
         """Commands (run, [(node, kind, fields), ...]) into the robots'
         inbox rings, each robot's in the order given: gathered, then one
         fancy write per array. A tick delivers tens of commands (a
         transport step's to each holder, one fields object for all) to
         thousands (a HALT to every robot of a run, the first tick's ACK to
-        every robot). A run's commands are split into nodes, kinds and
-        fields by zip and mapped to robots and table rows by C loops (a
-        Python loop per command was most of this call): a row is one
-        (kind, fields object) pair, padded to a whole row once (the robot
-        reads a row's first `in_nf` fields only, body.py `recv`); the
-        objects are alive for the call, so their ids stay theirs. A
-        command to a node a run lacks, or fields too many, refuses the
-        whole tick (`_refuse` names the first)."""
+        every robot): each distinct (kind, fields) is checked and padded to
+        a whole row once and a message is its robot and that row's number,
+        so the loop over messages only appends (the robot reads a row's
+        first `in_nf` fields only, body.py `recv`)."""
         to: list[int] = []
-        keys: list[tuple[int, int]] = []           # per message: (kind, id(fields))
-        objs: dict[tuple[int, int], Any] = {}     # its fields object
+        which: list[int] = []
+        rows: dict[tuple[int, tuple], int] = {}   # (kind, fields) -> row number
+        table: list[tuple] = []                    # (kind, nf, *padded fields)
+        pad = _PAD
         lo_of, agents_of = self.lo, self.agents
         host = msg.HOST                  # 0: never a robot's node
+        last_f, last_kind, k = None, -1, 0
         for r, out in sends:
-            if not out:
-                continue
-            nodes, kinds, fs = zip(*out)
-            ks = list(zip(kinds, map(id, fs)))
-            objs.update(zip(ks, fs))
             lo, agents = lo_of[r], agents_of[r]
-            if min(nodes) >= 1 and max(nodes) <= agents:
-                to.extend(map(add, nodes, repeat(lo - 1)))
-                keys.extend(ks)
-                continue
-            for node, k in zip(nodes, ks):
+            for node, kind, f in out:
+                # a run's commands to its holders share one fields object:
+                # its row is the last one's, without hashing the key again
+                if f is not last_f or kind != last_kind:
+                    last_f, last_kind = f, kind
+                    key = (kind, f)
+                    try:
+                        row = rows.get(key)
+                    except TypeError:            # fields as a list
+                        key = (kind, tuple(f))
+                        row = rows.get(key)
+                    if row is None:
+                        nf = len(f)
+                        if nf > B.FIELDS:
+                            raise EngineError(f"run {r}: the coordinator sent {nf} fields, "
+                                              f"more than a message holds ({B.FIELDS})")
+                        row = rows[key] = len(table)
+                        table.append((kind, nf) + tuple(f) + pad[nf])
+                    k = row
                 if 1 <= node <= agents:
                     to.append(lo + node - 1)
-                    keys.append(k)
+                    which.append(k)
                 elif node == host:
                     to.extend(range(lo, lo + agents))
-                    keys.extend([k] * agents)
+                    which.extend([k] * agents)
                 else:
-                    self._refuse(sends)
+                    raise EngineError(f"run {r}: the coordinator addressed node {node}, "
+                                      f"which is not one of its {agents} robots")
         if not to:
             return
-        rows: dict[tuple[int, int], Any] = dict.fromkeys(keys)
-        table: list[tuple] = []                    # (kind, nf, *padded fields)
-        for k in rows:
-            f = objs[k]
-            nf = len(f)
-            if nf > B.FIELDS:
-                self._refuse(sends)
-            rows[k] = len(table)
-            table.append((k[0], nf) + tuple(f) + _PAD[nf])
         head, tail = self.rb[B.IN_HEAD], self.rb[B.IN_TAIL]
         idx = np.array(to, dtype=np.int64)
         pos = tail[idx]
@@ -769,7 +767,7 @@ class SoaEngine:
         slot = pos % INBOX
         got = np.array(table, dtype=np.int64)
         if len(table) > 1:
-            got = got[list(map(rows.__getitem__, keys))]
+            got = got[which]
         self.in_kind[idx, slot] = got[:, 0]
         self.in_nf[idx, slot] = got[:, 1]
         self.in_f[idx, slot] = got[:, 2:]
@@ -777,20 +775,6 @@ class SoaEngine:
             tail[idx] += 1
         else:
             tail[srt[first]] += np.diff(first, append=len(srt))
-
-    def _refuse(self, sends: Sequence[tuple[int, Sequence[tuple[int, int, Any]]]]) -> NoReturn:
-        """The first command of `sends`, in order, that no inbox takes: too
-        many fields, or a node its run lacks (a run's robots are nodes
-        1..agents; HOST is all of them)."""
-        for r, out in sends:
-            for node, _, f in out:
-                if len(f) > B.FIELDS:
-                    raise EngineError(f"run {r}: the coordinator sent {len(f)} fields, "
-                                      f"more than a message holds ({B.FIELDS})")
-                if not (1 <= node <= self.agents[r] or node == msg.HOST):
-                    raise EngineError(f"run {r}: the coordinator addressed node {node}, "
-                                      f"which is not one of its {self.agents[r]} robots")
-        raise AssertionError("_refuse: every command is deliverable")
 
     # -- run ends -----------------------------------------------------------------------------
 
