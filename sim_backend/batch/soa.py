@@ -710,8 +710,10 @@ class SoaEngine:
         lo_of, agents_of = self.lo, self.agents
         host = msg.HOST                  # 0: never a robot's node
         last_f, last_kind, k = None, -1, 0
+        to_robot, to_row = to.append, which.append
         for r, out in sends:
             lo, agents = lo_of[r], agents_of[r]
+            base = lo - 1                # node n is robot base + n
             for node, kind, f in out:
                 # a run's commands to its holders share one fields object:
                 # its row is the last one's, without hashing the key again
@@ -732,8 +734,8 @@ class SoaEngine:
                         table.append((kind, nf) + tuple(f) + pad[nf])
                     k = row
                 if 1 <= node <= agents:
-                    to.append(lo + node - 1)
-                    which.append(k)
+                    to_robot(base + node)
+                    to_row(k)
                 elif node == host:
                     to.extend(range(lo, lo + agents))
                     which.extend([k] * agents)
@@ -759,9 +761,9 @@ class SoaEngine:
             nth = np.empty_like(idx)
             nth[order] = np.arange(len(srt)) - first[np.cumsum(new) - 1]
             pos += nth
-        full = pos - head[idx] >= INBOX
-        if full.any():
-            i = to[int(np.argmax(full))]
+        unread = pos - head[idx]
+        if unread.max() >= INBOX:
+            i = to[int(np.argmax(unread >= INBOX))]
             r = self.run_of[i]
             raise EngineError(f"run {r}: robot {i - self.lo[r] + 1} has {INBOX} unread messages")
         slot = pos % INBOX
