@@ -57,7 +57,7 @@ from sim_backend.batch import body as B
 from sim_backend.batch import transform as T
 from sim_backend.engine import UNTIL, RunResult, run_ended
 from sim_backend.errors import EngineError
-from sim_backend.exchange import HEARS_ALL, BatchMutes, exchange, wake
+from sim_backend.exchange import HEARS_ALL, NEVER, BatchMutes, exchange, wake
 from sim_backend.scenario import Scenario
 from sim_backend.world import World
 
@@ -516,6 +516,7 @@ class SoaEngine:
     """A batch of independent runs (scenario, seed) of one behaviour."""
 
     compile_seconds = 0.0            # this process's, all SoaEngines together
+    _soonest = 0                     # no wake tick is before it (_exchange)
 
     def __init__(self, runs: Sequence[tuple[Scenario, int]], record_trajectories: bool = False,
                  until: str = "delivered") -> None:
@@ -632,16 +633,23 @@ class SoaEngine:
             st = np.zeros(len(self.robot_objs), dtype=np.int64)
             self._states(st)
             self.frames.append((self.rb[B.XS].copy(), self.rb[B.YS].copy(), st))
-        called = self._exchange(t)
-        self._finish(t, called)
+        self._finish(t, self._exchange(t))
 
-    def _exchange(self, t: int) -> set[int]:
+    def _exchange(self, t: int) -> list[int]:
         """This tick's messages to their coordinators in the order they were
         sent and a tick of every coordinator that heard one or whose wake
         tick came (in run order; sim_backend/exchange.py); their commands reach the
-        robots' inboxes together. Returns the runs whose coordinator ticked."""
+        robots' inboxes together. Returns the runs whose coordinator ended
+        them (run_ended), in run order.
+
+        The work is per message and per coordinator asked, not per run of
+        the batch: a sweep's batch steps on for hundreds of ticks with a
+        few runs live, and a pass over every run's wake tick each step cost
+        as much as the live runs' exchange. `_soonest` is a lower bound of
+        every wake tick (a finished run's is NEVER), so the wake ticks are
+        read only on a step that may find one due."""
         n = int(self.out_n[0])
-        ups: dict[int, list[tuple[int, int, tuple]]] = defaultdict(list)
+        ups: dict[int, list[tuple[int, int, tuple]]] = {}
         mutes = self.mutes
         if n:
             run_of, node_of, nfields = self.run_of, self.node_of, self.nfields
@@ -649,27 +657,40 @@ class SoaEngine:
             kept = np.flatnonzero(mutes.keep(ii, kk, self.out_f[:n]))
             for i, kind, f in zip(ii[kept].tolist(), kk[kept].tolist(),
                                   self.out_f[kept].tolist()):
-                ups[run_of[i]].append((node_of[i], kind, tuple(f[:nfields[kind]])))
+                r = run_of[i]
+                up = ups.get(r)
+                if up is None:
+                    up = ups[r] = []
+                up.append((node_of[i], kind, tuple(f[:nfields[kind]])))
         woken = self.wake
-        asked = set(np.flatnonzero((woken <= t) & (self.rt[B.LIVE] == 1)).tolist())
-        coords, conv = self.coords, self.conv_steps
-        called: set[int] = set()
+        due = t >= self._soonest
+        asked = set(np.flatnonzero(woken <= t).tolist()) if due else set()
+        soonest = NEVER if due else self._soonest
+        coords, conv, until = self.coords, self.conv_steps, self.until
+        steps = self.rt[B.STEPS]
+        update = mutes.update
+        ended: list[int] = []
         sends = []
-        for r in sorted(asked.union(ups)):
+        for r in sorted(asked.union(ups)) if asked else sorted(ups):
             c = coords[r]
             out = exchange(c, ups.get(r, ()), t, r in asked, HEARS_ALL)
             if out is None:
                 continue
-            called.add(r)
             if out:
                 sends.append((r, out))
-            woken[r] = wake(c)
-            mutes.update(r, c)
+            w = woken[r] = wake(c)
+            if w < soonest:
+                soonest = w
+            update(r, c)
             if conv[r] < 0 and c.converged_tick >= 0:
-                conv[r] = int(self.rt[B.STEPS, r])
+                conv[r] = int(steps[r])
+            if run_ended(c, until):
+                ended.append(r)
+        # a step that read the wake ticks knows their least exactly
+        self._soonest = int(woken.min()) if due else soonest
         if sends:
             self._deliver(sends)
-        return called
+        return ended
 
     def _deliver(self, sends: Sequence[tuple[int, Iterable[tuple[int, int, tuple]]]]) -> None:
         """Commands (run, [(node, kind, fields), ...]) into the robots'
@@ -689,8 +710,10 @@ class SoaEngine:
         lo_of, agents_of = self.lo, self.agents
         host = msg.HOST                  # 0: never a robot's node
         last_f, last_kind, k = None, -1, 0
+        to_robot, to_row = to.append, which.append
         for r, out in sends:
             lo, agents = lo_of[r], agents_of[r]
+            base = lo - 1                # node n is robot base + n
             for node, kind, f in out:
                 # a run's commands to its holders share one fields object:
                 # its row is the last one's, without hashing the key again
@@ -711,8 +734,8 @@ class SoaEngine:
                         table.append((kind, nf) + tuple(f) + pad[nf])
                     k = row
                 if 1 <= node <= agents:
-                    to.append(lo + node - 1)
-                    which.append(k)
+                    to_robot(base + node)
+                    to_row(k)
                 elif node == host:
                     to.extend(range(lo, lo + agents))
                     which.extend([k] * agents)
@@ -738,9 +761,9 @@ class SoaEngine:
             nth = np.empty_like(idx)
             nth[order] = np.arange(len(srt)) - first[np.cumsum(new) - 1]
             pos += nth
-        full = pos - head[idx] >= INBOX
-        if full.any():
-            i = to[int(np.argmax(full))]
+        unread = pos - head[idx]
+        if unread.max() >= INBOX:
+            i = to[int(np.argmax(unread >= INBOX))]
             r = self.run_of[i]
             raise EngineError(f"run {r}: robot {i - self.lo[r] + 1} has {INBOX} unread messages")
         slot = pos % INBOX
@@ -757,18 +780,20 @@ class SoaEngine:
 
     # -- run ends -----------------------------------------------------------------------------
 
-    def _finish(self, t: int, called: set[int]) -> None:
+    def _finish(self, t: int, ended: list[int]) -> None:
+        """The runs that ended this tick (`ended`, run order), and from the
+        first maxTicks on those at their cap, into their results."""
         live = self.rt[B.LIVE]
-        done = set(np.flatnonzero((live == 1) & (self.max_ticks <= t)).tolist()) \
-            if t >= self.first_cap else set()
-        for r in called:
-            c = self.coords[r]
-            if run_ended(c, self.until):
-                done.add(r)
-        for r in sorted(done):
+        done: Iterable[int] = ended
+        if t >= self.first_cap:
+            capped = np.flatnonzero((live == 1) & (self.max_ticks <= t)).tolist()
+            if capped:
+                done = sorted(set(ended).union(capped))
+        for r in done:
             if live[r] == 1:
                 self._result(r, t)
                 live[r] = 0
+                self.wake[r] = NEVER     # never asked again
 
     def _result(self, r: int, t: int) -> None:
         """The run's final state into its World and, when its RunResult's
