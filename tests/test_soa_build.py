@@ -225,3 +225,26 @@ def test_a_process_that_loaded_a_step_freezes_its_heap_at_exit(tmp_path):
     first call of a step registers gc.freeze for the exit, once."""
     got = child(FREEZE, TOUCHSWARM_CACHE=str(tmp_path))
     assert got["freezes"] == 1
+
+
+NUMBA_IMPORT = """
+import json, sys
+sys.path.insert(0, sys.argv[1])
+from sim_backend.batch import soa
+soa._without("numba", soa.CFFI)
+from numba.core import config
+print(json.dumps({"yaml": "yaml" in sys.modules, "numba": "numba" in sys.modules,
+                  "quiet": config.DISABLE_PERFORMANCE_WARNINGS}))
+"""
+
+
+def test_numba_imports_yaml_only_to_read_a_config_file_that_is_there(tmp_path):
+    """yaml is numba's only to read .numba_config.yaml from the working
+    directory: without the file numba is imported with yaml blocked, with it
+    numba reads it as before (yaml present: dask's extra brings it)."""
+    pytest.importorskip("yaml")
+    bare = child(NUMBA_IMPORT, str(ROOT), cwd=tmp_path)
+    assert bare == {"yaml": False, "numba": True, "quiet": 0}
+    (tmp_path / soa.NUMBA_CONFIG_FILE).write_text("disable_performance_warnings: 1\n")
+    configured = child(NUMBA_IMPORT, str(ROOT), cwd=tmp_path)
+    assert configured == {"yaml": True, "numba": True, "quiet": 1}

@@ -205,17 +205,22 @@ def _loading_only(fn: Any) -> Iterator[None]:
 _FIRST_CALLS = threading.RLock()
 
 
-# numba modules imported with a module they ask for made unimportable: `_without`
+# numba modules imported with modules they ask for made unimportable: `_without`
 ARRAYMATH, CFFI = "numba.np.arraymath", "numba.core.typing.cffi_utils"
-_BLOCKED = {"numba": ("scipy", "scipy"), ARRAYMATH: ("scipy.linalg.cython_blas", "scipy.linalg"),
-            CFFI: ("cffi", "cffi")}
+_BLOCKED = {"numba": (("scipy", "scipy"), ("yaml", "yaml")),
+            ARRAYMATH: (("scipy.linalg.cython_blas", "scipy.linalg"),),
+            CFFI: (("cffi", "cffi"),)}
+# numba reads its settings from this file in the working directory, with yaml
+NUMBA_CONFIG_FILE = ".numba_config.yaml"
 
 
 def _without(*modules: str) -> None:
     """Import numba's array maths without asking for scipy's BLAS (ARRAYMATH),
     and its typing of cffi functions without cffi (CFFI): a generated step
     is integers only (transform.py's subset) and calls neither. numba
-    itself ("numba") imports scipy only to check its version (0.04 s).
+    itself ("numba") imports scipy only to check its version (0.04 s), and
+    yaml (90 M instructions, 0.02-0.03 s) only to read NUMBA_CONFIG_FILE,
+    so yaml is blocked only while no such file is there to read.
 
     The maths asks once per process to choose np.correlate's and
     np.convolve's inner loop (the linear algebra asks again itself),
@@ -229,14 +234,18 @@ def _without(*modules: str) -> None:
     only while numba's module imports, only when nothing imported the real
     one first, so any other importer still gets it."""
     for module in modules:
-        stub, real = _BLOCKED[module]
-        if module in sys.modules or real in sys.modules:
+        if module in sys.modules:
             continue
-        sys.modules[stub] = None            # type: ignore[assignment]  # an ImportError
+        stubs = [stub for stub, real in _BLOCKED[module]
+                 if real not in sys.modules and not (real == "yaml"
+                                                     and os.path.isfile(NUMBA_CONFIG_FILE))]
+        for stub in stubs:
+            sys.modules[stub] = None            # type: ignore[assignment]  # an ImportError
         try:
             importlib.import_module(module)
         finally:
-            del sys.modules[stub]
+            for stub in stubs:
+                del sys.modules[stub]
 
 
 # compile locks a sweep claimed (claim_lock) and handed to this process, its
