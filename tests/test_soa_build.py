@@ -248,3 +248,22 @@ def test_numba_imports_yaml_only_to_read_a_config_file_that_is_there(tmp_path):
     (tmp_path / soa.NUMBA_CONFIG_FILE).write_text("disable_performance_warnings: 1\n")
     configured = child(NUMBA_IMPORT, str(ROOT), cwd=tmp_path)
     assert configured == {"yaml": True, "numba": True, "quiet": 1}
+
+
+@pytest.mark.parametrize("dtype", ["int8", "int16", "int32"])
+@pytest.mark.parametrize("values", [[0, 3, 0, 127], [0, 128, 255], [2, -1, 0], [0, 256], [1, 70000],
+                                    [True, 0], [1.0, 2]])
+def test_a_grid_converts_as_its_list_would(dtype, values):
+    """BatchArrays hands a grid to numpy as bytes when it can: the array is
+    the list's, and a value the grid's type cannot hold is refused as the
+    list is (numpy's OverflowError), never wrapped."""
+    import numpy as np
+    want, got = np.zeros(len(values), dtype=dtype), np.zeros(len(values), dtype=dtype)
+    try:
+        want[:] = values
+    except OverflowError:
+        with pytest.raises(OverflowError):
+            got[:] = soa._small_ints(values, got.dtype)
+        return
+    got[:] = soa._small_ints(values, got.dtype)
+    assert got.tolist() == want.tolist()
