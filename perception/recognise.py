@@ -76,7 +76,7 @@ def _logsumexp(a: list[float]) -> float:
     m = max(a)
     if m == -math.inf:
         return m
-    return m + math.log(float(np.exp(np.array(a) - m).sum()))
+    return m + math.log(float(np.exp(np.subtract(a, m)).sum()))
 
 
 def touchable(cells: set[Cell]) -> int:
@@ -151,17 +151,17 @@ def recognise(ev: Evidence, library: Library, eps_touch: float = EPS_TOUCH,
     # alone would be: the table is finite, its max is read at the argmax the
     # MAP needs anyway)
     near: dict[int, tuple[float, float, Cell, int]] = {}
-    for (bw, bh), cols in boxes:
+    for (bw, bh), cols, columns, rows in boxes:
         ox0, ox1 = max(-w, xmin - bw + 1), min(w - bw + 1, xmax)
         oy0, oy1 = max(-w, ymin - bh + 1), min(w - bh + 1, ymax)
         if ox0 > ox1 or oy0 > oy1:
             continue
         hx, hy = ox1 - ox0 + 1, oy1 - oy0 + 1
-        ll = ll_all[cols, oy0 - y0:oy0 - y0 + hy, ox0 - x0:ox0 - x0 + hx].reshape(len(cols), -1)
+        ll = ll_all[cols, oy0 - y0:oy0 - y0 + hy, ox0 - x0:ox0 - x0 + hx].reshape(len(rows), -1)
         j = ll.argmax(axis=1)
-        top = ll[np.arange(len(cols)), j]
+        top = ll[rows, j]
         sums = np.exp(ll - top[:, None]).sum(axis=1)
-        for column, jj, tt, ss in zip(cols.tolist(), j.tolist(), top.tolist(), sums.tolist()):
+        for column, jj, tt, ss in zip(columns, j.tolist(), top.tolist(), sums.tolist()):
             near[column] = (tt + math.log(ss), tt, (ox0 + jj % hx, oy0 + jj // hx), hx * hy)
     per_shape: dict[str, float] = {}
     best_of: dict[str, tuple] = {name: (-math.inf, None, (0, 0)) for name in names}
@@ -204,7 +204,7 @@ def recognise(ev: Evidence, library: Library, eps_touch: float = EPS_TOUCH,
 @functools.lru_cache(maxsize=256)
 def _table(key: tuple, n: int, eps_touch: float, eps_free: float, n_obj: int
            ) -> tuple[list[tuple[str, Pose]], list[int], list[float], list[float], np.ndarray,
-                      list[tuple[tuple[int, int], np.ndarray]]]:
+                      list[tuple[tuple[int, int], np.ndarray, list[int], np.ndarray]]]:
     """The poses in order, their placements on the n x n arena, their
     placement priors, the log-likelihood of all of them away from the
     touches, and the log-likelihood table of a library (its key)
@@ -233,7 +233,10 @@ def _table(key: tuple, n: int, eps_touch: float, eps_free: float, n_obj: int
     for column, (_, p) in enumerate(ordered):
         if fits[column] > 0:
             by_box.setdefault((p.width, p.height), []).append(column)
-    boxes = [(box, np.array(cols)) for box, cols in by_box.items()]
+    # each box's columns as an index array and a list, and its rows: a
+    # recognition reads them per box (numpy calls on small arrays cost most
+    # of it)
+    boxes = [(box, np.array(cols), cols, np.arange(len(cols))) for box, cols in by_box.items()]
     # every placement away from the touches, when none is near them
     far = [pl + math.log(f) + n_obj * log_false if f > 0 else 0.0 for pl, f in zip(place, fits)]
     return ordered, fits, place, far, table, boxes

@@ -1021,6 +1021,7 @@ class CsvAppender:
         self.path = path
         self.names = list(names)
         self.f: Any = None
+        self.written: list[dict] = []       # the rows appended, in order
         self.append_to = resume and path.exists() and path.stat().st_size > 0
         if self.append_to:
             _drop_partial_line(path)
@@ -1043,6 +1044,14 @@ class CsvAppender:
         self.writer.writerows(_lines(rows, self.names))
         self.f.flush()
         os.fsync(self.f.fileno())
+        self.written += rows
+
+    def holds(self, rows: Sequence[dict]) -> bool:
+        """Whether the file is what write_csv(rows, path, names) writes: this
+        journal made it afresh and appended these very rows, in this order
+        (a sweep whose chunks returned in run order need not write it again)."""
+        return (self.f is not None and not self.append_to and len(rows) == len(self.written)
+                and all(a is b for a, b in zip(rows, self.written)))
 
     def close(self) -> None:
         if self.f is not None:

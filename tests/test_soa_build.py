@@ -225,3 +225,45 @@ def test_a_process_that_loaded_a_step_freezes_its_heap_at_exit(tmp_path):
     first call of a step registers gc.freeze for the exit, once."""
     got = child(FREEZE, TOUCHSWARM_CACHE=str(tmp_path))
     assert got["freezes"] == 1
+
+
+NUMBA_IMPORT = """
+import json, sys
+sys.path.insert(0, sys.argv[1])
+from sim_backend.batch import soa
+soa._without("numba", soa.CFFI)
+from numba.core import config
+print(json.dumps({"yaml": "yaml" in sys.modules, "numba": "numba" in sys.modules,
+                  "quiet": config.DISABLE_PERFORMANCE_WARNINGS}))
+"""
+
+
+def test_numba_imports_yaml_only_to_read_a_config_file_that_is_there(tmp_path):
+    """yaml is numba's only to read .numba_config.yaml from the working
+    directory: without the file numba is imported with yaml blocked, with it
+    numba reads it as before (yaml present: dask's extra brings it)."""
+    pytest.importorskip("yaml")
+    bare = child(NUMBA_IMPORT, str(ROOT), cwd=tmp_path)
+    assert bare == {"yaml": False, "numba": True, "quiet": 0}
+    (tmp_path / soa.NUMBA_CONFIG_FILE).write_text("disable_performance_warnings: 1\n")
+    configured = child(NUMBA_IMPORT, str(ROOT), cwd=tmp_path)
+    assert configured == {"yaml": True, "numba": True, "quiet": 1}
+
+
+@pytest.mark.parametrize("dtype", ["int8", "int16", "int32"])
+@pytest.mark.parametrize("values", [[0, 3, 0, 127], [0, 128, 255], [2, -1, 0], [0, 256], [1, 70000],
+                                    [True, 0], [1.0, 2]])
+def test_a_grid_converts_as_its_list_would(dtype, values):
+    """BatchArrays hands a grid to numpy as bytes when it can: the array is
+    the list's, and a value the grid's type cannot hold is refused as the
+    list is (numpy's OverflowError), never wrapped."""
+    import numpy as np
+    want, got = np.zeros(len(values), dtype=dtype), np.zeros(len(values), dtype=dtype)
+    try:
+        want[:] = values
+    except OverflowError:
+        with pytest.raises(OverflowError):
+            got[:] = soa._small_ints(values, got.dtype)
+        return
+    got[:] = soa._small_ints(values, got.dtype)
+    assert got.tolist() == want.tolist()

@@ -171,3 +171,30 @@ def test_a_row_with_a_column_the_header_lacks_is_refused_by_name(tmp_path):
         journal.append([{"seed": 2, "extra": 3}])
     journal.close()
     assert (tmp_path / "j.csv").read_text() == "seed,ticks\n1,\n"
+
+
+def test_the_journal_holds_the_file_only_of_its_own_rows_in_run_order(tmp_path):
+    """The CLI writes sweep.csv again only when its journal is not already
+    that file: rows appended afresh, the very rows, in run order."""
+    names = ["seed", "ticks"]
+    rows = [{"seed": s, "ticks": 10 * s} for s in (1, 2, 3, 4)]
+    journal = sweep.CsvAppender(tmp_path / "j.csv", names)
+    assert not journal.holds([])                         # no file yet: write_csv makes it
+    journal.append(rows[:2])
+    journal.append(rows[2:])
+    journal.close()
+    assert journal.holds(rows)
+    assert (tmp_path / "j.csv").read_text() == \
+        sweep.write_csv(rows, tmp_path / "w.csv", names).read_text()
+    assert not journal.holds(rows[2:] + rows[:2])        # another order
+    assert not journal.holds([dict(r) for r in rows])    # equal rows, not these
+    assert not journal.holds(rows[:3])
+    out_of_order = sweep.CsvAppender(tmp_path / "o.csv", names)
+    out_of_order.append(rows[2:])
+    out_of_order.append(rows[:2])
+    out_of_order.close()
+    assert not out_of_order.holds(rows)
+    resumed = sweep.CsvAppender(tmp_path / "j.csv", names, resume=True)
+    resumed.append([])
+    resumed.close()
+    assert not resumed.holds([])                         # the file holds rows from before

@@ -260,11 +260,13 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     done = _check_out(args, plan, out)
     if args.save_experiment is not None:
         _save_experiment(args, cfg, plan, out)
-    new, wall = _run(args, cfg, plan, out, done)
+    names = _columns(plan)
+    new, wall, journal = _run(args, cfg, plan, out, done, names)
     rows = _in_run_order(plan, done + new)
     from sim_backend import sweep
     csv_path = out / "sweep.csv"
-    sweep.write_csv(rows, csv_path, _columns(plan))
+    if not journal.holds(rows):          # the rows came back out of run order
+        sweep.write_csv(rows, csv_path, names)
     pngs = [] if args.no_plots else _draw(args, plan, csv_path, out)
     _report(args, cfg, plan, rows, new, done, wall, csv_path, pngs)
     return 0
@@ -387,10 +389,11 @@ def _save_experiment(args: argparse.Namespace, cfg: dict, plan: Plan, out: Path)
     print(f"experiment saved to {args.save_experiment}")
 
 
-def _run(args: argparse.Namespace, cfg: dict, plan: Plan, out: Path,
-         done: list[dict]) -> tuple[list[dict], float]:
-    """Run what is not done yet, each row appended to out/sweep.csv as it
-    comes, with progress on stderr: (the new rows, wall seconds)."""
+def _run(args: argparse.Namespace, cfg: dict, plan: Plan, out: Path, done: list[dict],
+         names: list[str]) -> tuple[list[dict], float, Any]:
+    """Run what is not done yet, each row appended to out/sweep.csv (columns
+    `names`) as it comes, with progress on stderr: (the new rows, wall
+    seconds, the journal: sweep.CsvAppender)."""
     from sim_backend import sweep
     try:
         executor, close = sweep.executor_from_spec(cfg["executor"])
@@ -398,7 +401,7 @@ def _run(args: argparse.Namespace, cfg: dict, plan: Plan, out: Path,
         raise UsageError(str(err)) from None
     csv_path = out / "sweep.csv"
     total = len(plan.points) * len(plan.seeds)
-    appender = sweep.CsvAppender(csv_path, _columns(plan), resume=args.resume)
+    appender = sweep.CsvAppender(csv_path, names, resume=args.resume)
     if done:
         print(f"resuming: {len(done)} of {total} runs already in {csv_path}", file=sys.stderr)
     # --engine soa: compile (or load) the engine first, so the progress rate
@@ -429,7 +432,7 @@ def _run(args: argparse.Namespace, cfg: dict, plan: Plan, out: Path,
         if bar is not None:
             bar.close()
         close()
-    return new, time.perf_counter() - t0
+    return new, time.perf_counter() - t0, appender
 
 
 def _in_run_order(plan: Plan, rows: list[dict]) -> list[dict]:

@@ -44,6 +44,7 @@ import traceback
 from collections import defaultdict
 from contextlib import contextmanager
 from functools import partial
+from itertools import chain
 from pathlib import Path
 from types import ModuleType
 from typing import IO, Any, Callable, Iterable, Iterator, Sequence
@@ -205,17 +206,22 @@ def _loading_only(fn: Any) -> Iterator[None]:
 _FIRST_CALLS = threading.RLock()
 
 
-# numba modules imported with a module they ask for made unimportable: `_without`
+# numba modules imported with modules they ask for made unimportable: `_without`
 ARRAYMATH, CFFI = "numba.np.arraymath", "numba.core.typing.cffi_utils"
-_BLOCKED = {"numba": ("scipy", "scipy"), ARRAYMATH: ("scipy.linalg.cython_blas", "scipy.linalg"),
-            CFFI: ("cffi", "cffi")}
+_BLOCKED = {"numba": (("scipy", "scipy"), ("yaml", "yaml")),
+            ARRAYMATH: (("scipy.linalg.cython_blas", "scipy.linalg"),),
+            CFFI: (("cffi", "cffi"),)}
+# numba reads its settings from this file in the working directory, with yaml
+NUMBA_CONFIG_FILE = ".numba_config.yaml"
 
 
 def _without(*modules: str) -> None:
     """Import numba's array maths without asking for scipy's BLAS (ARRAYMATH),
     and its typing of cffi functions without cffi (CFFI): a generated step
     is integers only (transform.py's subset) and calls neither. numba
-    itself ("numba") imports scipy only to check its version (0.04 s).
+    itself ("numba") imports scipy only to check its version (0.04 s), and
+    yaml (90 M instructions, 0.02-0.03 s) only to read NUMBA_CONFIG_FILE,
+    so yaml is blocked only while no such file is there to read.
 
     The maths asks once per process to choose np.correlate's and
     np.convolve's inner loop (the linear algebra asks again itself),
@@ -229,14 +235,18 @@ def _without(*modules: str) -> None:
     only while numba's module imports, only when nothing imported the real
     one first, so any other importer still gets it."""
     for module in modules:
-        stub, real = _BLOCKED[module]
-        if module in sys.modules or real in sys.modules:
+        if module in sys.modules:
             continue
-        sys.modules[stub] = None            # type: ignore[assignment]  # an ImportError
+        stubs = [stub for stub, real in _BLOCKED[module]
+                 if real not in sys.modules and not (real == "yaml"
+                                                     and os.path.isfile(NUMBA_CONFIG_FILE))]
+        for stub in stubs:
+            sys.modules[stub] = None            # type: ignore[assignment]  # an ImportError
         try:
             importlib.import_module(module)
         finally:
-            del sys.modules[stub]
+            for stub in stubs:
+                del sys.modules[stub]
 
 
 # compile locks a sweep claimed (claim_lock) and handed to this process, its
@@ -437,6 +447,20 @@ def _nfields() -> list[int]:
     return [len(msg.fields(k)) if k in msg.SCHEMA else 0 for k in range(top)]
 
 
+def _small_ints(values: list[int], dtype: np.dtype) -> Any:
+    """`values` to assign to an array of `dtype`: as bytes when every one is
+    0..127 (0..255 beyond int8), which a grid's cell codes and robot counts
+    mostly are (a C loop, a third of a list's conversion), else the list
+    itself (numpy converts it, and refuses a value the dtype cannot hold)."""
+    try:
+        raw = bytes(values)
+    except (ValueError, TypeError):          # negative, past 255, or not an int
+        return values
+    if dtype.itemsize == 1 and not raw.isascii():
+        return values
+    return np.frombuffer(raw, dtype=np.uint8)
+
+
 class BatchArrays:
     """The flat arrays of a batch of worlds (sim_backend/batch/body.py's
     layout), filled from each World's start: the kernel's world state of
@@ -470,13 +494,19 @@ class BatchArrays:
         grids = tuple(np.zeros(nr * self.stride, dtype=t) for t in B.GRID_TYPES)
         grids[B.STAMP][:] = -1
         rb = np.zeros((B.ROBOT_ROWS, nrob), dtype=np.int64)
-        # a grid equal to the run before's is copied from its array: a
-        # sweep's runs mostly start on the same object, owner and field grids,
-        # and a list's conversion costs far more than comparing it
+        # a grid (or signal table) equal to the run before's is copied from
+        # its array: a sweep's runs mostly start on the same object, owner and
+        # field grids and one table, and a list's conversion costs far more
+        # than comparing it
         last: dict[int, tuple[list, int]] = {}
+        prev_table: tuple[tuple[list, ...], int, int] | None = None
         for r, w in enumerate(worlds):
             a, b = int(tstarts[r]), int(tstarts[r + 1])
-            table[:, a:b] = tables[r]
+            if prev_table is not None and prev_table[0] == tables[r]:
+                table[:, a:b] = table[:, prev_table[1]:prev_table[2]]
+            else:
+                table[:, a:b] = tables[r]
+            prev_table = (tables[r], a, b)
             a, b = int(cstarts[r]), int(cstarts[r + 1])
             cell[:2, a:b] = cells[r][:2]
             base, size = r * self.stride, w.n * w.n
@@ -486,12 +516,13 @@ class BatchArrays:
                 if prev is not None and len(prev[0]) == size and prev[0] == grid:
                     grids[row][base:base + size] = grids[row][prev[1]:prev[1] + size]
                 else:
-                    grids[row][base:base + size] = grid
+                    grids[row][base:base + size] = _small_ints(grid, grids[row].dtype)
                 last[row] = (grid, base)
         # each robot field of every run in one conversion (the runs' robots
         # are consecutive)
         for j, name in enumerate(kernel.ROBOT_FIELDS):
-            rb[j, :] = [v for w in worlds for v in getattr(w.rb, name)]
+            rb[j, :] = np.fromiter(chain.from_iterable(getattr(w.rb, name) for w in worlds),
+                                   np.int64, nrob)
         rb[B.RUN, :] = np.repeat(np.arange(nr, dtype=np.int64), agents)
         self.rt, self.rb, self.grids, self.cells, self.table = rt, rb, grids, cell, table
         self.grid = kernel.Grid(grids, table, cell)
