@@ -5,7 +5,7 @@ ROBOT = "robot:Robot"
 # host libraries that equip its coordinator, as "module:function(coordinator,
 # scenario)": the recogniser's decider (numpy; scenario recognise = true)
 HOST_EQUIP = ("perception.decide:equip",)
-SUBSET_SETUP = ("robot_args", "make_coordinator", "holders_needed",
+SUBSET_SETUP = ("robot_args", "_scenario_args", "make_coordinator", "holders_needed",
                 "summary_values", "_weight_text")  # host side: may allocate
 
 
@@ -32,10 +32,28 @@ def power_centi(sc):
 def robot_args(node, seed, sc):
     """The FSM's constructor arguments for robot `node` of scenario `sc`
     (sc is already the robot's breed's scenario when [[breeds]] are declared)."""
+    last = _LAST[0]
+    if last is None or last[0] is not sc:
+        last = (sc, _scenario_args(sc))
+        # one store: threads building batches at once each see a whole pair
+        _LAST[0] = last
+    return (node, seed) + last[1]
+
+
+# (scenario, its part of robot_args) of the last scenario asked: a batch
+# builds all of a run's robots (tens of thousands per sweep worker) from one
+# scenario object, and read its parameters per robot. Held by identity (a
+# scenario is frozen, and the pair keeps it alive, so no other can take its
+# id); a breed's robots each get a scenario of their own and miss it.
+_LAST = [None]
+
+
+def _scenario_args(sc):
+    """robot_args's arguments after node and seed: the scenario's alone."""
     model = model_code(sc.movementModel)
     # per mille chance a Levy flight doubles (robot.py _new_flight): 2**(1 - mu)
     levy_q = round(1000 * 2 ** (1 - sc.levyMu))
-    return (node, seed, model, sc.robotVisionSpan, sc.fieldDefiance, power_centi(sc),
+    return (model, sc.robotVisionSpan, sc.fieldDefiance, power_centi(sc),
             1 if sc.leaderField == "netlogo" else 0, 1 if sc.antBlocked == "turn" else 0,
             levy_q, sc.mothNoise, sc.frogPause, sc.frogJump,
             1 if sc.firstMove == "netlogo" else 0)
