@@ -51,6 +51,54 @@ def multi_step(sc: Scenario) -> tuple[int, int]:
     return b.spec.STATES.index(decl[0]), int(getattr(sc, decl[1]))
 
 
+class _Once:
+    """What a World takes from its scenario alone, the same for every seed."""
+
+    def __init__(self, sc: Scenario) -> None:
+        n = 2 * sc.worldSize + 1
+        self.table = _signal_table(sc.sigRadius)
+        self.tdx = tuple(t[0] for t in self.table)
+        self.tdy = tuple(t[1] for t in self.table)
+        self.tv = tuple(t[2] for t in self.table)
+        self.pieces = sc.pieces()
+        self.decoy_cells = [c for p in self.pieces[1:] for c in p.placed(*p.at)]
+        self.obstacle_cells = [c for p in sc.obstacles for c in p.placed(*p.at)]
+        obj = [FREE] * (n * n)
+        for x, y in self.decoy_cells:
+            obj[kernel.cell(sc.worldSize, n, x, y)] = YELLOW
+        for x, y in self.obstacle_cells:
+            obj[kernel.cell(sc.worldSize, n, x, y)] = OBSTACLE
+        self.obj = tuple(obj)
+        # the arena's rules (kernel.DYNAMIC, YIELD flags; 0 the thesis's)
+        self.rules = (kernel.DYNAMIC if sc.field == arena.FIELD_MODES[1] else 0) | \
+            (kernel.YIELD if sc.crowd == arena.CROWD_MODES[1] else 0) | \
+            (kernel.WRAP if sc.wrap else 0) | \
+            (kernel.SELF_COUNTS if sc.probeSelf == "netlogo" else 0) | \
+            (kernel.TOWARDS if sc.uphillHeading == "netlogo" else 0)
+        # the NetLogo options the kernel reads (scenario.CHOICES; index 0 the default)
+        self.sigmode = CHOICES["signalMode"].index(sc.signalMode)
+        self.ties = CHOICES["uphillTies"].index(sc.uphillTies)
+        # activation (kernel.SYNC, SEQUENTIAL): with SEQUENTIAL the engine draws
+        # an order every go iteration and applies each robot's actions at once
+        self.act = CHOICES["activation"].index(sc.activation)
+        self.multi_step = multi_step(sc)
+        self.faulty = int(faults.active(sc))
+
+
+# (scenario, its _Once) of the last scenario a World was made of: a batch
+# makes hundreds of Worlds of one scenario object. Held by identity (a
+# scenario is frozen, and the pair keeps it alive, so no other can take its
+# id); one store, so threads building batches at once each see a whole pair.
+_ONCE: list[tuple[Scenario, _Once] | None] = [None]
+
+
+def _per_scenario(sc: Scenario) -> _Once:
+    last = _ONCE[0]
+    if last is None or last[0] is not sc:
+        last = _ONCE[0] = (sc, _Once(sc))
+    return last[1]
+
+
 class World:
     def __init__(self, sc: Scenario, seed: int):
         self.sc = sc
@@ -58,18 +106,17 @@ class World:
         self.w = sc.worldSize
         self.n = 2 * sc.worldSize + 1
         size = self.n * self.n
-        self.obj = [FREE] * size
+        once = _per_scenario(sc)
+        self.obj = list(once.obj)        # the decoys and obstacles placed
         self.owner = [0] * size          # node holding a BLUE patch
         self.field = [0] * size
         self.occ = [0] * size            # robots per patch at the tick's start
         self.stamp = [-1] * size         # tick in which a patch was last entered
-        self.table = signal_table(sc.sigRadius)
-        self.tdx = [t[0] for t in self.table]
-        self.tdy = [t[1] for t in self.table]
-        self.tv = [t[2] for t in self.table]
+        self.table = list(once.table)
+        self.tdx, self.tdy, self.tv = list(once.tdx), list(once.tdy), list(once.tv)
         setup = Rng(seed, 0)             # the observer's stream, as in setup
         # CreateWorld: objx, objy = random 10 (the target's, when not given)
-        pieces = sc.pieces()
+        pieces = once.pieces
         if pieces:
             target = pieces[0]
             self.obj_x = target.at[0] if target.at is not None else setup.below(10)
@@ -82,18 +129,13 @@ class World:
         # the host stores touches in (measures.shape_iou, perception)
         self.start_cells = list(self.object_cells)
         # the other objects (decoys) and the obstacles never move
-        self.decoy_cells = [c for p in pieces[1:] for c in p.placed(*p.at)]
-        self.obstacle_cells = [c for p in sc.obstacles for c in p.placed(*p.at)]
-        for x, y in self.object_cells + self.decoy_cells:
+        self.decoy_cells = list(once.decoy_cells)
+        self.obstacle_cells = list(once.obstacle_cells)
+        for x, y in self.object_cells:
             self.obj[self.idx(x, y)] = YELLOW
-        for x, y in self.obstacle_cells:
+        for x, y in self.obstacle_cells:     # an obstacle over the object stays one
             self.obj[self.idx(x, y)] = OBSTACLE
-        # the arena's rules (kernel.DYNAMIC, YIELD flags; 0 the thesis's)
-        self.rules = (kernel.DYNAMIC if sc.field == arena.FIELD_MODES[1] else 0) | \
-            (kernel.YIELD if sc.crowd == arena.CROWD_MODES[1] else 0) | \
-            (kernel.WRAP if sc.wrap else 0) | \
-            (kernel.SELF_COUNTS if sc.probeSelf == "netlogo" else 0) | \
-            (kernel.TOWARDS if sc.uphillHeading == "netlogo" else 0)
+        self.rules = once.rules
         self.xs: list[int] = []
         self.ys: list[int] = []
         if sc.starts == "netlogo":
@@ -117,19 +159,15 @@ class World:
         for name in kernel.ROBOT_FIELDS:
             setattr(self, name, rows[name])
         # the NetLogo options the kernel reads (scenario.CHOICES; index 0 the default)
-        self.sigmode = CHOICES["signalMode"].index(sc.signalMode)
-        self.ties = CHOICES["uphillTies"].index(sc.uphillTies)
-        # activation (kernel.SYNC, SEQUENTIAL): with SEQUENTIAL the engine draws
-        # an order every go iteration and applies each robot's actions at once
-        self.act = CHOICES["activation"].index(sc.activation)
-        self.field_state, self.extra_steps = multi_step(sc)
+        self.sigmode, self.ties, self.act = once.sigmode, once.ties, once.act
+        self.field_state, self.extra_steps = once.multi_step
         fseed, miss, ghost, noise = faults.per_run(sc, seed)
         run = {"base": 0, "w": self.w, "n": self.n, "lo": 0, "hi": a, "t0": 0,
                "t1": len(self.tv), "c0": 0, "c1": len(self.object_cells), "live": 1,
                "sigmode": self.sigmode, "radius": sc.sigRadius, "ties": self.ties,
                "act": self.act, "order_rng": kernel.order_seed(seed),
                "field_state": self.field_state, "extra_steps": self.extra_steps,
-               "rules": self.rules, "faulty": int(faults.active(sc)), "fseed": fseed,
+               "rules": self.rules, "faulty": once.faulty, "fseed": fseed,
                "miss": miss, "ghost": ghost, "noise": noise}
         self.run = kernel.Run([[run.get(name, 0)] for name in kernel.RUN_FIELDS])
         self.order_state = self.run.order_rng
