@@ -133,25 +133,42 @@ class TruthMeasuring(Protocol):
     def truth_measures(self, target: set) -> dict: ...
 
 
-# (coordinator class, ability) -> True, for the classes that carry every
-# member of the ability themselves; see `has`
-_HAS: dict[tuple[type, type], bool] = {}
+# (coordinator class, ability) -> the ability's data members the class does
+# not carry itself (a field from __init__: looked up on each instance), or
+# None when a method is among them (isinstance decides); see `has`
+_HAS: dict[tuple[type, type], tuple[str, ...] | None] = {}
 
 
 def has(c: Any, ability: type) -> bool:
-    """isinstance(c, ability), decided once per coordinator class when the
-    class itself carries every member (its methods): a runtime-checkable
-    protocol's isinstance looks every member up by name each time, and a
-    sweep's summaries asked several per run. A member set on the instance
-    (a field from __init__, a test's SimpleNamespace fake) may differ
-    between instances of one class, so those are asked each time."""
+    """isinstance(c, ability), with what the coordinator's class carries (its
+    methods) decided once per class: a runtime-checkable protocol's
+    isinstance looks every member up by name each time, about 30 us for one
+    with data members, and a batch asks several per run. A member set on
+    the instance (a field from __init__, a test's SimpleNamespace fake) may
+    differ between instances of one class, so those are asked each time;
+    when one is missing, isinstance decides (a class may still subclass or
+    be registered with the protocol)."""
     key = (type(c), ability)
-    if key in _HAS:
-        return True
-    if all(hasattr(type(c), m) for m in members(ability)):
-        _HAS[key] = True
-        return True
+    try:
+        own = _HAS[key]
+    except KeyError:
+        own = _HAS[key] = _instance_members(type(c), ability)
+    if own is not None:
+        for m in own:
+            if not hasattr(c, m):
+                break
+        else:
+            return True
     return isinstance(c, ability)
+
+
+def _instance_members(cls: type, ability: type) -> tuple[str, ...] | None:
+    """The data members of `ability` that `cls` lacks; None when it lacks a
+    method (isinstance also refuses a method set to None on the instance)."""
+    out = tuple(m for m in members(ability) if not hasattr(cls, m))
+    if any(callable(getattr(ability, m, None)) for m in out):
+        return None
+    return out
 
 
 def measures_of(c: Any) -> dict:

@@ -61,3 +61,30 @@ def test_a_coordinator_without_an_ability_is_named_what_it_lacks() -> None:
     assert C.lacks(bare, C.HostCoordinator) == ["nodes", "rejected", "replay", "snapshot",
                                                 "adopt", "decision", "done", "carriers",
                                                 "quiet"]
+
+
+def test_has_asks_each_instance_for_the_data_members_its_class_lacks() -> None:
+    # Recognising: a method the class carries, a data member set per instance
+    class Maybe:
+        def wants_decider(self):
+            return True
+
+    given, bare = Maybe(), Maybe()
+    given.decider = None
+    for _ in range(2):       # the second round answers from the class's cached members
+        assert C.has(given, C.Recognising) and isinstance(given, C.Recognising)
+        assert not C.has(bare, C.Recognising) and not isinstance(bare, C.Recognising)
+    bare.decider = None
+    assert C.has(bare, C.Recognising)
+
+
+def test_has_lets_isinstance_decide_a_method_set_on_the_instance() -> None:
+    class Later:
+        decider = None
+
+    c = Later()
+    assert not C.has(c, C.Recognising)
+    c.wants_decider = lambda: True
+    assert C.has(c, C.Recognising) and isinstance(c, C.Recognising)
+    c.wants_decider = None            # a protocol's method set to None is refused
+    assert not C.has(c, C.Recognising) and not isinstance(c, C.Recognising)
