@@ -267,3 +267,33 @@ def test_a_grid_converts_as_its_list_would(dtype, values):
         return
     got[:] = soa._small_ints(values, got.dtype)
     assert got.tolist() == want.tolist()
+
+
+def test_a_forked_worker_takes_its_parents_check_of_the_kept_text_once(monkeypatch):
+    """A sweep's forked worker builds on the text its parent checked (or
+    made) without checking every source file again; its next build checks,
+    as every build of the parent does."""
+    sc = validate({"maxTicks": 5})
+    soa.SoaEngine([(sc, 1)])                       # the parent's check
+    checks: list[int] = []
+    hold = soa.T.Inputs.hold
+    monkeypatch.setattr(soa.T.Inputs, "hold", lambda self: checks.append(1) or hold(self))
+    soa.SoaEngine([(sc, 1)])
+    assert checks == [1]                           # the parent's own builds check
+    read, write = os.pipe()
+    pid = os.fork()
+    if pid == 0:                                   # the worker
+        try:
+            got = []
+            for _ in range(2):
+                before = len(checks)
+                soa.SoaEngine([(sc, 2)])
+                got.append(len(checks) - before)
+            os.write(write, json.dumps([got, soa.transforms]).encode())
+        finally:
+            os._exit(0)
+    os.close(write)
+    with os.fdopen(read) as f:
+        got, transforms = json.loads(f.read())
+    os.waitpid(pid, 0)
+    assert got == [0, 1] and transforms == soa.transforms

@@ -379,6 +379,22 @@ _GENERATED: dict[str, tuple[str, dict[str, str], T.Inputs]] = {}
 transforms = 0                   # how many times this process ran the transform
 
 
+# key -> the process that last found _GENERATED[key]'s inputs unchanged (or
+# made it); a forked worker's copy names its parent
+_CHECKED: dict[str, int] = {}
+
+
+def _checked_by_parent(key: str) -> bool:
+    """Whether the process this one was forked from checked (or made) the
+    text of `key` this one keeps in memory: a sweep's worker then takes it
+    without reading every source file again. Its code is the parent's as
+    it was then (a fork copies the imported modules; what changes on disk
+    later is not what it runs), and it checks at its own next build. Only
+    a fork copies the mark, so another pid in it is always an ancestor's."""
+    pid = _CHECKED.get(key)
+    return pid is not None and pid != os.getpid()
+
+
 def generated(layout: T.Layout, entries: dict[str, tuple[Any, tuple]]
               ) -> tuple[str, dict[str, str]]:
     """T.generate(layout, entries), or the same text kept from an earlier
@@ -388,6 +404,7 @@ def generated(layout: T.Layout, entries: dict[str, tuple[Any, tuple]]
     global transforms
     key = T.shape(layout, entries)
     kept = _GENERATED.get(key)
+    inherited = kept is not None and _checked_by_parent(key)
     index = cache_root() / "generated" / f"{key}.json"
     if kept is None:
         try:
@@ -395,13 +412,15 @@ def generated(layout: T.Layout, entries: dict[str, tuple[Any, tuple]]
             kept = d["source"], d["names"], T.Inputs.from_json(d)
         except (OSError, ValueError, KeyError, TypeError, IndexError):
             kept = None
-    if kept is not None and kept[2].hold():
+    if kept is not None and (inherited or kept[2].hold()):
         _GENERATED[key] = kept
+        _CHECKED[key] = os.getpid()
         return kept[0], dict(kept[1])
     transforms += 1
     source, names, inputs = T.generate_with_inputs(layout, entries)
     if inputs is not None:
         _GENERATED[key] = (source, names, inputs)
+        _CHECKED[key] = os.getpid()
         try:
             index.parent.mkdir(parents=True, exist_ok=True)
             tmp = index.with_suffix(f".{os.getpid()}.tmp")
