@@ -17,6 +17,10 @@ by its meaning. A behaviour may say more with these optional declarations
              perceived cells
     LOAD     (what is held, what it must reach), e.g. ("power", "weight"):
              the live view's bar and its touch events
+    HOME     True when the scenario's home (homeX, homeY) means something to
+             the behaviour: the live view draws it and names it in its
+             legend; by default True exactly when it declares LOAD (what is
+             held is taken home)
     PLOTS    ((measure, label), ...): the sweep plots' panels instead of
              every numeric measure
 
@@ -45,6 +49,7 @@ class Words:
     result: tuple[str, str, str]
     shape: str | None
     load: tuple[str, str] | None
+    home: bool                                # spec.HOME
     plots: tuple[tuple[str, str], ...]        # (measure, label); empty: every numeric one
 
     def title(self, name: str) -> str:
@@ -77,6 +82,7 @@ def of(behaviour: Any) -> Words:
     w = Words(spec.NAME, measures, reporters, getattr(spec, "HEADER", DEFAULT_HEADER),
               lines, tuple(getattr(spec, "RESULT", DEFAULT_RESULT)),
               getattr(spec, "SHAPE", None), getattr(spec, "LOAD", None),
+              bool(getattr(spec, "HOME", getattr(spec, "LOAD", None) is not None)),
               tuple(getattr(spec, "PLOTS", ())))
     _check(w)
     return w
