@@ -82,7 +82,7 @@ def of(behaviour: Any) -> Words:
     w = Words(spec.NAME, measures, reporters, getattr(spec, "HEADER", DEFAULT_HEADER),
               lines, tuple(getattr(spec, "RESULT", DEFAULT_RESULT)),
               getattr(spec, "SHAPE", None), getattr(spec, "LOAD", None),
-              bool(getattr(spec, "HOME", getattr(spec, "LOAD", None) is not None)),
+              getattr(spec, "HOME", getattr(spec, "LOAD", None) is not None),
               tuple(getattr(spec, "PLOTS", ())))
     _check(w)
     return w
@@ -118,6 +118,8 @@ def _check(w: Words) -> None:
                       f"{template!r}: {err}") from None
     if len(w.result) != 3 or not all(isinstance(x, str) for x in w.result):
         raise bad("RESULT", f"{w.result!r} is not (summary key, word if true, word if false)")
+    if not isinstance(w.home, bool):
+        raise bad("HOME", f"{w.home!r} is not True or False")
     if w.load is not None and (len(w.load) != 2 or not all(isinstance(x, str) for x in w.load)):
         raise bad("LOAD", f"{w.load!r} is not (held, needed): two coordinator attribute names")
     measures = dict(w.measures)

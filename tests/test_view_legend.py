@@ -43,6 +43,9 @@ def test_a_behaviour_declares_its_home_apart_from_its_load():
     agg.spec.HOME = True
     try:
         assert home_of(sc.replace(homeX=3, homeY=-4), agg) == [3, -4]
+        agg.spec.HOME = "yes"
+        with pytest.raises(registry.BehaviourError, match=r"spec.py HOME: 'yes' is not True or False"):
+            home_of(sc, agg)
     finally:
         del agg.spec.HOME
 
