@@ -251,12 +251,14 @@ class Scenario:
 def merge(base: dict[str, Any], changes: dict[str, Any]) -> dict[str, Any]:
     """The keys of `base` with `changes` over them. When the changes name
     another behaviour, the old behaviour's parameters it does not declare
-    are left behind (they would be unknown keys of the new one)."""
+    are left behind (they would be unknown keys of the new one), and so is
+    its description, which spoke of the old behaviour's run."""
     old = base.get("behaviour", DEFAULT_BEHAVIOUR)
     new = changes.get("behaviour", old)
     if str(new) != str(old):
         keep = set(params.names(str(new))) if _is_behaviour(new) else set()
-        base = {k: v for k, v in base.items() if k in FIELDS or k in keep}
+        base = {k: v for k, v in base.items()
+                if (k in FIELDS and k != "description") or k in keep}
     return {**base, **changes}
 
 

@@ -17,6 +17,10 @@ by its meaning. A behaviour may say more with these optional declarations
              perceived cells
     LOAD     (what is held, what it must reach), e.g. ("power", "weight"):
              the live view's bar and its touch events
+    HOME     True when the scenario's home (homeX, homeY) means something to
+             the behaviour: the live view draws it and names it in its
+             legend; by default True exactly when it declares LOAD (what is
+             held is taken home)
     PLOTS    ((measure, label), ...): the sweep plots' panels instead of
              every numeric measure
 
@@ -45,6 +49,7 @@ class Words:
     result: tuple[str, str, str]
     shape: str | None
     load: tuple[str, str] | None
+    home: bool                                # spec.HOME
     plots: tuple[tuple[str, str], ...]        # (measure, label); empty: every numeric one
 
     def title(self, name: str) -> str:
@@ -77,6 +82,7 @@ def of(behaviour: Any) -> Words:
     w = Words(spec.NAME, measures, reporters, getattr(spec, "HEADER", DEFAULT_HEADER),
               lines, tuple(getattr(spec, "RESULT", DEFAULT_RESULT)),
               getattr(spec, "SHAPE", None), getattr(spec, "LOAD", None),
+              getattr(spec, "HOME", getattr(spec, "LOAD", None) is not None),
               tuple(getattr(spec, "PLOTS", ())))
     _check(w)
     return w
@@ -112,6 +118,8 @@ def _check(w: Words) -> None:
                       f"{template!r}: {err}") from None
     if len(w.result) != 3 or not all(isinstance(x, str) for x in w.result):
         raise bad("RESULT", f"{w.result!r} is not (summary key, word if true, word if false)")
+    if not isinstance(w.home, bool):
+        raise bad("HOME", f"{w.home!r} is not True or False")
     if w.load is not None and (len(w.load) != 2 or not all(isinstance(x, str) for x in w.load)):
         raise bad("LOAD", f"{w.load!r} is not (held, needed): two coordinator attribute names")
     measures = dict(w.measures)

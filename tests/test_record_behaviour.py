@@ -65,3 +65,21 @@ def test_a_folder_is_recorded_relative_and_replays_after_a_move(tmp_path, capsys
     assert main(["replay", str(lone), "--behaviour", str(tmp_path / "other")]) == 2
     err = capsys.readouterr().err.strip()
     assert "is behaviour 'other'" in err and "recorded with 'mine'" in err
+
+
+def test_the_sidecar_describes_the_run_not_the_scenario_s_own_behaviour(tmp_path, capsys):
+    """The default scenario's description speaks of the thesis's run; another
+    behaviour's recording gets one of its own (robots, behaviour), the
+    thesis's keeps the scenario's."""
+    from sim_backend import scenario
+    own = scenario.load("default").description
+    assert own
+    agg, thesis = tmp_path / "agg.blf", tmp_path / "thesis.blf"
+    assert main(["run", *RUN, "--behaviour", "aggregate", "--robots", "7", "--record",
+                 str(agg), "--json"]) in (0, 1)
+    assert main(["run", *RUN, "--record", str(thesis), "--json"]) in (0, 1)
+    assert sidecar(agg)["scenario"]["description"] == "7 robots, behaviour aggregate"
+    assert sidecar(thesis)["scenario"]["description"] == own
+    # the Python API's replace() leaves the old behaviour's description behind too
+    assert scenario.load("default").replace(behaviour="aggregate").description == ""
+    assert scenario.load("default").replace(agents=5).description == own

@@ -95,3 +95,33 @@ def test_port_that_disappears_and_comes_back() -> None:
             if r:
                 seen += vp.read()
         assert seen == want
+
+
+# what `deploy --start` leaves on the line: the REPL's banner and prompts, no 0x00
+REPL_LEFTOVER = (b"MicroPython v1.22.2 on 2024-02-22; linux [GCC 12.2.0] version\r\n"
+                 b"Use Ctrl-D to exit, Ctrl-E for paste mode\r\n>>> import main\r\n")
+
+
+def test_output_before_the_first_frame_is_skipped_but_later_garbage_counted(
+        caplog: pytest.LogCaptureFixture) -> None:
+    """A mission joining a board's line after deploy --start: the REPL's
+    leftover output is no bad frame (nor a warning); garbage after framing
+    started still is."""
+    with VirtualPort() as vp, SerialTransport(vp.path, timeout=0.02) as t:
+        hello, ack = t.encode(1, msg.HELLO, (1, 100, 1)), t.encode(1, msg.ACK, (7,))
+        vp.write(REPL_LEFTOVER + hello)
+        got: list = []
+        deadline = time.monotonic() + 30          # hang guard: waits on the bytes
+        while not got:
+            assert time.monotonic() < deadline
+            got += t.poll(0.05)
+        assert got == [(1, msg.HELLO, (1, 100, 1))]
+        assert t.bad_frames() == {} and t.skipped_at_start == len(REPL_LEFTOVER)
+        assert not [r for r in caplog.records if r.levelname == "WARNING"]
+        vp.write(b"\x00" + b"x" * 40 + b"\x00" + ack)   # a frame too long, then a good one
+        while len(got) < 2:
+            assert time.monotonic() < deadline
+            got += t.poll(0.05)
+        assert got[1] == (1, msg.ACK, (7,))
+        assert t.bad_frames() == {"overflow": 1}
+        assert t.skipped_at_start == len(REPL_LEFTOVER)

@@ -4,7 +4,12 @@ a scaffold that passes `firmware check` and runs in simulation."""
 from __future__ import annotations
 
 import argparse
+import ast
 import keyword
+import os
+import re
+import sysconfig
+from pathlib import Path
 
 from bridge.behaviour_check import STEPS
 from bridge.commands.numbers import count
@@ -39,7 +44,8 @@ def register(sub) -> None:
                                       "and `deploy` see it.")
     new.add_argument("name", help="a Python identifier, lower case (e.g. chain)")
     new.add_argument("--into", type=path_arg, default=None,
-                     help="parent folder (default: firmware_logic/behaviours/)")
+                     help="parent folder (default: firmware_logic/behaviours/; refused "
+                          "inside an installed package or where it cannot write)")
     new.set_defaults(func=cmd_new)
     chk = nsub.add_parser("check", help="run every step on a behaviour folder",
                           description="Run every step a behaviour must pass, as a user runs "
@@ -100,6 +106,7 @@ def cmd_new(args: argparse.Namespace) -> int:
     parent = args.into if args.into is not None else template.folder.parent
     if not parent.is_dir():
         raise UsageError(f"--into {str(parent)!r}: no such folder")
+    _check_writable(parent, given=args.into is not None)
     dest = parent / name
     if dest.exists():
         raise UsageError(f"{str(dest)!r} exists already")
@@ -111,6 +118,7 @@ def cmd_new(args: argparse.Namespace) -> int:
         raise UsageError(f"the template {template.folder}/spec.py has no line "
                          'NAME = "aggregate"')
     texts["spec.py"] = texts["spec.py"].replace('NAME = "aggregate"', f'NAME = "{name}"')
+    texts = own_words(texts, name)
     dest.mkdir()
     for file, text in texts.items():
         (dest / file).write_text(text)
@@ -122,6 +130,61 @@ def cmd_new(args: argparse.Namespace) -> int:
     return 0
 
 
+
+
+# the copy's own module docstrings: the template's describe the template.
+# robot.py's keeps the template's line count, so the robot's code keeps its line
+# numbers (the soa engine's compiled step is then the template's own)
+DOCSTRINGS = {
+    "spec.py": "{name}: its states, parameters, messages and measures, declared in one place.\n\n"
+               "Made by `touchswarm behaviour new {name}`: its rules start as a copy of the\n"
+               "aggregate behaviour's; say here what {name} does once you have changed them\n"
+               "(docs/writing-a-behaviour.md).",
+    "robot.py": "{name}'s robot: one `step(hal)` is one tick.\n\n"
+                "All sensing happens before the tick's single movement request, as\n"
+                "docs/tick-semantics.md requires; nothing allocates.",
+    "coordinator.py": "{name}'s host side: fed the robots' decoded messages (node, kind, fields).\n\n"
+                      "It keeps the run-facing attributes every engine, link and the host\n"
+                      "process read (firmware_logic/roster.py, the host contract).",
+    "__init__.py": "{name}: how the registry builds its robots and its coordinator.",
+}
+TITLE_LINE = re.compile(r"^TITLE = .*$", re.M)
+
+
+def own_words(texts: dict[str, str], name: str) -> dict[str, str]:
+    """The copied files with `name`'s own module docstrings and TITLE."""
+    out = {}
+    for file, text in texts.items():
+        doc = DOCSTRINGS.get(file)
+        body = ast.parse(text).body
+        if doc is not None and body and isinstance(body[0], ast.Expr) \
+                and isinstance(getattr(body[0], "value", None), ast.Constant) \
+                and isinstance(body[0].value.value, str):
+            lines = text.splitlines(keepends=True)
+            first, last = body[0].lineno - 1, body[0].end_lineno or body[0].lineno
+            doc = doc.format(name=name)
+            doc = f'"""{doc}\n"""\n' if "\n" in doc else f'"""{doc}"""\n'
+            text = "".join(lines[:first]) + doc + "".join(lines[last:])
+        out[file] = text
+    out["spec.py"] = TITLE_LINE.sub(
+        f'TITLE = "{name}: a new behaviour; say here in one line what it does"',
+        out["spec.py"], count=1)
+    return out
+
+
+def _check_writable(parent: Path, given: bool) -> None:
+    """Refuse a folder of an installed package or one we cannot write: the
+    behaviour would land where an upgrade deletes it, or nowhere."""
+    where = f"--into {str(parent)!r}" if given else f"{parent} (the installed behaviours)"
+    installed = {Path(p).resolve() for p in (sysconfig.get_paths()["purelib"],
+                                              sysconfig.get_paths()["platlib"])}
+    resolved = parent.resolve()
+    if {"site-packages", "dist-packages"} & set(resolved.parts) \
+            or any(resolved.is_relative_to(p) for p in installed):
+        raise UsageError(f"{where}: inside an installed package (site-packages); "
+                         "give --into DIR, a folder of your own")
+    if not os.access(parent, os.W_OK):
+        raise UsageError(f"{where}: not writable; give --into DIR, a folder of your own")
 
 
 def cmd_check(args: argparse.Namespace) -> int:

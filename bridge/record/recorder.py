@@ -169,6 +169,10 @@ class Recorder:
         ref, name = portable_behaviour(scenario.behaviour, path)
         sc = scenario.to_dict()
         sc["behaviour"] = ref
+        # a scenario run with another behaviour has no description of its own
+        # (scenario.merge): say what ran
+        sc["description"] = scenario.description or \
+            f"{scenario.agents} robots, behaviour {name}"
         self.meta = {"scenario": sc, "seed": seed, "link": link,
                      "behaviour": ref, "behaviour_name": name,
                      "tick_seconds": TICK_SECONDS, "epoch": EPOCH, "format": FORMAT}

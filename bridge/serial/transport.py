@@ -97,6 +97,11 @@ class SerialTransport:
         self.nodes: set[int] = set()          # robot nodes heard on this port
         self.frames_in = 0
         self.frames_out = 0
+        # bytes before the first delimiter since the port (re)opened: the line was
+        # joined mid-stream (e.g. a board's REPL output left by deploy --start),
+        # not a frame gone bad; counted here, never as a bad frame
+        self.skipped_at_start = 0
+        self._synced = False
         self._closed = False
         self._ser: serial.SerialBase | None = open_serial(port, self.baud, timeout)
 
@@ -154,6 +159,7 @@ class SerialTransport:
         self._fault("disconnect", str(err))
         self._drop_port()
         self._dec.reset()
+        self._synced = False
         self._next_reopen = time.monotonic() + self.reopen_every
 
     def _reopen(self) -> bool:
@@ -168,6 +174,7 @@ class SerialTransport:
         except SerialOpenError:
             return False
         self._dec.reset()
+        self._synced = False
         log.info("%s: port is back", self.url)
         return True
 
@@ -208,6 +215,8 @@ class SerialTransport:
                 if time.monotonic() >= deadline:
                     return out
                 continue
+            if not self._synced:
+                data = self._sync(data)
             before = list(dec.errors)
             for b in data:
                 if dec.feed(b):
@@ -220,6 +229,20 @@ class SerialTransport:
                     out.append((node, dec.kind, tuple(dec.fields[:dec.nfields])))
             if dec.errors != before:
                 self._sync_decoder_faults(before)
+
+    def _sync(self, data: bytes) -> bytes:
+        """`data` from the first delimiter on, once since the port opened (the
+        sender puts one before every frame); what came before is skipped."""
+        start = data.find(0)
+        if start < 0:
+            self.skipped_at_start += len(data)
+            return b""
+        self._synced = True
+        self.skipped_at_start += start
+        if self.skipped_at_start:
+            log.info("%s: skipped %d bytes before the first frame (output left on "
+                     "the line before framing started)", self.url, self.skipped_at_start)
+        return data[start:]
 
     def encode(self, node: int, kind: int, fields: tuple) -> bytes:
         """The framed bytes of one message (raises SchemaError on a bad field)."""

@@ -55,6 +55,13 @@ def words_info(behaviour: Any) -> dict[str, Any]:
             "shape": w.shape is not None, "load": list(w.load) if w.load else None}
 
 
+def home_of(sc: Any, behaviour: Any) -> list[int] | None:
+    """The scenario's home where the behaviour has one (spec.HOME,
+    sim_backend/words.py), else None: the page then neither draws nor names it."""
+    from sim_backend import words
+    return [sc.homeX, sc.homeY] if words.of(behaviour).home else None
+
+
 def coordinator_view(coord: Any, behaviour: Any, values: dict[str, Any] | None = None
                      ) -> dict[str, Any]:
     """What the page draws from the host coordinator: touches numbered in
@@ -347,11 +354,14 @@ class SimSource:
     def _info(self) -> dict[str, Any]:
         w = self.engine.world
         names = tuple(self.engine.behaviour.spec.STATES)
+        from sim_backend import render
         return {"source": self.kind, "title": f"scenario {self.sc.name}, seed {self.engine.seed}",
-                "world": w.w, "home": [self.sc.homeX, self.sc.homeY],
+                "world": w.w, "home": home_of(self.sc, self.engine.behaviour),
                 "states": list(names), "colours": hex_colours(names), "controls": True,
                 "seed": self.engine.seed, "params": panels.fields(self.sc),
+                "object": bool(w.start_cells),
                 "decoys": bool(w.decoy_cells), "obstacles": bool(w.obstacle_cells),
+                "estimate": render.estimate_of(self.engine.instruments) is not None,
                 "plots": self.plots, **words_info(self.engine.behaviour)}
 
     def state(self) -> dict[str, Any]:
@@ -437,11 +447,14 @@ class JournalSource:
 
     def info(self) -> dict[str, Any]:
         from sim_backend import registry
-        names = tuple(registry.load(self.sc.behaviour).spec.STATES)
+        behaviour = registry.load(self.sc.behaviour)
+        names = tuple(behaviour.spec.STATES)
+        # the host knows neither the object's cells nor a perception estimate
         return {"source": self.kind, "title": f"host journal {self.path}",
-                "world": self.sc.worldSize, "home": [self.sc.homeX, self.sc.homeY],
+                "world": self.sc.worldSize, "home": home_of(self.sc, behaviour),
                 "states": list(names), "colours": hex_colours(names), "controls": False,
-                "plots": self.plots, **words_info(registry.load(self.sc.behaviour))}
+                "object": False, "estimate": False,
+                "plots": self.plots, **words_info(behaviour)}
 
     def state(self) -> dict[str, Any]:
         from bridge.host.journal import Journal, JournalError

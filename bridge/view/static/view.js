@@ -138,13 +138,15 @@ function legends() {
   info.states.forEach((name, i) => st.appendChild(legendItem(info.colours[i], name, "dot")));
   const map = $("map-legend");
   map.innerHTML = "";
-  const items = [[COLOURS.object, info.source === "sim" ? "object (target)" : null],
+  // only what this run has: the server says what the behaviour and scenario declare
+  const items = [[COLOURS.object, info.object ? (info.decoys ? "object (target)" : "object") : null],
                  [COLOURS.decoy, info.decoys ? "decoy" : null],
                  [COLOURS.obstacle, info.obstacles ? "obstacle" : null],
                  ["outline:" + COLOURS.estimate, info.shape ? "perceived (hull)" : null],
-                 [COLOURS.guess, info.source === "sim" ? "host's estimate" : null],
-                 [COLOURS.home, "home (radius 2)"],
-                 ["outline:" + COLOURS.claimed, info.source === "sim" ? "held cell" : null]];
+                 [COLOURS.guess, info.estimate ? "host's estimate" : null],
+                 [COLOURS.home, info.home ? "home (radius 2)" : null],
+                 ["outline:" + COLOURS.claimed,
+                  info.source === "sim" && (info.object || info.decoys) ? "held cell" : null]];
   for (const [c, t] of items) if (t) map.appendChild(legendItem(c, t));
   map.appendChild(document.createTextNode("1 2 3: touches in order"));
   const scale = $("scale").getContext("2d");
@@ -197,10 +199,12 @@ function draw() {
       ctx.fillRect(g.px(c - info.world) - g.s / 2, g.py(r - info.world) - g.s / 2, g.s, g.s);
     }
   }
-  ctx.fillStyle = COLOURS.home;
-  ctx.beginPath();
-  ctx.arc(g.px(info.home[0]), g.py(info.home[1]), 2 * g.s, 0, 2 * Math.PI);
-  ctx.fill();
+  if (info.home) {
+    ctx.fillStyle = COLOURS.home;
+    ctx.beginPath();
+    ctx.arc(g.px(info.home[0]), g.py(info.home[1]), 2 * g.s, 0, 2 * Math.PI);
+    ctx.fill();
+  }
   cells(ctx, g, st.obstacles, COLOURS.obstacle);
   cells(ctx, g, st.decoys, COLOURS.decoy);
   cells(ctx, g, st.object, COLOURS.object);
