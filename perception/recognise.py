@@ -33,7 +33,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.lib.stride_tricks import as_strided
 
 from perception.evidence import FREE, OBJECT, Evidence
 from perception.shapes import UNKNOWN, Library, Pose, _masks
@@ -133,17 +132,18 @@ def recognise(ev: Evidence, library: Library, eps_touch: float = EPS_TOUCH,
     part = ev.grid[y0 + w:y0 + w + rh + mh - 1, x0 + w:x0 + w + rw + mw - 1]
     pad = np.zeros((rh + mh - 1, rw + mw - 1), dtype=part.dtype)
     pad[:part.shape[0], :part.shape[1]] = part
-    # every origin's window (as_strided: sliding_window_view's checks cost
-    # more than the product on a sweep's small boxes)
-    win = as_strided(pad, (rh, rw, mh, mw), pad.strides * 2, writeable=False).reshape(
-        rh * rw, mh * mw)
+    # every origin's window (a strided view: sliding_window_view's checks
+    # cost more than the product on a sweep's small boxes)
+    win = np.ndarray((rh, rw, mh, mw), pad.dtype, pad, 0, pad.strides * 2).reshape(rh * rw, mh * mw)
     ordered, fits, place, far, table, boxes = _table(library.key, n, eps_touch, eps_free, n_obj)
     # both counts of every origin and pose as the index of their entry in
     # the flat table (0/1 sums are exact integers in floats; two products,
     # not one of both: one twice the size is past OpenBLAS's threading
-    # threshold, 30x slower on a loaded machine)
+    # threshold, 30x slower on a loaded machine; in float32 when every
+    # index is below 2^24, where its sums are as exact: half the product)
     w_touch, w_cells, offset = _index_weights(library.key, table.shape)
-    at = (win == OBJECT) @ w_touch + (win == FREE) @ w_cells + offset
+    at = ((win == OBJECT).astype(w_touch.dtype) @ w_touch
+          + (win == FREE).astype(w_touch.dtype) @ w_cells + offset)
     ll_all = table.reshape(-1).take(at.astype(np.intp)).T.reshape(-1, rh, rw)   # (poses, rh, rw)
     # every pose's placements that overlap the touches' box: origins (patch
     # coordinates) that depend on the pose only through its box, so the poses
@@ -248,10 +248,12 @@ def _index_weights(key: tuple, shape: tuple[int, ...]) -> tuple[np.ndarray, np.n
     into the (poses, touch counts, free counts) table of `shape` for every
     pose: a touchable cell weighs a touch count's stride, any cell of the
     pose one, and the pose's own rows are an offset. Built once per process
-    per library (read-only, shared)."""
+    per library (read-only, shared). float32 while every flat index is an
+    integer float32 holds exactly (below 2^24), float64 beyond."""
     _, _, m_touch, m_cells = _masks(key)
-    out = (m_touch * shape[2], m_cells,
-           np.arange(shape[0], dtype=np.float64) * (shape[1] * shape[2]))
+    dtype = np.float32 if math.prod(shape) < 2 ** 24 else np.float64
+    out = ((m_touch * shape[2]).astype(dtype), m_cells.astype(dtype),
+           np.arange(shape[0], dtype=dtype) * (shape[1] * shape[2]))
     for a in out:
         a.flags.writeable = False
     return out
