@@ -4,6 +4,7 @@ evidence; the posterior sharpens as touches arrive."""
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from perception.evidence import Evidence
@@ -119,3 +120,15 @@ def test_bad_rates_and_empty_library_are_refused():
         recognise(Evidence(5), LIB, eps_touch=0.0)
     with pytest.raises(ValueError, match="at least one"):
         Library({})
+
+
+def test_the_index_products_are_float32_only_while_every_index_is_exact_in_it() -> None:
+    # the products' sums are whole table indices: float32 holds them exactly
+    # below 2^24 entries only, so a larger table needs float64
+    from perception.recognise import _index_weights
+    key = Library.builtin().key
+    small = _index_weights(key, (28, 10, 10))
+    large = _index_weights(key, (28, 1 << 10, 1 << 10))
+    assert all(a.dtype == np.float32 for a in small)
+    assert all(a.dtype == np.float64 for a in large)
+    assert large[2][-1] == 27 * (1 << 20) and large[0].max() == 1 << 10
