@@ -29,8 +29,8 @@ NO_PATH = 1
 STALLED = 2
 STOP_REASONS = ("", "no path home", "stalled")
 # host-side logic: portable, but allowed to allocate
-SUBSET_SETUP = ("Touch", "Coordinator", "way_home", "_free", "_nearest", "_closer", "_box_of",
-                "_grow")
+SUBSET_SETUP = ("Touch", "Coordinator", "way_home", "_free", "_nearest", "_closer", "_closer_h",
+                "_box_of", "_grow")
 STEPS = ((-1, -1), (-1, 0), (0, -1), (1, -1), (-1, 1), (1, 0), (0, 1), (1, 1))
 
 
@@ -580,9 +580,10 @@ class Coordinator(Recognising, Roster):
         # a holder stands within g * sqrt(2) of its own segment, so none is
         # within sqrt(r2) while every segment is at least sqrt(r2) +
         # g * sqrt(2) away: r2 + 2 * g * sqrt(2 * r2) + 2 * g * g, with
-        # q >= sqrt(2 * r2) keeping it integer and never below that
+        # q >= sqrt(2 * r2) keeping it integer and never below that (r2 is
+        # home_radius squared: a few steps, once per change of holders)
         r2 = self.home_r2
-        q = int((2 * r2) ** 0.5) + 1
+        q = 0
         while q * q < 2 * r2:
             q += 1
         h = (touches, last, len(touches), lost, self.body, live if self.by_carrier else segs,
