@@ -151,7 +151,8 @@ def test_a_plans_ranking_is_every_step_closer_to_home_best_first() -> None:
     listed first."""
     import random
 
-    from firmware_logic.behaviours.thesis.coordinator import STEPS, _closer, _least_d2
+    from firmware_logic.behaviours.thesis.coordinator import (STEPS, _closer, _closer_h,
+                                                            _least_d2)
     rng = random.Random(3)
     for _ in range(300):
         pts = [(rng.randint(-6, 6), rng.randint(-6, 6)) for _ in range(rng.randint(0, 9))]
@@ -163,4 +164,32 @@ def test_a_plans_ranking_is_every_step_closer_to_home_best_first() -> None:
             if d < here:
                 want.append((d, len(want), dx, dy))
         assert _closer(pts, mx, my) == sorted(want)
+        assert _closer_h(pts, mx, my) == (here, sorted(want))
     assert _closer([(0, 0)], 0, 0) == []          # at home: no step is closer
+
+
+def test_arrival_skips_the_holders_pass_only_when_none_can_be_home() -> None:
+    """_home_reached (segments within home_radius, else a live holder) skips
+    the holders' pass when every segment is too far for a holder next to it
+    to be home: the answer is the one both full passes give, at every
+    displacement, however far a holder stands from its segment."""
+    import random
+
+    from firmware_logic.behaviours.thesis.coordinator import Touch, _least_d2
+    rng = random.Random(5)
+    for _ in range(200):
+        c = Coordinator(weight=100, home_radius=rng.randint(1, 6))
+        g = rng.randint(0, 3)
+        for node in range(1, rng.randint(2, 6)):
+            sx, sy = rng.randint(-3, 3), rng.randint(-3, 3)
+            c.touches.append(Touch(node, 1, sx + rng.randint(-g, g), sy + rng.randint(-g, g),
+                                   sx, sy, 100, 1))
+        for _ in range(30):
+            c.moved_x, c.moved_y = rng.randint(-30, 30), rng.randint(-30, 30)
+            mx, my = c.moved_x - c.home_x, c.moved_y - c.home_y
+            segs = [(t.sx, t.sy) for t in c.touches]
+            live = [(t.rx, t.ry) for t in c.touches]
+            want = 0 <= _least_d2(segs, mx, my) < c.home_r2 or \
+                0 <= _least_d2(live, mx, my) < c.home_r2
+            assert c._home_reached() == want
+            assert c._home_reached(None, _least_d2(segs, mx, my)) == want

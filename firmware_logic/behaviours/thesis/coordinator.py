@@ -29,8 +29,8 @@ NO_PATH = 1
 STALLED = 2
 STOP_REASONS = ("", "no path home", "stalled")
 # host-side logic: portable, but allowed to allocate
-SUBSET_SETUP = ("Touch", "Coordinator", "way_home", "_free", "_nearest", "_closer", "_box_of",
-                "_grow")
+SUBSET_SETUP = ("Touch", "Coordinator", "way_home", "_free", "_nearest", "_closer", "_closer_h",
+                "_box_of", "_grow")
 STEPS = ((-1, -1), (-1, 0), (0, -1), (1, -1), (-1, 1), (1, 0), (0, 1), (1, 1))
 
 
@@ -166,46 +166,72 @@ def _least_d2(pts, cx, cy):
 def _closer(pts, mx, my):
     """The steps of STEPS that bring the least x * x + y * y of the points
     `pts` displaced by (mx, my) below where it is, best first: (that least
-    distance, the order among them, dx, dy), ties to the earlier step. One
-    pass over the points for all nine displacements: a plan measures each
-    once (a path rarely comes back), and nine `_least_d2` calls cost twice
-    as much in call and loop overhead."""
-    h = a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = -1
-    for x, y in pts:
+    distance, the order among them, dx, dy), ties to the earlier step."""
+    return _closer_h(pts, mx, my)[1]
+
+
+def _closer_h(pts, mx, my):
+    """(`_least_d2(pts, mx, my)`, `_closer(pts, mx, my)`). One pass over the
+    points for all nine displacements: a plan measures each once (a path
+    rarely comes back), and nine `_least_d2` calls cost twice as much in
+    call and loop overhead; the first point seeds the minima so that the
+    loop compares only."""
+    if not pts:
+        return -1, []
+    it = iter(pts)
+    x, y = next(it)
+    x += mx
+    y += my
+    xx = x * x
+    yy = y * y
+    xm = xx - 2 * x + 1          # (x - 1) ** 2
+    xp = xx + 2 * x + 1
+    ym = yy - 2 * y + 1
+    yp = yy + 2 * y + 1
+    h = xx + yy
+    a0 = xm + ym
+    a1 = xm + yy
+    a2 = xx + ym
+    a3 = xp + ym
+    a4 = xm + yp
+    a5 = xp + yy
+    a6 = xx + yp
+    a7 = xp + yp
+    for x, y in it:
         x += mx
         y += my
         xx = x * x
         yy = y * y
-        xm = xx - 2 * x + 1          # (x - 1) ** 2
+        xm = xx - 2 * x + 1
         xp = xx + 2 * x + 1
         ym = yy - 2 * y + 1
         yp = yy + 2 * y + 1
         d = xx + yy
-        if h < 0 or d < h:
+        if d < h:
             h = d
         d = xm + ym
-        if a0 < 0 or d < a0:
+        if d < a0:
             a0 = d
         d = xm + yy
-        if a1 < 0 or d < a1:
+        if d < a1:
             a1 = d
         d = xx + ym
-        if a2 < 0 or d < a2:
+        if d < a2:
             a2 = d
         d = xp + ym
-        if a3 < 0 or d < a3:
+        if d < a3:
             a3 = d
         d = xm + yp
-        if a4 < 0 or d < a4:
+        if d < a4:
             a4 = d
         d = xp + yy
-        if a5 < 0 or d < a5:
+        if d < a5:
             a5 = d
         d = xx + yp
-        if a6 < 0 or d < a6:
+        if d < a6:
             a6 = d
         d = xp + yp
-        if a7 < 0 or d < a7:
+        if d < a7:
             a7 = d
     ranked = []
     k = 0
@@ -215,7 +241,7 @@ def _closer(pts, mx, my):
             ranked.append((d, len(ranked), s[0], s[1]))
         k += 1
     ranked.sort()
-    return ranked
+    return h, ranked
 
 
 def _box_of(pts):
@@ -519,7 +545,9 @@ class Coordinator(Recognising, Roster):
         it moved), kept between plans: (touches, the last touch, their
         count, lost, body, the points that count for arrival (`_from_home`'s),
         the live holders' points, the live holders (`carriers`) and the box
-        round `_footprint()` or None). A touch is appended when accepted and
+        round `_footprint()` or None, and `_home_reached`'s bound: while the
+        least squared distance of a segment is at least this, no live holder
+        is within home_radius). A touch is appended when accepted and
         removed when released, and `lost` and `body` are replaced whole when
         they change, so the first five say whether it still holds."""
         h = self.held
@@ -532,12 +560,14 @@ class Coordinator(Recognising, Roster):
         segs = []
         live = []
         nodes = []
+        g = 0                        # the farthest a live holder stands from its segment, per axis
         for t in touches:
             segs.append((t.sx, t.sy))
             if t.node not in lost:
                 live.append((t.rx, t.ry))
                 if t.node not in nodes:
                     nodes.append(t.node)
+                g = max(g, abs(t.rx - t.sx), abs(t.ry - t.sy))
         if self.cells is not None:
             box = self.cells_box
         else:
@@ -547,8 +577,17 @@ class Coordinator(Recognising, Roster):
                     box = _grow(box, x, y)
         for x, y in live:
             box = _grow(box, x, y)
+        # a holder stands within g * sqrt(2) of its own segment, so none is
+        # within sqrt(r2) while every segment is at least sqrt(r2) +
+        # g * sqrt(2) away: r2 + 2 * g * sqrt(2 * r2) + 2 * g * g, with
+        # q >= sqrt(2 * r2) keeping it integer and never below that (r2 is
+        # home_radius squared: a few steps, once per change of holders)
+        r2 = self.home_r2
+        q = 0
+        while q * q < 2 * r2:
+            q += 1
         h = (touches, last, len(touches), lost, self.body, live if self.by_carrier else segs,
-             live, tuple(nodes), box)
+             live, tuple(nodes), box, r2 + 2 * g * q + 2 * g * g)
         self.held = h
         return h
 
@@ -699,12 +738,17 @@ class Coordinator(Recognising, Roster):
                 self.blocked = 0
                 self.last_move_tick = tick
             h = self._held()             # read once for both
-            if self._home_reached(h):
+            plan = None
+            if self.closed is None and not self.lost_cells and not self.bumps:
+                # the open arena's plan measures where the points are now
+                # too: arrival reads that instead of a pass of its own
+                plan = _closer_h(h[5], self.moved_x - self.home_x, self.moved_y - self.home_y)
+            if self._home_reached(h, -2 if plan is None else plan[0]):
                 self.delivered_tick = tick
                 self.halted = 1
                 self._send(msg.HOST, msg.HALT, (0,))
                 return
-            self._plan_step(tick, h)
+            self._plan_step(tick, h, plan)
         elif tick - self.step_sent_tick >= RESEND_AFTER:
             self._command(tick)
 
@@ -744,8 +788,9 @@ class Coordinator(Recognising, Roster):
             out.append((x + mx, y + my))
         return out
 
-    def _home_reached(self, h=None):
-        """h: `_held()`, when the caller has it."""
+    def _home_reached(self, h=None, near=-2):
+        """h: `_held()`, when the caller has it; near: `_least_d2` of its
+        arrival points where they are now, when the caller has it (-2: not)."""
         # ours: a robot or a segment within 4 of home (`wayHome < 4` only
         # sets canTransport in Appendix A); by_carrier: a robot within
         # home_radius, as the thesis's tt.txt (`distancexy -15 -15 < 1`)
@@ -754,9 +799,11 @@ class Coordinator(Recognising, Roster):
         r2 = self.home_r2
         if h is None:
             h = self._held()
-        d = _least_d2(h[5], mx, my)
+        d = _least_d2(h[5], mx, my) if near == -2 else near
         if 0 <= d < r2:
             return True
+        if h[6] is h[5] or d >= h[9]:
+            return False                 # the live holders are those, or all too far
         d = _least_d2(h[6], mx, my)      # the live holders
         return 0 <= d < r2
 
@@ -824,8 +871,9 @@ class Coordinator(Recognising, Roster):
         side.sort()
         self._take(tick, down + side if self.blocked >= len(down) else down)
 
-    def _plan_step(self, tick, h=None):
-        """h: `_held()`, when the caller has it."""
+    def _plan_step(self, tick, h=None, plan=None):
+        """h: `_held()`, when the caller has it; plan: `_closer_h` of its
+        arrival points where they are now, when the caller has it."""
         if self.closed is not None or self.lost_cells or self.bumps:
             self._plan_on_way(tick)
             return
@@ -836,7 +884,9 @@ class Coordinator(Recognising, Roster):
         # than it saved).
         if h is None:
             h = self._held()
-        ranked = _closer(h[5], self.moved_x - self.home_x, self.moved_y - self.home_y)
+        if plan is None:
+            plan = _closer_h(h[5], self.moved_x - self.home_x, self.moved_y - self.home_y)
+        ranked = plan[1]
         if ranked and self.world_size is not None and not self._inside(h[8], 1) \
                 and self._walled(ranked):
             # against the arena's edge every step toward home would push the
@@ -846,7 +896,7 @@ class Coordinator(Recognising, Roster):
             self.closed = frozenset()
             self._plan_on_way(tick)
             return
-        self._take(tick, ranked)
+        self._take(tick, ranked, h)
 
     def _inside(self, box, margin):
         """True if the box round `_footprint()` (`_held`'s, None: empty) is
@@ -884,9 +934,9 @@ class Coordinator(Recognising, Roster):
         my = self.moved_y
         return x0 + mx, x1 + mx, y0 + my, y1 + my
 
-    def _take(self, tick, ranked):
+    def _take(self, tick, ranked, h=None):
         """Command the candidate (key, order, dx, dy) the blocked count points
-        at, the best first."""
+        at, the best first. h: `_held()`, when the caller has it."""
         if not ranked:
             # no step brings the object closer: it is as near home as it gets
             # (a touch reported at home); call it delivered rather than divide
@@ -898,15 +948,16 @@ class Coordinator(Recognising, Roster):
         self.step = self.step % 255 + 1
         self.dx = pick[2]
         self.dy = pick[3]
-        self._command(tick)
+        self._command(tick, h)
 
-    def _command(self, tick):
+    def _command(self, tick, h=None):
+        """h: `_held()`, when the caller has it."""
         self.step_sent_tick = tick
         # one fields tuple for every holder: a step commands about ten, and
         # a batch plans tens of thousands of steps
         f = (self.step, self.dx, self.dy)
         out = self.outbox
-        for node in self._held()[7]:
+        for node in (self._held() if h is None else h)[7]:
             out.append((node, msg.TRANSPORT, f))
 
     # -- liveness: holders that fall silent (lost_after > 0) ---------------------
