@@ -19,6 +19,14 @@ to the next 0x00 and starts again (resynchronisation).
 
 Bad frames are counted by fault in `Decoder.errors`, indexed by the ERR_*
 codes below (ERR_NAMES gives their names).
+
+Outside a run of frames the line is not ours: a board's REPL talks on the
+same wire before its firmware's first frame (mpremote's raw REPL, whose
+raw-paste header even holds a 0x00) and after its last one (the raw REPL's
+end of output, its answers to whatever arrives next). `Decoder.hunt()`
+says so: until the next valid frame, bytes are skipped (`skipped`), never
+counted as bad frames; the host calls it whenever it joins a line (port
+opened or reopened) and when a board says its run has ended.
 """
 
 from firmware_logic import messages as msg
@@ -175,13 +183,29 @@ class Decoder:
         self.count = 0
         self.frames = 0
         self.errors = [0, 0, 0, 0, 0, 0]
+        self.hunting = 0
+        self.skipped = 0
 
     def reset(self):
         """Forget any partial frame (e.g. after the port was reopened)."""
         self.n = 0
         self.dropping = 0
 
+    def hunt(self):
+        """Forget any partial frame; until the next valid frame, what arrives
+        is not a frame gone bad but someone else's bytes: skipped, counted in
+        `skipped`, never in `errors` (see the module's docstring)."""
+        self.reset()
+        self.hunting = 1
+
+    def _bad(self, code):
+        if not self.hunting:
+            self.errors[code] += 1
+        return 0
+
     def feed(self, b):
+        if self.hunting and b != 0:
+            self.skipped += 1
         if b == 0:
             n = self.n
             self.n = 0
@@ -194,10 +218,9 @@ class Decoder:
         if self.dropping:
             return 0
         if self.n >= MAX_ENCODED:
-            self.errors[ERR_LONG] += 1
             self.dropping = 1
             self.n = 0
-            return 0
+            return self._bad(ERR_LONG)
         self.buf[self.n] = b
         self.n += 1
         return 0
@@ -206,26 +229,20 @@ class Decoder:
         raw = self.raw
         m = cobs_decode(self.buf, n, raw)
         if m < 0:
-            self.errors[ERR_COBS] += 1
-            return 0
+            return self._bad(ERR_COBS)
         if m < MIN_RAW:
-            self.errors[ERR_SHORT] += 1
-            return 0
+            return self._bad(ERR_SHORT)
         if m > MAX_RAW:
-            self.errors[ERR_LONG] += 1
-            return 0
+            return self._bad(ERR_LONG)
         c = crc16(raw, m - 2)
         if raw[m - 2] != (c >> 8) or raw[m - 1] != (c & 0xFF):
-            self.errors[ERR_CRC] += 1
-            return 0
+            return self._bad(ERR_CRC)
         kind = raw[0]
         if kind not in msg.SCHEMA:
-            self.errors[ERR_KIND] += 1
-            return 0
+            return self._bad(ERR_KIND)
         count = m - 4
         if count != msg.dlc(kind):
-            self.errors[ERR_LENGTH] += 1
-            return 0
+            return self._bad(ERR_LENGTH)
         p = self.payload
         i = 0
         while i < count:
@@ -236,6 +253,9 @@ class Decoder:
         self.count = count
         self.nfields = self._unpack(kind, count)
         self.frames += 1
+        if self.hunting:
+            self.hunting = 0
+            self.skipped -= n          # this frame's own bytes were no junk
         return 1
 
     def _unpack(self, kind, count):

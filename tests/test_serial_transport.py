@@ -116,7 +116,7 @@ def test_output_before_the_first_frame_is_skipped_but_later_garbage_counted(
             assert time.monotonic() < deadline
             got += t.poll(0.05)
         assert got == [(1, msg.HELLO, (1, 100, 1))]
-        assert t.bad_frames() == {} and t.skipped_at_start == len(REPL_LEFTOVER)
+        assert t.bad_frames() == {} and t.skipped == len(REPL_LEFTOVER)
         assert not [r for r in caplog.records if r.levelname == "WARNING"]
         vp.write(b"\x00" + b"x" * 40 + b"\x00" + ack)   # a frame too long, then a good one
         while len(got) < 2:
@@ -124,4 +124,4 @@ def test_output_before_the_first_frame_is_skipped_but_later_garbage_counted(
             got += t.poll(0.05)
         assert got[1] == (1, msg.ACK, (7,))
         assert t.bad_frames() == {"overflow": 1}
-        assert t.skipped_at_start == len(REPL_LEFTOVER)
+        assert t.skipped == len(REPL_LEFTOVER)

@@ -14,6 +14,14 @@ it comes back; while it is gone, polls wait out their timeout and return
 nothing, and sends are dropped (counted as `send_dropped`): the robots
 retransmit unacknowledged touches and the coordinator re-sends commands, so
 nothing acknowledged is lost.
+
+Bytes outside a run of frames are the board's REPL, not bad frames: on every
+(re)open and after a board's ACTION STOP (the last frame of its run,
+firmware_logic/board.py) the decoder hunts for the next valid frame
+(framing.Decoder.hunt) and counts what it passes over in `skipped`. Frames
+for a board that has stopped are not sent (`sends_after_stop`): its REPL
+would read them as keystrokes (Ctrl-A, Ctrl-D run or reset) until the board
+is heard again.
 """
 
 from __future__ import annotations
@@ -27,7 +35,7 @@ import serial
 
 from bridge.serial.errors import SerialOpenError
 from bridge.transport import FanIn, Message
-from firmware_logic import framing
+from firmware_logic import board, framing
 from firmware_logic import messages as msg
 
 log = logging.getLogger(__name__)
@@ -95,15 +103,13 @@ class SerialTransport:
         self._logged: set[str] = set()
         self._next_reopen = 0.0
         self.nodes: set[int] = set()          # robot nodes heard on this port
+        self.stopped: set[int] = set()        # nodes whose last frame was ACTION STOP
         self.frames_in = 0
         self.frames_out = 0
-        # bytes before the first delimiter since the port (re)opened: the line was
-        # joined mid-stream (e.g. a board's REPL output left by deploy --start),
-        # not a frame gone bad; counted here, never as a bad frame
-        self.skipped_at_start = 0
-        self._synced = False
+        self.sends_after_stop = 0
         self._closed = False
         self._ser: serial.SerialBase | None = open_serial(port, self.baud, timeout)
+        self._dec.hunt()      # joined mid-line: e.g. the REPL's output deploy --start left
 
     # -- context manager ---------------------------------------------------------
 
@@ -152,14 +158,19 @@ class SerialTransport:
     # -- the port coming and going -------------------------------------------------------
 
     @property
+    def skipped(self) -> int:
+        """Bytes passed over outside a run of frames (before the first frame
+        after an open, after a board's STOP): never bad frames."""
+        return self._dec.skipped
+
+    @property
     def connected(self) -> bool:
         return self._ser is not None
 
     def _lost(self, err: BaseException) -> None:
         self._fault("disconnect", str(err))
         self._drop_port()
-        self._dec.reset()
-        self._synced = False
+        self._dec.hunt()
         self._next_reopen = time.monotonic() + self.reopen_every
 
     def _reopen(self) -> bool:
@@ -173,8 +184,7 @@ class SerialTransport:
             self._ser = open_serial(self.port, self.baud, self.timeout)
         except SerialOpenError:
             return False
-        self._dec.reset()
-        self._synced = False
+        self._dec.hunt()
         log.info("%s: port is back", self.url)
         return True
 
@@ -215,34 +225,29 @@ class SerialTransport:
                 if time.monotonic() >= deadline:
                     return out
                 continue
-            if not self._synced:
-                data = self._sync(data)
             before = list(dec.errors)
             for b in data:
+                hunting = dec.hunting
                 if dec.feed(b):
+                    if hunting and dec.skipped:
+                        log.info("%s: skipped %d bytes outside frames so far (a REPL's "
+                                 "output before a run's first frame or after its last)",
+                                 self.url, dec.skipped)
                     self.frames_in += 1
                     node = dec.node
                     if node == msg.HOST or node > msg.MAX_NODE:
                         self._fault("node", "frame from node %d" % node)
                         continue
                     self.nodes.add(node)
-                    out.append((node, dec.kind, tuple(dec.fields[:dec.nfields])))
+                    f = tuple(dec.fields[:dec.nfields])
+                    if dec.kind == msg.ACTION and f[2] == board.A_STOP:
+                        self.stopped.add(node)
+                        dec.hunt()        # the board's REPL has the line again
+                    else:
+                        self.stopped.discard(node)
+                    out.append((node, dec.kind, f))
             if dec.errors != before:
                 self._sync_decoder_faults(before)
-
-    def _sync(self, data: bytes) -> bytes:
-        """`data` from the first delimiter on, once since the port opened (the
-        sender puts one before every frame); what came before is skipped."""
-        start = data.find(0)
-        if start < 0:
-            self.skipped_at_start += len(data)
-            return b""
-        self._synced = True
-        self.skipped_at_start += start
-        if self.skipped_at_start:
-            log.info("%s: skipped %d bytes before the first frame (output left on "
-                     "the line before framing started)", self.url, self.skipped_at_start)
-        return data[start:]
 
     def encode(self, node: int, kind: int, fields: tuple) -> bytes:
         """The framed bytes of one message (raises SchemaError on a bad field)."""
@@ -252,6 +257,13 @@ class SerialTransport:
 
     def send(self, node: int, kind: int, fields: tuple) -> None:
         data = self.encode(node, kind, fields)
+        if node in self.stopped or (node == msg.HOST and self.nodes
+                                    and self.nodes <= self.stopped):
+            self.sends_after_stop += 1
+            if self.sends_after_stop == 1:
+                log.info("%s: not sending to node %d: its run has ended (ACTION STOP); "
+                         "its REPL would read frames as keystrokes", self.url, node)
+            return
         if self._ser is None and not self._reopen():
             self._fault("send_dropped", "port is gone")
             return
