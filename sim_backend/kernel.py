@@ -201,13 +201,42 @@ def prefetch_held(objs, k):
     fetch reads it to find them."""
 
 
+# fx.dx and fx.dy of one patch (fx.ONE) along each whole-degree heading: a
+# probe's step is one lookup, not a product and a shift, and the two share
+# one heading reduction (the batch engine's compiler merges them)
+AHEAD_DX = tuple(fx.dx(h, fx.ONE) for h in range(360))
+AHEAD_DY = tuple(fx.dy(h, fx.ONE) for h in range(360))
+
+
+def degrees(h):
+    """h % 360: a compare for a heading already in 0..359 (every heading the
+    behaviour keeps), where the compiled modulo is a multiply, shifts and a
+    sign fix."""
+    if h >= 0 and h < 360:
+        return h
+    return h % 360
+
+
+def step_dx(h, step):
+    """fx.dx(h, step), by table for a whole patch."""
+    if step == fx.ONE:
+        return AHEAD_DX[degrees(h)]
+    return fx.dx(h, step)
+
+
+def step_dy(h, step):
+    if step == fx.ONE:
+        return AHEAD_DY[degrees(h)]
+    return fx.dy(h, step)
+
+
 def ahead_x(x, h):
     """Patch column one patch ahead of Q8 x along heading h."""
-    return fx.patch(x + fx.dx(h, fx.ONE))
+    return fx.patch(x + AHEAD_DX[degrees(h)])
 
 
 def ahead_y(y, h):
-    return fx.patch(y + fx.dy(h, fx.ONE))
+    return fx.patch(y + AHEAD_DY[degrees(h)])
 
 
 def ahead_cell(w, n, x, y, h, rules):
@@ -621,8 +650,8 @@ def apply_tick(g, rb, run, r):
             continue
         if held[i] >= 0:
             let_go(g, rb, run, r, i)
-        nx = fold_q8(w, n, xs[i] + fx.dx(rb.mv_h[i], rb.mv_step[i]), rules)
-        ny = fold_q8(w, n, ys[i] + fx.dy(rb.mv_h[i], rb.mv_step[i]), rules)
+        nx = fold_q8(w, n, xs[i] + step_dx(rb.mv_h[i], rb.mv_step[i]), rules)
+        ny = fold_q8(w, n, ys[i] + step_dy(rb.mv_h[i], rb.mv_step[i]), rules)
         px = fx.patch(nx)
         py = fx.patch(ny)
         if px != fx.patch(xs[i]) or py != fx.patch(ys[i]):
@@ -659,8 +688,8 @@ def warm_move(g, rb, run, r, i):
     w = run.w[r]
     n = run.n[r]
     rules = run.rules[r]
-    px = fx.patch(fold_q8(w, n, rb.xs[i] + fx.dx(rb.mv_h[i], rb.mv_step[i]), rules))
-    py = fx.patch(fold_q8(w, n, rb.ys[i] + fx.dy(rb.mv_h[i], rb.mv_step[i]), rules))
+    px = fx.patch(fold_q8(w, n, rb.xs[i] + step_dx(rb.mv_h[i], rb.mv_step[i]), rules))
+    py = fx.patch(fold_q8(w, n, rb.ys[i] + step_dy(rb.mv_h[i], rb.mv_step[i]), rules))
     if inside(w, px, py):
         k = run.base[r] + cell(w, n, px, py)
         prefetch(g.obj, k)
@@ -989,8 +1018,8 @@ def apply_robot(g, rb, run, r, i):
     w = run.w[r]
     n = run.n[r]
     rules = run.rules[r]
-    nx = fold_q8(w, n, rb.xs[i] + fx.dx(rb.mv_h[i], rb.mv_step[i]), rules)
-    ny = fold_q8(w, n, rb.ys[i] + fx.dy(rb.mv_h[i], rb.mv_step[i]), rules)
+    nx = fold_q8(w, n, rb.xs[i] + step_dx(rb.mv_h[i], rb.mv_step[i]), rules)
+    ny = fold_q8(w, n, rb.ys[i] + step_dy(rb.mv_h[i], rb.mv_step[i]), rules)
     px = fx.patch(nx)
     py = fx.patch(ny)
     ox = fx.patch(rb.xs[i])
