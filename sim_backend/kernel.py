@@ -669,32 +669,35 @@ def apply_tick(g, rb, run, r):
 def warm_patches(g, run, r, x, y):
     """A prefetch of the field, object and occupancy patches a robot at Q8
     (x, y) reads on its turn (its patch's row and the rows beside it:
-    probes, field, uphill)."""
+    probes, field, uphill). A row past the arena's edge is fetched too: a
+    prefetch never faults, and the three rows need no bounds."""
     w = run.w[r]
     n = run.n[r]
-    py = fx.patch(y)
-    c = run.base[r] + cell(w, n, fx.patch(x), py)
-    for d in range(max(-1, -w - py), min(1, w - py) + 1):
-        prefetch(g.field, c + d * n)
-        prefetch(g.obj, c + d * n)
-        prefetch(g.occ, c + d * n)
+    c = run.base[r] + cell(w, n, fx.patch(x), fx.patch(y))
+    prefetch(g.field, c - n)
+    prefetch(g.obj, c - n)
+    prefetch(g.occ, c - n)
+    prefetch(g.field, c)
+    prefetch(g.obj, c)
+    prefetch(g.occ, c)
+    prefetch(g.field, c + n)
+    prefetch(g.obj, c + n)
+    prefetch(g.occ, c + n)
 
 
 def warm_move(g, rb, run, r, i):
     """A prefetch of the cells robot i's move intent enters (apply_tick's
-    reads of them): nothing when it has none or leaves the arena."""
+    reads of them): nothing when it has none. The cell is not folded onto
+    the torus nor checked against the arena: a prefetch never faults, and
+    a wrapping move's cell past the edge is only a useless fetch."""
     if rb.mv_on[i] == 0:
         return
     w = run.w[r]
-    n = run.n[r]
-    rules = run.rules[r]
-    px = fx.patch(fold_q8(w, n, rb.xs[i] + step_dx(rb.mv_h[i], rb.mv_step[i]), rules))
-    py = fx.patch(fold_q8(w, n, rb.ys[i] + step_dy(rb.mv_h[i], rb.mv_step[i]), rules))
-    if inside(w, px, py):
-        k = run.base[r] + cell(w, n, px, py)
-        prefetch(g.obj, k)
-        prefetch(g.occ, k)
-        prefetch(g.stamp, k)
+    k = run.base[r] + cell(w, run.n[r], fx.patch(rb.xs[i] + step_dx(rb.mv_h[i], rb.mv_step[i])),
+                           fx.patch(rb.ys[i] + step_dy(rb.mv_h[i], rb.mv_step[i])))
+    prefetch(g.obj, k)
+    prefetch(g.occ, k)
+    prefetch(g.stamp, k)
 
 
 def let_go(g, rb, run, r, i):
