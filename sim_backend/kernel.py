@@ -201,13 +201,42 @@ def prefetch_held(objs, k):
     fetch reads it to find them."""
 
 
+# fx.dx and fx.dy of one patch (fx.ONE) along each whole-degree heading: a
+# probe's step is one lookup, not a product and a shift, and the two share
+# one heading reduction (the batch engine's compiler merges them)
+AHEAD_DX = tuple(fx.dx(h, fx.ONE) for h in range(360))
+AHEAD_DY = tuple(fx.dy(h, fx.ONE) for h in range(360))
+
+
+def degrees(h):
+    """h % 360: a compare for a heading already in 0..359 (every heading the
+    behaviour keeps), where the compiled modulo is a multiply, shifts and a
+    sign fix."""
+    if h >= 0 and h < 360:
+        return h
+    return h % 360
+
+
+def step_dx(h, step):
+    """fx.dx(h, step), by table for a whole patch."""
+    if step == fx.ONE:
+        return AHEAD_DX[degrees(h)]
+    return fx.dx(h, step)
+
+
+def step_dy(h, step):
+    if step == fx.ONE:
+        return AHEAD_DY[degrees(h)]
+    return fx.dy(h, step)
+
+
 def ahead_x(x, h):
     """Patch column one patch ahead of Q8 x along heading h."""
-    return fx.patch(x + fx.dx(h, fx.ONE))
+    return fx.patch(x + AHEAD_DX[degrees(h)])
 
 
 def ahead_y(y, h):
-    return fx.patch(y + fx.dy(h, fx.ONE))
+    return fx.patch(y + AHEAD_DY[degrees(h)])
 
 
 def ahead_cell(w, n, x, y, h, rules):
@@ -621,8 +650,8 @@ def apply_tick(g, rb, run, r):
             continue
         if held[i] >= 0:
             let_go(g, rb, run, r, i)
-        nx = fold_q8(w, n, xs[i] + fx.dx(rb.mv_h[i], rb.mv_step[i]), rules)
-        ny = fold_q8(w, n, ys[i] + fx.dy(rb.mv_h[i], rb.mv_step[i]), rules)
+        nx = fold_q8(w, n, xs[i] + step_dx(rb.mv_h[i], rb.mv_step[i]), rules)
+        ny = fold_q8(w, n, ys[i] + step_dy(rb.mv_h[i], rb.mv_step[i]), rules)
         px = fx.patch(nx)
         py = fx.patch(ny)
         if px != fx.patch(xs[i]) or py != fx.patch(ys[i]):
@@ -640,32 +669,35 @@ def apply_tick(g, rb, run, r):
 def warm_patches(g, run, r, x, y):
     """A prefetch of the field, object and occupancy patches a robot at Q8
     (x, y) reads on its turn (its patch's row and the rows beside it:
-    probes, field, uphill)."""
+    probes, field, uphill). A row past the arena's edge is fetched too: a
+    prefetch never faults, and the three rows need no bounds."""
     w = run.w[r]
     n = run.n[r]
-    py = fx.patch(y)
-    c = run.base[r] + cell(w, n, fx.patch(x), py)
-    for d in range(max(-1, -w - py), min(1, w - py) + 1):
-        prefetch(g.field, c + d * n)
-        prefetch(g.obj, c + d * n)
-        prefetch(g.occ, c + d * n)
+    c = run.base[r] + cell(w, n, fx.patch(x), fx.patch(y))
+    prefetch(g.field, c - n)
+    prefetch(g.obj, c - n)
+    prefetch(g.occ, c - n)
+    prefetch(g.field, c)
+    prefetch(g.obj, c)
+    prefetch(g.occ, c)
+    prefetch(g.field, c + n)
+    prefetch(g.obj, c + n)
+    prefetch(g.occ, c + n)
 
 
 def warm_move(g, rb, run, r, i):
     """A prefetch of the cells robot i's move intent enters (apply_tick's
-    reads of them): nothing when it has none or leaves the arena."""
+    reads of them): nothing when it has none. The cell is not folded onto
+    the torus nor checked against the arena: a prefetch never faults, and
+    a wrapping move's cell past the edge is only a useless fetch."""
     if rb.mv_on[i] == 0:
         return
     w = run.w[r]
-    n = run.n[r]
-    rules = run.rules[r]
-    px = fx.patch(fold_q8(w, n, rb.xs[i] + fx.dx(rb.mv_h[i], rb.mv_step[i]), rules))
-    py = fx.patch(fold_q8(w, n, rb.ys[i] + fx.dy(rb.mv_h[i], rb.mv_step[i]), rules))
-    if inside(w, px, py):
-        k = run.base[r] + cell(w, n, px, py)
-        prefetch(g.obj, k)
-        prefetch(g.occ, k)
-        prefetch(g.stamp, k)
+    k = run.base[r] + cell(w, run.n[r], fx.patch(rb.xs[i] + step_dx(rb.mv_h[i], rb.mv_step[i])),
+                           fx.patch(rb.ys[i] + step_dy(rb.mv_h[i], rb.mv_step[i])))
+    prefetch(g.obj, k)
+    prefetch(g.occ, k)
+    prefetch(g.stamp, k)
 
 
 def let_go(g, rb, run, r, i):
@@ -989,8 +1021,8 @@ def apply_robot(g, rb, run, r, i):
     w = run.w[r]
     n = run.n[r]
     rules = run.rules[r]
-    nx = fold_q8(w, n, rb.xs[i] + fx.dx(rb.mv_h[i], rb.mv_step[i]), rules)
-    ny = fold_q8(w, n, rb.ys[i] + fx.dy(rb.mv_h[i], rb.mv_step[i]), rules)
+    nx = fold_q8(w, n, rb.xs[i] + step_dx(rb.mv_h[i], rb.mv_step[i]), rules)
+    ny = fold_q8(w, n, rb.ys[i] + step_dy(rb.mv_h[i], rb.mv_step[i]), rules)
     px = fx.patch(nx)
     py = fx.patch(ny)
     ox = fx.patch(rb.xs[i])

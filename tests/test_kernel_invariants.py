@@ -67,3 +67,18 @@ def test_the_check_sees_a_broken_state():
     k = w.owner.index(0)
     w.owner[k] = 3                      # a cell owned by a robot that holds nothing
     assert holders_agree(w) == [f"cell {k} is owned by 3, which holds -1"]
+
+
+def test_the_step_tables_are_the_fixed_point_steps():
+    """kernel.AHEAD_DX/AHEAD_DY and degrees stand in for fx.dx/fx.dy on every
+    heading, in range or not (a heading is reduced only when out of 0..359)."""
+    from firmware_logic import fixedpoint as fx
+    from sim_backend import kernel
+
+    for h in range(-1080, 1081):
+        assert kernel.degrees(h) == h % 360
+        for step in (fx.ONE, fx.QUARTER, 100):
+            assert kernel.step_dx(h, step) == fx.dx(h, step)
+            assert kernel.step_dy(h, step) == fx.dy(h, step)
+        assert kernel.ahead_x(1000, h) == fx.patch(1000 + fx.dx(h, fx.ONE))
+        assert kernel.ahead_y(-1000, h) == fx.patch(-1000 + fx.dy(h, fx.ONE))
