@@ -11,6 +11,7 @@ numba (sim_backend/batch/transform.py, soa.py); it stays plain Python so it
 can be read, and run uncompiled, like the rest.
 """
 
+from firmware_logic import fixedpoint as fx
 from sim_backend import kernel
 
 # rows of the per-robot table (int64[ROBOT_ROWS, robots]): the kernel's
@@ -182,15 +183,63 @@ class BatchBody:
 
 def tick_all(robots, body, tick):
     """One tick of every live run: kernel.sync_tick, or under activation
-    netlogo kernel.go_iteration."""
+    netlogo kernel.go_iteration.
+
+    A run smaller than kernel.WARM_MIN fetches nothing ahead of its own
+    turns, and in a batch of many such runs every run's patches were last
+    read a whole step ago: its turns and moves waited on the patches' cache
+    misses (docs/performance.md, "Small runs: the compiled tick at 20
+    robots"). So while a run steps, the patches round the robots of the next
+    live run are fetched (warm_run), and the positions of the one after it,
+    which that fetch reads."""
     body.out_n[0] = 0
-    for r in range(len(body.runs.live)):
-        if body.runs.live[r] == 1:
-            body.runs.tick[r] = tick
-            if body.runs.act[r] == kernel.SYNC:
-                kernel.sync_tick(robots, body, body.g, body.rb, body.runs, r)
-            else:
-                kernel.go_iteration(robots, body, body.g, body.rb, body.runs, r)
+    runs = body.runs
+    nr = len(runs.live)
+    r = next_live(runs, 0)
+    a = next_live(runs, r + 1)
+    while r < nr:
+        b = next_live(runs, a + 1)
+        if a < nr and runs.hi[a] - runs.lo[a] < kernel.WARM_MIN:
+            warm_run(body, a, b)
+        runs.tick[r] = tick
+        if runs.act[r] == kernel.SYNC:
+            kernel.sync_tick(robots, body, body.g, body.rb, runs, r)
+        else:
+            kernel.go_iteration(robots, body, body.g, body.rb, runs, r)
+        r = a
+        a = b
+
+
+def next_live(runs, r):
+    """The first live run from r on, len(runs.live) if none."""
+    live = runs.live
+    while r < len(live) and live[r] != 1:
+        r += 1
+    return r
+
+
+def warm_run(body, a, b):
+    """A prefetch of what run a's tick reads at random (kernel.warm_patches
+    round each robot, and the stamp rows its moves test), and of run b's
+    positions (the next call's reads), one line of each."""
+    g = body.g
+    rb = body.rb
+    runs = body.runs
+    n = runs.n[a]
+    first = runs.base[a]
+    last = first + n * n - 1
+    for i in range(runs.lo[a], runs.hi[a]):
+        kernel.warm_patches(g, runs, a, rb.xs[i], rb.ys[i])
+        c = first + kernel.cell(runs.w[a], n, fx.patch(rb.xs[i]), fx.patch(rb.ys[i]))
+        kernel.prefetch(g.stamp, max(first, c - n))
+        kernel.prefetch(g.stamp, c)
+        kernel.prefetch(g.stamp, min(last, c + n))
+    if b < len(runs.live):
+        for i in range(runs.lo[b], runs.hi[b], 8):
+            kernel.prefetch(rb.xs, i)
+            kernel.prefetch(rb.ys, i)
+        kernel.prefetch(rb.xs, runs.hi[b] - 1)
+        kernel.prefetch(rb.ys, runs.hi[b] - 1)
 
 
 def states_of(robots, out):
