@@ -249,6 +249,30 @@ def test_a_prefetch_takes_any_integer_index_and_changes_nothing():
         assert fetch(flat, table, np.array([2, 0], dtype=dtype)) == 15 + 66
     assert flat.tolist() == list(range(6)) and table.sum() == 66
 
+def test_a_compiled_clear_zeroes_exactly_its_range_as_the_kernel_loop_does():
+    """borrow.clear (kernel.clear compiled to a memset) zeroes a[lo:hi] of
+    every element width the grids use and nothing outside it; an empty or
+    reversed range changes nothing, as the kernel's loop."""
+    import numpy as np
+    from numba import njit
+
+    from sim_backend import kernel
+    from sim_backend.batch.borrow import clear
+
+    @njit
+    def zero(a, lo, hi):
+        clear(a, lo, hi)
+
+    for dtype in (np.int8, np.int16, np.int32, np.int64):
+        for lo, hi in ((3, 9), (0, 12), (5, 5), (7, 2)):
+            a = np.arange(1, 13, dtype=dtype)
+            b = a.tolist()
+            zero(a, lo, hi)
+            kernel.clear(b, lo, hi)
+            assert a.tolist() == b, (dtype, lo, hi)
+            assert a.tolist() == [0 if lo <= k < hi else k + 1 for k in range(12)]
+
+
 
 def test_the_robot_loop_is_inlined_and_its_entry_borrows_every_array(monkeypatch):
     """The two rules behind the soa engine's speed (docs/performance.md), read

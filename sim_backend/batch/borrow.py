@@ -96,3 +96,28 @@ def prefetch(typingctx, ary, index):
             builder.call(fetch, [builder.inttoptr(at, i8p)] + flags)
         return context.get_dummy_value()
     return types.none(ary, index), codegen
+
+
+@intrinsic
+def clear(typingctx, ary, lo, hi):
+    """kernel.clear compiled: `ary[lo:hi] = 0` as one memset of a contiguous
+    1-D array (the caller's range lies inside it, as the loop it replaces
+    would index)."""
+    if not isinstance(ary, types.Array) or ary.ndim != 1 or ary.layout != "C" or \
+            not isinstance(lo, types.Integer) or not isinstance(hi, types.Integer):
+        return None
+
+    def codegen(context, builder, sig, args):
+        aryty = sig.args[0]
+        a = context.make_array(aryty)(context, builder, value=args[0])
+        start = context.cast(builder, args[1], sig.args[1], types.intp)
+        stop = context.cast(builder, args[2], sig.args[2], types.intp)
+        with builder.if_then(builder.icmp_signed(">", stop, start)):
+            ptr = cgutils.get_item_pointer(context, builder, aryty, a, [start],
+                                           wraparound=False)
+            size = builder.mul(builder.sub(stop, start),
+                               context.get_constant(types.intp, context.get_abi_sizeof(
+                                   context.get_data_type(aryty.dtype))))
+            cgutils.memset(builder, ptr, size, 0)
+        return context.get_dummy_value()
+    return types.none(ary, lo, hi), codegen
