@@ -360,8 +360,7 @@ def compile_batch(robots: list[Any], body: Any) -> tuple[T.Layout, Compiled, dic
 def _compile_batch(robots: list[Any], body: Any) -> tuple[T.Layout, Compiled, dict[str, Any]]:
     layout = T.Layout()
     layout.add(body)
-    for r in robots:
-        layout.add(r)
+    layout.add_all(robots)
     rcls = type(robots[0])
     body_cls = type(body)
     entries = {"tick_all": (B.tick_all, (T.ListOf(rcls), T.Inst(body_cls), T.SCALAR)),
