@@ -23,17 +23,21 @@ def _walked(objs: list) -> T.Layout:
     return lay
 
 
+def _same_layout(a: T.Layout, b: T.Layout) -> None:
+    assert list(a.classes) == list(b.classes)
+    for cls, cl in b.classes.items():
+        q = a.classes[cls]
+        assert (q.name, q.fields) == (cl.name, cl.fields)
+        assert [id(o) for o in q.instances] == [id(o) for o in cl.instances]
+    assert a.index == b.index
+
+
 def test_quick_layout_is_the_full_walk():
     robots = _robots(6)
     quick, full = T.Layout(), _walked(robots)
     for r in robots:
         quick.add(r)
-    assert list(quick.classes) == list(full.classes)
-    for cls, cl in full.classes.items():
-        q = quick.classes[cls]
-        assert (q.name, q.fields) == (cl.name, cl.fields)
-        assert [id(o) for o in q.instances] == [id(o) for o in cl.instances]
-    assert quick.index == full.index
+    _same_layout(quick, full)
 
 
 def test_quick_layout_still_refuses_a_field_of_another_type():
@@ -80,15 +84,6 @@ def _one_by_one(objs: list) -> T.Layout:
     for o in objs:
         lay.add(o)
     return lay
-
-
-def _same_layout(a: T.Layout, b: T.Layout) -> None:
-    assert list(a.classes) == list(b.classes)
-    for cls, cl in b.classes.items():
-        q = a.classes[cls]
-        assert (q.name, q.fields) == (cl.name, cl.fields)
-        assert [id(o) for o in q.instances] == [id(o) for o in cl.instances]
-    assert a.index == b.index
 
 
 def _arrays(lay: T.Layout) -> dict:
