@@ -229,12 +229,10 @@ class Layout:
                     self.add(o)
         return True
 
-    def values(self, cl: ClassLayout, names: Sequence[str] | None = None
-               ) -> dict[str, Sequence[Any]]:
-        """Every field's values now (or those of `names`), instance by
-        instance: one C-level getter call per instance, not one getattr per
-        field and instance."""
-        names = list(cl.fields if names is None else names)
+    def values(self, cl: ClassLayout) -> dict[str, Sequence[Any]]:
+        """Every field's values now, instance by instance: one C-level
+        getter call per instance, not one getattr per field and instance."""
+        names = list(cl.fields)
         if not names or not cl.instances or any("." in a for a in names):
             return {a: [getattr(o, a) for o in cl.instances] for a in names}
         get = operator.attrgetter(*names)
@@ -1074,19 +1072,8 @@ def state_arrays(layout: Layout) -> dict[str, Any]:
         out[ints_name(cl)] = ints
         for j, b in enumerate(cl.bases):
             out[base_name(cl, j)] = b
-        # the int and bool fields in one conversion of a row per instance,
-        # not one strided column assignment per field
-        plain = [a for a, f in cl.fields.items() if f[0] in ("int", "bool")]
-        if len(plain) > 1 and n and "." not in "".join(plain):
-            rows = list(map(operator.attrgetter(*plain), cl.instances))
-            ints[:, [cl.columns[a] for a in plain]] = np.array(rows, dtype=np.int64)
-        else:
-            plain = []
-        done = set(plain)
-        values = layout.values(cl, [a for a in cl.fields if a not in done])
+        values = layout.values(cl)
         for attr, f in cl.fields.items():
-            if attr in done:
-                continue
             vals = values[attr]
             if attr in cl.columns:
                 if f[0] == "inst":
