@@ -460,6 +460,18 @@ def _frozen_heap() -> Iterator[None]:
             gc.unfreeze()
 
 
+def _aged() -> None:
+    """What a build made (all of it in the youngest generation, made with
+    the collector off) moved to the oldest in two list splices (`gc.freeze`,
+    `gc.unfreeze`, as _frozen_heap does), unless a step in another thread
+    holds the heap frozen (its end moves them). Otherwise the collector's
+    first pass after the build went over every object of it and found
+    nothing: 50 ms of a 250-run sweep chunk's 1.1 s of CPU."""
+    gc.freeze()
+    if not _STEPPING[0]:
+        gc.unfreeze()
+
+
 def _nfields() -> list[int]:
     top = max(msg.SCHEMA) + 1
     return [len(msg.fields(k)) if k in msg.SCHEMA else 0 for k in range(top)]
@@ -592,6 +604,7 @@ class SoaEngine:
             self._build()
         finally:
             if collecting:
+                _aged()
                 gc.enable()
         self.setup_seconds = time.perf_counter() - t0
 
