@@ -206,7 +206,7 @@ class Layout:
         dicts = list(map(vars, objs))
         if not all(map(keys.__eq__, map(tuple, dicts))):
             return False
-        values = list(map(tuple, map(dict.values, dicts)))
+        values: list[tuple] = list(map(tuple, map(operator.methodcaller("values"), dicts)))
         if not all(map(types.__eq__, map(tuple, map(map, repeat(type), values)))):
             return False
         for k, n in rows:
