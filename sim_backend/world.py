@@ -174,24 +174,31 @@ class World:
         cx, cy, cv, cw = self.cell_arrays()
         self.grid = kernel.Grid((self.obj, self.owner, self.field, self.occ, self.stamp),
                                 (self.tdx, self.tdy, self.tv), (cx, cy, cv, cw))
-        self.recount()
+        # kernel.recount's count on a grid still all zero: its pass clearing
+        # the grid was a tenth of a batch's worlds (tests/test_world.py)
+        occ, w, n, patch = self.occ, self.w, self.n, fx.patch
+        for x, y in zip(self.xs, self.ys):
+            occ[(patch(y) + w) * n + (patch(x) + w)] += 1
 
     def _redrawn_starts(self, sc: Scenario, setup: Rng) -> None:
         """Our CreateSwarm: each robot walks `random max-pxcor` from the origin
         along a `random 360` heading; a start on the object or on another
         robot is redrawn, and the robot draws its own heading afresh."""
         taken = set()
-        while len(self.xs) < sc.agents:
-            h = setup.below(360)
-            dist = setup.below(self.w) * fx.ONE
-            x = fx.dx(h, dist)
-            y = fx.dy(h, dist)
-            p = (fx.patch(x), fx.patch(y))
-            if not self.inside(*p) or self.obj[self.idx(*p)] != FREE or p in taken:
+        xs, ys, obj, w, n = self.xs, self.ys, self.obj, self.w, self.n
+        below, dx, dy, patch, one = setup.below, fx.dx, fx.dy, fx.patch, fx.ONE
+        while len(xs) < sc.agents:
+            h = below(360)
+            dist = below(w) * one
+            x = dx(h, dist)
+            y = dy(h, dist)
+            p = (px, py) = (patch(x), patch(y))
+            if not (-w <= px <= w and -w <= py <= w) or obj[(py + w) * n + (px + w)] != FREE \
+                    or p in taken:
                 continue
             taken.add(p)
-            self.xs.append(x)
-            self.ys.append(y)
+            xs.append(x)
+            ys.append(y)
 
     def _netlogo_starts(self, sc: Scenario, seed: int, setup: Rng) -> None:
         """CreateSwarm as Appendix A writes it: `fd random max-pxcor` from the

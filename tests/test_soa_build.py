@@ -297,3 +297,34 @@ def test_a_forked_worker_takes_its_parents_check_of_the_kept_text_once(monkeypat
         got, transforms = json.loads(f.read())
     os.waitpid(pid, 0)
     assert got == [0, 1] and transforms == soa.transforms
+
+
+def _generation_of(obj: object) -> int | None:
+    import gc
+    for g in range(3):
+        if any(o is obj for o in gc.get_objects(generation=g)):
+            return g
+    return None
+
+
+def test_a_builds_objects_leave_the_youngest_generation_at_its_end():
+    import gc
+    assert gc.isenabled()
+    e = soa.SoaEngine([(validate({"agents": 8}), s) for s in (1, 2)])
+    young = gc.get_count()[0]           # objects made since the youngest's last pass
+    # the collector's next pass does not walk the whole build
+    assert young < 100 < len(e.robot_objs) * 10
+    assert _generation_of(e.robot_objs[-1]) == 2 and _generation_of(e.worlds[-1]) == 2
+    assert gc.isenabled()
+
+
+def test_a_build_beside_a_step_leaves_the_heap_frozen_to_the_steps_end(monkeypatch):
+    import gc
+    frozen = gc.get_freeze_count()
+    monkeypatch.setattr(soa, "_STEPPING", [1])        # a step runs in another thread
+    try:
+        e = soa.SoaEngine([(validate({"agents": 8}), 1)])
+        assert gc.get_freeze_count() > frozen and _generation_of(e.robot_objs[0]) is None
+    finally:
+        gc.unfreeze()                                   # what that step's end does
+    assert _generation_of(e.robot_objs[0]) == 2

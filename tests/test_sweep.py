@@ -198,3 +198,14 @@ def test_the_journal_holds_the_file_only_of_its_own_rows_in_run_order(tmp_path):
     resumed.append([])
     resumed.close()
     assert not resumed.holds([])                         # the file holds rows from before
+
+
+def test_sweep_csv_cells_are_each_values_text(tmp_path):
+    import numpy as np
+    row = {"a": None, "b": True, "c": 0.1 + 0.2, "d": np.float64(0.5), "e": "x,y", "f": 7,
+           "g": np.int64(-3), "h": ""}
+    path = sweep.write_csv([row, {"a": 1}], tmp_path / "s.csv")
+    got = sweep.read_csv(path)
+    assert got[0] == {k: sweep._cell(v) for k, v in row.items()}
+    assert got[0]["d"] == "0.5" and got[0]["a"] == "" and got[0]["c"] == "0.30000000000000004"
+    assert got[1] == {"a": "1", **{k: "" for k in "bcdefgh"}}

@@ -1,5 +1,7 @@
 """The simulated world: objects, Signal, placement and the tick conflict rules."""
 
+import pytest
+
 from firmware_logic import fixedpoint as fx
 from firmware_logic.behaviours.thesis import robot as R
 from sim_backend import objects
@@ -44,6 +46,21 @@ def test_placement_is_seeded_and_off_the_object():
     starts = {(fx.patch(x), fx.patch(y)) for x, y in zip(a.xs, a.ys)}
     assert len(starts) == 20 and not starts & cells
     assert 0 <= a.obj_x <= 9 and 0 <= a.obj_y <= 9
+
+
+@pytest.mark.parametrize("starts", ["redraw", "netlogo"])
+def test_start_occupancy_is_the_kernels_recount(starts):
+    # World counts its robots' patches itself at its start; kernel.recount
+    # (what every tick does) must find the same grid
+    for seed in range(1, 9):
+        w = World(validate({"agents": 300, "worldSize": 18, "starts": starts}), seed)
+        counted = list(w.occ)
+        assert sum(counted) == 300
+        if starts == "netlogo":
+            assert max(counted) > 1          # robots may share a patch there
+        w.occ[:] = [7] * len(w.occ)
+        w.recount()
+        assert w.occ == counted
 
 
 def _two_robot_engine():

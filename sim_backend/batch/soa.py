@@ -360,8 +360,7 @@ def compile_batch(robots: list[Any], body: Any) -> tuple[T.Layout, Compiled, dic
 def _compile_batch(robots: list[Any], body: Any) -> tuple[T.Layout, Compiled, dict[str, Any]]:
     layout = T.Layout()
     layout.add(body)
-    for r in robots:
-        layout.add(r)
+    layout.add_all(robots)
     rcls = type(robots[0])
     body_cls = type(body)
     entries = {"tick_all": (B.tick_all, (T.ListOf(rcls), T.Inst(body_cls), T.SCALAR)),
@@ -459,6 +458,18 @@ def _frozen_heap() -> Iterator[None]:
         _STEPPING[0] -= 1
         if not _STEPPING[0]:
             gc.unfreeze()
+
+
+def _aged() -> None:
+    """What a build made (all of it in the youngest generation, made with
+    the collector off) moved to the oldest in two list splices (`gc.freeze`,
+    `gc.unfreeze`, as _frozen_heap does), unless a step in another thread
+    holds the heap frozen (its end moves them). Otherwise the collector's
+    first pass after the build went over every object of it and found
+    nothing: 50 ms of a 250-run sweep chunk's 1.1 s of CPU."""
+    gc.freeze()
+    if not _STEPPING[0]:
+        gc.unfreeze()
 
 
 def _nfields() -> list[int]:
@@ -593,6 +604,7 @@ class SoaEngine:
             self._build()
         finally:
             if collecting:
+                _aged()
                 gc.enable()
         self.setup_seconds = time.perf_counter() - t0
 
