@@ -42,6 +42,12 @@ A_END = 0
 A_STOP = 255
 
 
+def is_stop(kind, fields):
+    """Whether a board's frame (kind, fields) is its STOP: ACTION's fields
+    are (tick, index, code, a, b)."""
+    return kind == msg.ACTION and fields[2] == A_STOP
+
+
 INBOX = 8          # queued host messages between two FSM steps
 REPLY_MS = 200     # wait for one answer before asking again
 MS_MASK = 0x3FFFFFFF   # port.ms() wraps at a multiple of 2**30 (ticks_ms)

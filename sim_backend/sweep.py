@@ -999,8 +999,7 @@ def _lines(rows: Iterable[dict], names: Sequence[str]) -> Iterator[list[str]]:
         if not known.issuperset(r):
             raise ValueError(f"a sweep row has columns sweep.csv's header lacks: "
                              f"{sorted(set(r) - known)}")
-        # _cell spelt out: a call per cell was most of a 500-run sweep's rows
-        yield ["" if v is None else str(v) for v in map(r.get, names)]
+        yield list(map(_cell, map(r.get, names)))
 
 
 def read_csv(path: Path) -> list[dict]:

@@ -176,9 +176,9 @@ class World:
                                 (self.tdx, self.tdy, self.tv), (cx, cy, cv, cw))
         # kernel.recount's count on a grid still all zero: its pass clearing
         # the grid was a tenth of a batch's worlds (tests/test_world.py)
-        occ, w, n, patch = self.occ, self.w, self.n, fx.patch
+        occ, w, n, patch, cell = self.occ, self.w, self.n, fx.patch, kernel.cell
         for x, y in zip(self.xs, self.ys):
-            occ[(patch(y) + w) * n + (patch(x) + w)] += 1
+            occ[cell(w, n, patch(x), patch(y))] += 1
 
     def _redrawn_starts(self, sc: Scenario, setup: Rng) -> None:
         """Our CreateSwarm: each robot walks `random max-pxcor` from the origin
@@ -187,14 +187,14 @@ class World:
         taken = set()
         xs, ys, obj, w, n = self.xs, self.ys, self.obj, self.w, self.n
         below, dx, dy, patch, one = setup.below, fx.dx, fx.dy, fx.patch, fx.ONE
+        inside, cell = kernel.inside, kernel.cell
         while len(xs) < sc.agents:
             h = below(360)
             dist = below(w) * one
             x = dx(h, dist)
             y = dy(h, dist)
             p = (px, py) = (patch(x), patch(y))
-            if not (-w <= px <= w and -w <= py <= w) or obj[(py + w) * n + (px + w)] != FREE \
-                    or p in taken:
+            if not inside(w, px, py) or obj[cell(w, n, px, py)] != FREE or p in taken:
                 continue
             taken.add(p)
             xs.append(x)

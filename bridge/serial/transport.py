@@ -107,6 +107,7 @@ class SerialTransport:
         self.frames_in = 0
         self.frames_out = 0
         self.sends_after_stop = 0
+        self._skipped_logged = 0              # dec.skipped when last logged
         self._closed = False
         self._ser: serial.SerialBase | None = open_serial(port, self.baud, timeout)
         self._dec.hunt()      # joined mid-line: e.g. the REPL's output deploy --start left
@@ -227,9 +228,9 @@ class SerialTransport:
                 continue
             before = list(dec.errors)
             for b in data:
-                hunting = dec.hunting
                 if dec.feed(b):
-                    if hunting and dec.skipped:
+                    if dec.skipped != self._skipped_logged:
+                        self._skipped_logged = dec.skipped
                         log.info("%s: skipped %d bytes outside frames so far (a REPL's "
                                  "output before a run's first frame or after its last)",
                                  self.url, dec.skipped)
@@ -240,7 +241,7 @@ class SerialTransport:
                         continue
                     self.nodes.add(node)
                     f = tuple(dec.fields[:dec.nfields])
-                    if dec.kind == msg.ACTION and f[2] == board.A_STOP:
+                    if board.is_stop(dec.kind, f):
                         self.stopped.add(node)
                         dec.hunt()        # the board's REPL has the line again
                     else:

@@ -89,7 +89,7 @@ class TetherTransport:
             self.inner.send(node, msg.SENSOR, (tick, index, code, a, v))
             self.answered += 1
             return
-        if code == board.A_STOP:
+        if board.is_stop(kind, f):
             # the board's loop has ended (board.run): it reads no more
             if node not in self.stopped:
                 log.info("node %d: its loop ended at tick %d", node, tick)
