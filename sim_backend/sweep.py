@@ -978,15 +978,23 @@ def _cells(pairs: list) -> str:
 def write_csv(rows: Sequence[dict], path: Path, names: Sequence[str] | None = None) -> Path:
     """Every row under one header (names, default: every key of the rows,
     in first-seen order), written to a temporary file and moved into place."""
+    def write(f: IO[str]) -> None:
+        if rows or names:
+            # rows of different behaviours carry different measures: every column once
+            cols = list(names or dict.fromkeys(k for r in rows for k in r))
+            wr = csv.writer(f, lineterminator="\n")
+            wr.writerow(cols)
+            wr.writerows(_lines(rows, cols))
+    return _replace(path, write)
+
+
+def _replace(path: Path, write: Callable[[IO[str]], None]) -> Path:
+    """path made by write(file): in a temporary file moved into place, so
+    that a reader never sees it half written."""
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".tmp")
     with tmp.open("w", newline="") as f:
-        if rows or names:
-            # rows of different behaviours carry different measures: every column once
-            names = list(names or dict.fromkeys(k for r in rows for k in r))
-            wr = csv.writer(f, lineterminator="\n")
-            wr.writerow(names)
-            wr.writerows(_lines(rows, names))
+        write(f)
     os.replace(tmp, path)
     return path
 
@@ -1022,6 +1030,11 @@ class CsvAppender:
         self.names = list(names)
         self.f: Any = None
         self.written: list[dict] = []       # the rows appended, in order
+        # the text of the header and of each append, with the append's rows:
+        # rows that came back out of run order are put in order from these
+        # (reorder), not formatted again
+        self.texts: list[str] = []
+        self.blocks: list[tuple[Sequence[dict], str]] = []
         self.append_to = resume and path.exists() and path.stat().st_size > 0
         if self.append_to:
             _drop_partial_line(path)
@@ -1035,16 +1048,30 @@ class CsvAppender:
                                     + "; it comes from another sweep: use another --out")
 
     def append(self, rows: Sequence[dict]) -> None:
+        import io
         if self.f is None:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             self.f = self.path.open("a" if self.append_to else "w", newline="")
-            self.writer = csv.writer(self.f, lineterminator="\n")
+            self.buf = io.StringIO(newline="")
+            self.writer = csv.writer(self.buf, lineterminator="\n")
             if not self.append_to:
                 self.writer.writerow(self.names)
+                self.texts.append(self._taken())
+                self.f.write(self.texts[0])
         self.writer.writerows(_lines(rows, self.names))
+        text = self._taken()
+        self.f.write(text)
         self.f.flush()
         os.fsync(self.f.fileno())
         self.written += rows
+        self.blocks.append((rows, text))
+
+    def _taken(self) -> str:
+        """What the writer wrote since the last call."""
+        text = self.buf.getvalue()
+        self.buf.seek(0)
+        self.buf.truncate()
+        return text
 
     def holds(self, rows: Sequence[dict]) -> bool:
         """Whether the file is what write_csv(rows, path, names) writes: this
@@ -1052,6 +1079,27 @@ class CsvAppender:
         (a sweep whose chunks returned in run order need not write it again)."""
         return (self.f is not None and not self.append_to and len(rows) == len(self.written)
                 and all(a is b for a, b in zip(rows, self.written)))
+
+    def reorder(self, rows: Sequence[dict]) -> bool:
+        """Make the file what write_csv(rows, path, names) writes when `rows`
+        are this journal's own appends, each whole, in another order (chunks
+        that returned out of run order): their texts put in that order, the
+        rows not formatted again. False, the file untouched, otherwise."""
+        if self.f is None or self.append_to or len(rows) != len(self.written):
+            return False
+        by_first = {id(b[0][0]): b for b in self.blocks if b[0]}
+        order = []
+        i = 0
+        while i < len(rows):
+            block = by_first.pop(id(rows[i]), None)
+            if (block is None or len(block[0]) > len(rows) - i
+                    or not all(a is b for a, b in zip(itertools.islice(rows, i, None), block[0]))):
+                return False
+            order.append(block[1])
+            i += len(block[0])
+        self.close()
+        _replace(self.path, lambda f: f.writelines(self.texts + order))
+        return True
 
     def close(self) -> None:
         if self.f is not None:

@@ -209,3 +209,30 @@ def test_sweep_csv_cells_are_each_values_text(tmp_path):
     assert got[0] == {k: sweep._cell(v) for k, v in row.items()}
     assert got[0]["d"] == "0.5" and got[0]["a"] == "" and got[0]["c"] == "0.30000000000000004"
     assert got[1] == {"a": "1", **{k: "" for k in "bcdefgh"}}
+
+
+def test_the_journal_puts_chunks_that_returned_out_of_run_order_in_order(tmp_path):
+    """A journal whose chunks came back out of run order is made the file
+    write_csv writes from its own appends' texts; rows that are not its
+    appends, each whole, leave it untouched (the CLI then writes every row)."""
+    names = ["seed", "ticks", "x"]
+    rows = [{"seed": s, "ticks": 10 * s, "x": [None, 0.1 + 0.2, "a,b"][s % 3]}
+            for s in range(1, 8)]
+    want = sweep.write_csv(rows, tmp_path / "w.csv", names).read_text()
+    journal = sweep.CsvAppender(tmp_path / "j.csv", names)
+    for block in (rows[5:], rows[:2], [], rows[2:5]):
+        journal.append(block)
+    journal.close()
+    before = (tmp_path / "j.csv").read_text()
+    assert before != want and sorted(before.splitlines()) == sorted(want.splitlines())
+    for other in (rows[1:] + rows[:1], rows[:6], rows[:2] + rows[3:5] + rows[2:3] + rows[5:],
+                  [dict(r) for r in rows], rows[:5] + rows[6:] + rows[5:6]):
+        assert not journal.reorder(other)
+        assert (tmp_path / "j.csv").read_text() == before
+    assert not journal.holds(rows)
+    assert journal.reorder(rows)
+    assert (tmp_path / "j.csv").read_text() == want
+    resumed = sweep.CsvAppender(tmp_path / "j.csv", names, resume=True)
+    resumed.append(rows[:1])
+    resumed.close()
+    assert not resumed.reorder(rows[:1])                 # the file holds rows from before

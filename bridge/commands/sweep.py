@@ -265,7 +265,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     rows = _in_run_order(plan, done + new)
     from sim_backend import sweep
     csv_path = out / "sweep.csv"
-    if not journal.holds(rows):          # the rows came back out of run order
+    # the rows came back out of run order: the journal's chunks put in order,
+    # or (a resumed sweep's) every row written again
+    if not journal.holds(rows) and not journal.reorder(rows):
         sweep.write_csv(rows, csv_path, names)
     pngs = [] if args.no_plots else _draw(args, plan, csv_path, out)
     _report(args, cfg, plan, rows, new, done, wall, csv_path, pngs)

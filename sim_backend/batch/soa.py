@@ -640,6 +640,9 @@ class SoaEngine:
         self.first_cap = int(self.max_ticks.min())    # no run ends at its cap before
         self.conv_steps = [-1] * nr      # rt[STEPS] when the run converged
         self.results: list[RunResult | None] = [None] * nr
+        # runs not live: counted as _finish ends them, so that run() reads
+        # neither the live row nor a sum of it on each of a batch's ticks
+        self.ended = int((self.rt[B.LIVE] != 1).sum())
         self.frames: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
         self._step_once_compiled = False
 
@@ -855,6 +858,7 @@ class SoaEngine:
             if live[r] == 1:
                 self._result(r, t)
                 live[r] = 0
+                self.ended += 1
                 self.wake[r] = NEVER     # never asked again
 
     def _result(self, r: int, t: int) -> None:
@@ -891,10 +895,11 @@ class SoaEngine:
         return not bool(self.rt[B.LIVE].any())
 
     def run(self, progress: Callable[[int], None] | None = None) -> list[RunResult]:
-        while not self.finished():
+        nr = len(self.runs)
+        while self.ended < nr:
             self.step()
             if progress is not None:
-                progress(int((self.rt[B.LIVE] == 0).sum()))
+                progress(self.ended)
         return list(self.results)  # type: ignore[arg-type]
 
 
@@ -947,20 +952,37 @@ def run_batch(scenarios: Scenario | Sequence[Scenario], seeds: Iterable[int],
     return sums
 
 
-def _first_engines(scenarios: Iterable[Any]) -> dict[str, "SoaEngine"]:
+# the engines cold() built last, by behaviour, each with the scenario it
+# was built from: warm() on the same scenarios (a sweep's parent asks
+# cold, then warm) steps them instead of building them again
+_UNSTEPPED: dict[str, tuple[Any, "SoaEngine"]] = {}
+
+
+def _first_engines(scenarios: Iterable[Any], keep: bool = False) -> dict[str, "SoaEngine"]:
     """One one-run, one-tick engine per behaviour of `scenarios` (built, not
-    stepped: its transform is generated and written, nothing compiles)."""
+    stepped: its transform is generated and written, nothing compiles);
+    one cold() kept for the same scenario is taken instead of a new one, and
+    with `keep` these are kept for the next call."""
     first: dict[str, Any] = {}
     for sc in scenarios:
         first.setdefault(str(sc.behaviour), sc)
-    return {name: SoaEngine([(sc.replace(maxTicks=1), 1)]) for name, sc in first.items()}
+    out = {}
+    for name, sc in first.items():
+        kept = _UNSTEPPED.pop(name, None)
+        out[name] = kept[1] if kept is not None and kept[0] is sc else \
+            SoaEngine([(sc.replace(maxTicks=1), 1)])
+    if keep:
+        _UNSTEPPED.clear()
+        _UNSTEPPED.update((name, (first[name], eng)) for name, eng in out.items())
+    return out
 
 
 def cold(scenarios: Iterable[Any]) -> dict[str, Path]:
     """The behaviours of `scenarios` whose step the disk cache does not hold
     yet, each with its cache folder; nothing compiles (about 0.2 s of
     transform per behaviour)."""
-    return {name: eng.compiled.path.parent for name, eng in _first_engines(scenarios).items()
+    return {name: eng.compiled.path.parent
+            for name, eng in _first_engines(scenarios, keep=True).items()
             if not eng.compiled.on_disk("tick_all")}
 
 
