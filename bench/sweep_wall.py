@@ -58,7 +58,10 @@ from cli_startup import user_env
 
 ROOT = Path(__file__).resolve().parents[1]
 BENCH = Path(__file__).resolve().parent
-CLI = "import sys; from bridge.cli import main; sys.exit(main(sys.argv[1:]))"
+# what the `touchswarm` console script runs (bridge.cli.entry; a tree from
+# before it had main)
+CLI = ("import sys; from bridge import cli; "
+       "sys.exit(getattr(cli, 'entry', cli.main)(sys.argv[1:]))")
 
 MESA = r"""
 import sys, time

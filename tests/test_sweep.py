@@ -236,3 +236,49 @@ def test_the_journal_puts_chunks_that_returned_out_of_run_order_in_order(tmp_pat
     resumed.append(rows[:1])
     resumed.close()
     assert not resumed.reorder(rows[:1])                 # the file holds rows from before
+
+
+ENTRY = """
+import atexit, sys
+from bridge import cli
+main = cli.main
+
+def command(argv):                      # a handler the command registers runs
+    atexit.register(print, "handler ran")
+    return main(argv)
+
+class Freed:                            # freed by the interpreter's teardown only
+    def __del__(self):
+        print("teardown ran")
+
+kept = Freed()
+cli.main = command
+sys.exit(cli.entry(sys.argv[1:]))
+"""
+
+
+@pytest.mark.parametrize("argv, status", [
+    (["--executor", "inline", "--no-plots", "--json"], 0),     # ends after its handlers
+    (["--seeds", "x"], 2),                                      # refused: the usual exit
+])
+def test_the_console_script_exits_with_the_commands_status_and_whole_output(
+        tmp_path, argv, status):
+    """bridge.cli.entry: a finished sweep's process ends after every atexit
+    handler, its output flushed, without the interpreter's teardown; any
+    other outcome exits as main's caller would."""
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+    done = subprocess.run(
+        [sys.executable, "-c", ENTRY, "sweep", "--seeds", "2", "--engine", "reference",
+         "--set", "maxTicks=300", "--out", str(tmp_path), *argv],
+        cwd=Path(__file__).resolve().parents[1], capture_output=True, text=True, timeout=300)
+    assert done.returncode == status, done.stderr
+    out = done.stdout.splitlines()
+    if status == 0:
+        assert out[-1] == "handler ran"
+        assert json.loads(out[-2])["runs"] == 2
+        assert (tmp_path / "sweep.csv").read_text().count("\n") == 3
+    else:
+        assert out[-2:] == ["handler ran", "teardown ran"]

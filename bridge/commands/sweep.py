@@ -271,6 +271,10 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         sweep.write_csv(rows, csv_path, names)
     pngs = [] if args.no_plots else _draw(args, plan, csv_path, out)
     _report(args, cfg, plan, rows, new, done, wall, csv_path, pngs)
+    # every file is written and closed (sweep.csv, the figures): the process
+    # need not free the soa step's numba objects one by one at its exit
+    from bridge.cli import skip_teardown
+    skip_teardown()
     return 0
 
 
