@@ -27,7 +27,8 @@ against its floor. Every figure is a fresh interpreter timed from outside
   untimed call; `--tree DIR` (repeatable) times another source tree's
   command and in-process run, and its warm sweep, beside this one's (e.g.
   an export of an older commit: `git archive COMMIT | tar -x -C /tmp/old`),
-  in rounds that interleave the trees.
+  in rounds that interleave the trees (every other round in the other
+  order; "rounds_load": the load average after each round).
 
 Every child reads and writes bytecode as a user's install does
 (cli_startup.user_env), even where PYTHONDONTWRITEBYTECODE is set. Medians
@@ -229,12 +230,18 @@ def warm_sweeps(a: argparse.Namespace, out: dict, tmpd: Path) -> None:
     for tree in trees.values():
         sweep(1, act, tmpd / "warmup", tree=tree)        # the step loaded, text kept
     rows: dict[tuple[int, str], list] = {(n, label): [] for n in a.sweep_runs for label in trees}
+    loads = []
     for k in range(a.reps):
         mesa_k = mesa_scaled(a.mesa_runs, act, a.sweep_runs)
+        # the trees in turn, every other round backwards (ABBA): the sweep
+        # run second in a round read lower, as much as a change moves it
+        order = list(trees.items())[::-1 if k % 2 else 1]
         for n, m in zip(a.sweep_runs, mesa_k):
-            for label, tree in trees.items():
+            for label, tree in order:
                 w = sweep(n, act, tmpd / f"big{k}", tree=tree)[0]
                 rows[(n, label)].append((w, CPU[0]) + m)
+        loads.append(round(os.getloadavg()[0], 1))
+    out["rounds_load"] = loads
     for (n, label), got in rows.items():
         s, sc, m1, mc = (statistics.median(r[j] for r in got) for j in range(4))
         out[f"sweep_{n}" if label == "this" else f"sweep_{n} {label}"] = {
