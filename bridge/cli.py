@@ -79,8 +79,14 @@ def entry(argv: list[str] | None = None) -> int:
     """The `touchswarm` console script: main(argv), whose status the
     process exits with, after a command that called skip_teardown without
     the interpreter's teardown. Tests and other callers in process call
-    main, which never ends the process."""
+    main, which neither ends the process nor sets its environment."""
     import atexit
+    # one BLAS thread unless the user asked for more: a command's matrix
+    # products are perception's small ones, which OpenBLAS runs in one
+    # thread anyway, while starting its pool when numpy is imported costs
+    # 0.05-0.07 s of a command's start (`python -c "import numpy"`: 0.19 ->
+    # 0.12 s on 2 cores); its child processes (a sweep's) inherit it
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     status: list[int] = []
     # registered before any other handler, so it runs after every one of
     # them (and after the non-daemon threads were joined: the exit's order)

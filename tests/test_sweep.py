@@ -244,6 +244,8 @@ from bridge import cli
 main = cli.main
 
 def command(argv):                      # a handler the command registers runs
+    import os
+    print("blas threads", os.environ.get("OPENBLAS_NUM_THREADS"))
     atexit.register(print, "handler ran")
     return main(argv)
 
@@ -257,25 +259,32 @@ sys.exit(cli.entry(sys.argv[1:]))
 """
 
 
-@pytest.mark.parametrize("argv, status", [
-    (["--executor", "inline", "--no-plots", "--json"], 0),     # ends after its handlers
-    (["--seeds", "x"], 2),                                      # refused: the usual exit
+@pytest.mark.parametrize("argv, status, blas", [
+    (["--executor", "inline", "--no-plots", "--json"], 0, None),  # ends after its handlers
+    (["--seeds", "x"], 2, "3"),                                    # refused: the usual exit
 ])
 def test_the_console_script_exits_with_the_commands_status_and_whole_output(
-        tmp_path, argv, status):
+        tmp_path, argv, status, blas):
     """bridge.cli.entry: a finished sweep's process ends after every atexit
     handler, its output flushed, without the interpreter's teardown; any
-    other outcome exits as main's caller would."""
+    other outcome exits as main's caller would. Its commands run with one
+    BLAS thread unless the user's environment asks for more."""
     import json
+    import os
     import subprocess
     import sys
     from pathlib import Path
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    if blas:
+        env["OPENBLAS_NUM_THREADS"] = blas
     done = subprocess.run(
         [sys.executable, "-c", ENTRY, "sweep", "--seeds", "2", "--engine", "reference",
          "--set", "maxTicks=300", "--out", str(tmp_path), *argv],
-        cwd=Path(__file__).resolve().parents[1], capture_output=True, text=True, timeout=300)
+        cwd=Path(__file__).resolve().parents[1], capture_output=True, text=True, timeout=300,
+        env=env)
     assert done.returncode == status, done.stderr
     out = done.stdout.splitlines()
+    assert out[0] == f"blas threads {blas or 1}"
     if status == 0:
         assert out[-1] == "handler ran"
         assert json.loads(out[-2])["runs"] == 2
