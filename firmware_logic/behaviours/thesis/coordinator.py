@@ -23,6 +23,10 @@ from .recognising import Recognising
 
 RESEND_AFTER = 4   # ticks without progress before a command is sent again
 STALL_TICKS = 2000  # transport ticks without the object moving before the run stops
+# steps the object moves (each way) before a plan measures again which points
+# can be nearest home (`_within`): few enough that the points it ruled out
+# stay out, enough that measuring is rare
+NEAR_STEPS = 8
 
 # why a run stopped without delivering (Coordinator.stop_code; 0: it did not)
 NO_PATH = 1
@@ -30,7 +34,7 @@ STALLED = 2
 STOP_REASONS = ("", "no path home", "stalled")
 # host-side logic: portable, but allowed to allocate
 SUBSET_SETUP = ("Touch", "Coordinator", "way_home", "_free", "_nearest", "_closer", "_closer_h",
-                "_squares", "_ranked", "_box_of", "_grow")
+                "_squares", "_within", "_ranked", "_box_of", "_grow")
 STEPS = ((-1, -1), (-1, 0), (0, -1), (1, -1), (-1, 1), (1, 0), (0, 1), (1, 1))
 
 
@@ -172,49 +176,69 @@ def _closer(pts, mx, my):
 
 def _closer_h(pts, mx, my):
     """(`_least_d2(pts, mx, my)`, `_closer(pts, mx, my)`)."""
-    return _ranked(_squares(pts, mx, my), mx, my)
+    sq = _squares(pts, mx, my)
+    return _ranked(sq, mx, my, _within(sq, mx, my) if sq else [], 0)
 
 
 def _squares(pts, mx, my):
     """The points as `_ranked` reads them, (x * x + y * y, 2x, 2y, n) each:
     first the one nearest (-mx, -my), with n 0, then the others with n =
-    2(|x - x0| + |y - y0|) from that one (x0, y0). Computed once per set of
-    holders; the nearer the first is to the nearest of a later plan, the
-    more of the others `_ranked` skips."""
+    2(|x - x0| + |y - y0|) from that one (x0, y0)."""
+    sq = []
     k = -1
-    best = -1
-    i = 0
+    best = 0
     for x, y in pts:
-        x += mx
-        y += my
-        d = x * x + y * y
-        if best < 0 or d < best:
-            best = d
-            k = i
-        i += 1
+        s = x * x + y * y
+        e = s + 2 * (x * mx + y * my)        # |p + m|^2 less |m|^2
+        if k < 0 or e < best:
+            best = e
+            k = len(sq)
+        sq.append((s, x, y))
     if k < 0:
         return []
-    x0, y0 = pts[k]
-    out = [(x0 * x0 + y0 * y0, x0 + x0, y0 + y0, 0)]
+    s, x0, y0 = sq[k]
+    out = [(s, x0 + x0, y0 + y0, 0)]
     i = 0
-    for x, y in pts:
+    for s, x, y in sq:
         if i != k:
             n = (x - x0 if x >= x0 else x0 - x) + (y - y0 if y >= y0 else y0 - y)
-            out.append((x * x + y * y, x + x, y + y, n + n))
+            out.append((s, x + x, y + y, n + n))
         i += 1
     return out
 
 
-def _ranked(sq, mx, my):
-    """`_closer_h` of the points whose `_squares` are sq, displaced by (mx, my),
-    in one pass for the nine displacements v of a step: |q + m + v|^2 = e +
-    2q.v + |m + v|^2 with e = |q|^2 + 2q.m, and the last term is the same for
-    every point q, so the pass keeps the least e + 2q.v by sums alone and
-    adds |m + v|^2 to the nine minima once. A point whose e is the first
-    point's plus its n or more is at no v nearer than the first (2q.v
-    differs by at most n between them) and changes no minimum: skipped. In
-    a transport nearly every point is (99% over a 500-run batch): the
-    nearest few decide."""
+def _within(sq, mx, my):
+    """The points of `sq` (`_squares`') but the first as (r, s, 2x, 2y, n),
+    least r first: at every displacement within r steps each way of (mx,
+    my) the point is nowhere nearer than the first one after a step, so a
+    plan from there skips it unseen (r -1: it may be nearer now; the first
+    point's copies, n 0, never are and are left out). The point's e (see
+    `_ranked`) less the first's moves by at most n per step, and it is
+    nowhere nearer while that difference is n or more."""
+    out = []
+    s, tx, ty, n = sq[0]
+    es = s + tx * mx + ty * my
+    for s, tx, ty, n in sq:
+        if n:
+            d = s + tx * mx + ty * my - es - n
+            out.append((d // n if d >= 0 else -1, s, tx, ty, n))
+    out.sort()
+    return out
+
+
+def _ranked(sq, mx, my, near, steps):
+    """`_closer_h` of the points whose `_squares` are sq, displaced by (mx,
+    my); near: `_within(sq, ax, ay)` for a displacement (ax, ay) at most
+    `steps` steps each way from (mx, my).
+
+    |q + m + v|^2 = e + 2q.v + |m + v|^2 with e = |q|^2 + 2q.m, and the last
+    term is the same for every point q: the least e + 2q.v for the nine
+    steps v come by sums alone, and |m + v|^2 is added to the nine minima
+    once. The first point seeds them; of the others only those `near` has
+    not ruled out are read, and of those any whose e is the first's plus n
+    or more is skipped (2q.v differs by at most n between them: it is
+    nowhere nearer). In a transport the first point decides nearly every
+    plan alone."""
     if not sq:
         return -1, []
     s, tx, ty, n = sq[0]
@@ -230,7 +254,9 @@ def _ranked(sq, mx, my):
     a5 = b
     a6 = es + ty
     a7 = b + ty
-    for s, tx, ty, n in sq:      # the first too: its n is 0, skipped
+    for r, s, tx, ty, n in near:
+        if r >= steps:
+            break
         e = s + tx * mx + ty * my
         if e - es >= n:
             continue
@@ -267,14 +293,31 @@ def _ranked(sq, mx, my):
     ym = y - my - my + 1
     yp = y + my + my + 1
     h += x + y
-    ranked = []
-    k = 0
-    for d in (a0 + xm + ym, a1 + xm + y, a2 + x + ym, a3 + xp + ym, a4 + xm + yp,
-              a5 + xp + y, a6 + x + yp, a7 + xp + yp):
-        if d < h:
-            s = STEPS[k]
-            ranked.append((d, len(ranked), s[0], s[1]))
-        k += 1
+    ranked = []                  # STEPS unrolled: a loop over them cost a third of a plan
+    d = a0 + xm + ym
+    if d < h:
+        ranked.append((d, len(ranked), -1, -1))
+    d = a1 + xm + y
+    if d < h:
+        ranked.append((d, len(ranked), -1, 0))
+    d = a2 + x + ym
+    if d < h:
+        ranked.append((d, len(ranked), 0, -1))
+    d = a3 + xp + ym
+    if d < h:
+        ranked.append((d, len(ranked), 1, -1))
+    d = a4 + xm + yp
+    if d < h:
+        ranked.append((d, len(ranked), -1, 1))
+    d = a5 + xp + y
+    if d < h:
+        ranked.append((d, len(ranked), 1, 0))
+    d = a6 + x + yp
+    if d < h:
+        ranked.append((d, len(ranked), 0, 1))
+    d = a7 + xp + yp
+    if d < h:
+        ranked.append((d, len(ranked), 1, 1))
     ranked.sort()
     return h, ranked
 
@@ -582,10 +625,10 @@ class Coordinator(Recognising, Roster):
         the live holders' points, the live holders (`carriers`), the box
         round `_footprint()` or None, `_home_reached`'s bound: while the
         least squared distance of a segment is at least this, no live holder
-        is within home_radius, and the arrival points' `_squares`). A touch
-        is appended when accepted and removed when released, and `lost` and
-        `body` are replaced whole when they change, so the first five say
-        whether it still holds."""
+        is within home_radius, and `_rank`'s [`_squares`, `_within`, at mx, my]
+        of the arrival points). A touch is appended when accepted and removed
+        when released, and `lost` and `body` are replaced whole when they
+        change, so the first five say whether it still holds."""
         h = self.held
         touches = self.touches
         last = touches[-1] if touches else None
@@ -623,11 +666,32 @@ class Coordinator(Recognising, Roster):
         while q * q < 2 * r2:
             q += 1
         pts = live if self.by_carrier else segs
+        mx = self.moved_x - self.home_x
+        my = self.moved_y - self.home_y
+        sq = _squares(pts, mx, my)
         h = (touches, last, len(touches), lost, self.body, pts, live, tuple(nodes), box,
-             r2 + 2 * g * q + 2 * g * g,
-             _squares(pts, self.moved_x - self.home_x, self.moved_y - self.home_y))
+             r2 + 2 * g * q + 2 * g * g, [sq, _within(sq, mx, my) if sq else [], mx, my])
         self.held = h
         return h
+
+    def _rank(self, h):
+        """`_closer_h` of the arrival points where they are now (relative to
+        home), from `_held()` h's `_within`, measured again once the object
+        is more than NEAR_STEPS steps each way from where it was measured:
+        further on, more of the points it rules out come back."""
+        c = h[10]
+        mx = self.moved_x - self.home_x
+        my = self.moved_y - self.home_y
+        d = mx - c[2] if mx >= c[2] else c[2] - mx
+        e = my - c[3] if my >= c[3] else c[3] - my
+        if e > d:
+            d = e
+        if d > NEAR_STEPS and c[0]:
+            c[1] = _within(c[0], mx, my)
+            c[2] = mx
+            c[3] = my
+            d = 0
+        return _ranked(c[0], mx, my, c[1], d)
 
     def decision(self, before, out):
         """The thesis names its decisions: converged, step, delivered, halt."""
@@ -780,7 +844,7 @@ class Coordinator(Recognising, Roster):
             if self.closed is None and not self.lost_cells and not self.bumps:
                 # the open arena's plan measures where the points are now
                 # too: arrival reads that instead of a pass of its own
-                plan = _ranked(h[10], self.moved_x - self.home_x, self.moved_y - self.home_y)
+                plan = self._rank(h)
             if self._home_reached(h, -2 if plan is None else plan[0]):
                 self.delivered_tick = tick
                 self.halted = 1
@@ -923,7 +987,7 @@ class Coordinator(Recognising, Roster):
         if h is None:
             h = self._held()
         if plan is None:
-            plan = _ranked(h[10], self.moved_x - self.home_x, self.moved_y - self.home_y)
+            plan = self._rank(h)
         ranked = plan[1]
         if ranked and self.world_size is not None and not self._inside(h[8], 1) \
                 and self._walled(ranked):
