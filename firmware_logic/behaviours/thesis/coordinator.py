@@ -796,16 +796,20 @@ class Coordinator(Recognising, Roster):
                 or self.done() or self.converged_tick < 0 or self.power < self.weight \
                 or self.last_move_tick < 0 or self.leader_done == self.step:
             return 0
-        return min(self.step_sent_tick + RESEND_AFTER, self.last_move_tick + self.stall_ticks)
+        t = self.step_sent_tick + RESEND_AFTER
+        s = self.last_move_tick + self.stall_ticks
+        return t if t < s else s
 
     def tick(self, tick):
         """Advance the centralised phase; return and clear the commands to send."""
         if self.waiting:
             self._touch_waiting(tick)
-        self._acks_out(self.outbox)
-        if self.lost_after and not self.done():
+        if self.acks:                    # a transport tick has none
+            self._acks_out(self.outbox)
+        done = self.done()               # liveness changes holders, not this
+        if self.lost_after and not done:
             self._liveness(tick)
-        if self.done():
+        if done:
             if not self.halted:
                 self.halted = 1
                 self._send(msg.HOST, msg.HALT, (0,))
@@ -1059,8 +1063,9 @@ class Coordinator(Recognising, Roster):
         # a batch plans tens of thousands of steps
         f = (self.step, self.dx, self.dy)
         out = self.outbox
+        kind = msg.TRANSPORT
         for node in (self._held() if h is None else h)[7]:
-            out.append((node, msg.TRANSPORT, f))
+            out.append((node, kind, f))
 
     # -- liveness: holders that fall silent (lost_after > 0) ---------------------
 
