@@ -231,93 +231,110 @@ def _ranked(sq, mx, my, near, steps):
     my); near: `_within(sq, ax, ay)` for a displacement (ax, ay) at most
     `steps` steps each way from (mx, my).
 
-    |q + m + v|^2 = e + 2q.v + |m + v|^2 with e = |q|^2 + 2q.m, and the last
-    term is the same for every point q: the least e + 2q.v for the nine
-    steps v come by sums alone, and |m + v|^2 is added to the nine minima
-    once. The first point seeds them; of the others only those `near` has
-    not ruled out are read, and of those any whose e is the first's plus n
-    or more is skipped (2q.v differs by at most n between them: it is
-    nowhere nearer). In a transport the first point decides nearly every
-    plan alone."""
+    When `near` rules every other point out, the first point p alone
+    decides: a step v takes it to |p|^2 + 2p.v + |v|^2. Else one pass: |q +
+    m + v|^2 = e + 2q.v + |m + v|^2 with e = |q|^2 + 2q.m, and the last term
+    is the same for every point q: the least e + 2q.v for the nine steps v
+    come by sums alone, and |m + v|^2 is added to the nine minima once. The
+    first point seeds them; of the others only those `near` has not ruled
+    out are read, and of those any whose e is the first's plus n or more is
+    skipped (2q.v differs by at most n between them: it is nowhere
+    nearer). In a transport the first point decides nearly every plan
+    alone."""
     if not sq:
         return -1, []
     s, tx, ty, n = sq[0]
-    es = s + tx * mx + ty * my
-    a = es - tx
-    b = es + tx
-    h = es
-    a0 = a - ty                  # STEPS' order
-    a1 = a
-    a2 = es - ty
-    a3 = b - ty
-    a4 = a + ty
-    a5 = b
-    a6 = es + ty
-    a7 = b + ty
-    for r, s, tx, ty, n in near:
-        if r >= steps:
-            break
-        e = s + tx * mx + ty * my
-        if e - es >= n:
-            continue
-        if e < h:
-            h = e
-        a = e - tx
-        b = e + tx
-        d = a - ty
-        if d < a0:
-            a0 = d
-        if a < a1:
-            a1 = a
-        d = e - ty
-        if d < a2:
-            a2 = d
-        d = b - ty
-        if d < a3:
-            a3 = d
-        d = a + ty
-        if d < a4:
-            a4 = d
-        if b < a5:
-            a5 = b
-        d = e + ty
-        if d < a6:
-            a6 = d
-        d = b + ty
-        if d < a7:
-            a7 = d
-    x = mx * mx                  # |m + v|^2 from mx^2, (mx - 1)^2, (mx + 1)^2 ...
-    y = my * my
-    xm = x - mx - mx + 1
-    xp = x + mx + mx + 1
-    ym = y - my - my + 1
-    yp = y + my + my + 1
-    h += x + y
+    if not near or near[0][0] >= steps:
+        u = tx + mx + mx                 # 2p
+        w = ty + my + my
+        h = (u * u + w * w) >> 2
+        a = h - u + 1                    # x - 1
+        b = h + u + 1                    # x + 1
+        d0 = a - w + 1                   # STEPS' order
+        d1 = a
+        d2 = h - w + 1
+        d3 = b - w + 1
+        d4 = a + w + 1
+        d5 = b
+        d6 = h + w + 1
+        d7 = b + w + 1
+    else:
+        es = s + tx * mx + ty * my
+        a = es - tx
+        b = es + tx
+        h = es
+        a0 = a - ty
+        a1 = a
+        a2 = es - ty
+        a3 = b - ty
+        a4 = a + ty
+        a5 = b
+        a6 = es + ty
+        a7 = b + ty
+        for r, s, tx, ty, n in near:
+            if r >= steps:
+                break
+            e = s + tx * mx + ty * my
+            if e - es >= n:
+                continue
+            if e < h:
+                h = e
+            a = e - tx
+            b = e + tx
+            d = a - ty
+            if d < a0:
+                a0 = d
+            if a < a1:
+                a1 = a
+            d = e - ty
+            if d < a2:
+                a2 = d
+            d = b - ty
+            if d < a3:
+                a3 = d
+            d = a + ty
+            if d < a4:
+                a4 = d
+            if b < a5:
+                a5 = b
+            d = e + ty
+            if d < a6:
+                a6 = d
+            d = b + ty
+            if d < a7:
+                a7 = d
+        x = mx * mx              # |m + v|^2 from mx^2, (mx - 1)^2, (mx + 1)^2 ...
+        y = my * my
+        xm = x - mx - mx + 1
+        xp = x + mx + mx + 1
+        ym = y - my - my + 1
+        yp = y + my + my + 1
+        h += x + y
+        d0 = a0 + xm + ym
+        d1 = a1 + xm + y
+        d2 = a2 + x + ym
+        d3 = a3 + xp + ym
+        d4 = a4 + xm + yp
+        d5 = a5 + xp + y
+        d6 = a6 + x + yp
+        d7 = a7 + xp + yp
     ranked = []                  # STEPS unrolled: a loop over them cost a third of a plan
-    d = a0 + xm + ym
-    if d < h:
-        ranked.append((d, len(ranked), -1, -1))
-    d = a1 + xm + y
-    if d < h:
-        ranked.append((d, len(ranked), -1, 0))
-    d = a2 + x + ym
-    if d < h:
-        ranked.append((d, len(ranked), 0, -1))
-    d = a3 + xp + ym
-    if d < h:
-        ranked.append((d, len(ranked), 1, -1))
-    d = a4 + xm + yp
-    if d < h:
-        ranked.append((d, len(ranked), -1, 1))
-    d = a5 + xp + y
-    if d < h:
-        ranked.append((d, len(ranked), 1, 0))
-    d = a6 + x + yp
-    if d < h:
-        ranked.append((d, len(ranked), 0, 1))
-    d = a7 + xp + yp
-    if d < h:
-        ranked.append((d, len(ranked), 1, 1))
+    if d0 < h:
+        ranked.append((d0, len(ranked), -1, -1))
+    if d1 < h:
+        ranked.append((d1, len(ranked), -1, 0))
+    if d2 < h:
+        ranked.append((d2, len(ranked), 0, -1))
+    if d3 < h:
+        ranked.append((d3, len(ranked), 1, -1))
+    if d4 < h:
+        ranked.append((d4, len(ranked), -1, 1))
+    if d5 < h:
+        ranked.append((d5, len(ranked), 1, 0))
+    if d6 < h:
+        ranked.append((d6, len(ranked), 0, 1))
+    if d7 < h:
+        ranked.append((d7, len(ranked), 1, 1))
     ranked.sort()
     return h, ranked
 
