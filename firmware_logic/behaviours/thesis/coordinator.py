@@ -497,15 +497,16 @@ class Coordinator(Recognising, Roster):
             if node == self.leader and self.step > 0:
                 x = (f[1] + 128) >> 8
                 y = (f[2] + 128) >> 8
-                if x == self.leader_x and y == self.leader_y and f[4] == self.leader_done:
+                lx = self.leader_x
+                ly = self.leader_y
+                if x == lx and y == ly and f[4] == self.leader_done:
                     self.leader_heard = tuple(f)
                     return
                 # the leader moves with the object, at most one patch per
                 # step commanded since its last pose here (and the step it
                 # had reported may have moved it since): a jump is not it
                 k = (self.step - self.leader_done) % 255 + 1
-                if x - self.leader_x > k or self.leader_x - x > k or \
-                        y - self.leader_y > k or self.leader_y - y > k:
+                if x - lx > k or lx - x > k or y - ly > k or ly - y > k:
                     self._reject(LEADER_JUMP, node, f)
                     return
                 # the object moved (or a step is done): a later touch is
@@ -516,8 +517,8 @@ class Coordinator(Recognising, Roster):
                 self.leader_done = f[4]
                 self.leader_heard = tuple(f)
                 lead = self.leader_touch()
-                self.moved_x = self.leader_x - lead.rx
-                self.moved_y = self.leader_y - lead.ry
+                self.moved_x = x - lead.rx
+                self.moved_y = y - lead.ry
         elif kind == msg.HELLO:
             self._hello(node, f, tick)
         elif kind == msg.TOUCH:
@@ -775,6 +776,8 @@ class Coordinator(Recognising, Roster):
         """True when tick() without a new message would neither send nor change
         anything (a batch engine then skips the call): before convergence
         with power short of the weight, and after the HALT went out."""
+        if self.converged_tick >= 0 and not self.done():
+            return False             # a transport: asked after every tick (the rest says so too)
         if self.outbox or self.acks or self.waiting:
             return False
         if self.done():
