@@ -144,30 +144,6 @@ def test_step_planning_never_divides_by_zero() -> None:
     assert (msg.HOST, msg.HALT, (0,)) in c.tick(3)
 
 
-def test_a_plans_ranking_is_every_step_closer_to_home_best_first() -> None:
-    """_closer (one pass over the points for all nine displacements) ranks
-    as measuring each step's least squared distance one by one does: the
-    steps that bring it below here's, by that distance, ties to the step
-    listed first."""
-    import random
-
-    from firmware_logic.behaviours.thesis.coordinator import (STEPS, _closer, _closer_h,
-                                                            _least_d2)
-    rng = random.Random(3)
-    for _ in range(300):
-        pts = [(rng.randint(-6, 6), rng.randint(-6, 6)) for _ in range(rng.randint(0, 9))]
-        mx, my = rng.randint(-30, 30), rng.randint(-30, 30)
-        here = _least_d2(pts, mx, my)
-        want = []
-        for dx, dy in STEPS:
-            d = _least_d2(pts, mx + dx, my + dy)
-            if d < here:
-                want.append((d, len(want), dx, dy))
-        assert _closer(pts, mx, my) == sorted(want)
-        assert _closer_h(pts, mx, my) == (here, sorted(want))
-    assert _closer([(0, 0)], 0, 0) == []          # at home: no step is closer
-
-
 def brute_plan(pts, mx, my):
     """_closer_h measured step by step with _least_d2."""
     from firmware_logic.behaviours.thesis.coordinator import STEPS, _least_d2
@@ -178,6 +154,24 @@ def brute_plan(pts, mx, my):
         if d < here:
             want.append((d, len(want), dx, dy))
     return here, sorted(want)
+
+
+def test_a_plans_ranking_is_every_step_closer_to_home_best_first() -> None:
+    """_closer (one pass over the points for all nine displacements) ranks
+    as measuring each step's least squared distance one by one does: the
+    steps that bring it below here's, by that distance, ties to the step
+    listed first."""
+    import random
+
+    from firmware_logic.behaviours.thesis.coordinator import _closer, _closer_h
+    rng = random.Random(3)
+    for _ in range(300):
+        pts = [(rng.randint(-6, 6), rng.randint(-6, 6)) for _ in range(rng.randint(0, 9))]
+        mx, my = rng.randint(-30, 30), rng.randint(-30, 30)
+        want = brute_plan(pts, mx, my)
+        assert _closer(pts, mx, my) == want[1]
+        assert _closer_h(pts, mx, my) == want
+    assert _closer([(0, 0)], 0, 0) == []          # at home: no step is closer
 
 
 def test_a_plan_skips_only_points_that_cannot_be_nearest() -> None:
