@@ -144,6 +144,18 @@ def test_step_planning_never_divides_by_zero() -> None:
     assert (msg.HOST, msg.HALT, (0,)) in c.tick(3)
 
 
+def brute_plan(pts, mx, my):
+    """_closer_h measured step by step with _least_d2."""
+    from firmware_logic.behaviours.thesis.coordinator import STEPS, _least_d2
+    here = _least_d2(pts, mx, my)
+    want = []
+    for dx, dy in STEPS:
+        d = _least_d2(pts, mx + dx, my + dy)
+        if d < here:
+            want.append((d, len(want), dx, dy))
+    return here, sorted(want)
+
+
 def test_a_plans_ranking_is_every_step_closer_to_home_best_first() -> None:
     """_closer (one pass over the points for all nine displacements) ranks
     as measuring each step's least squared distance one by one does: the
@@ -151,21 +163,73 @@ def test_a_plans_ranking_is_every_step_closer_to_home_best_first() -> None:
     listed first."""
     import random
 
-    from firmware_logic.behaviours.thesis.coordinator import (STEPS, _closer, _closer_h,
-                                                            _least_d2)
+    from firmware_logic.behaviours.thesis.coordinator import _closer, _closer_h
     rng = random.Random(3)
     for _ in range(300):
         pts = [(rng.randint(-6, 6), rng.randint(-6, 6)) for _ in range(rng.randint(0, 9))]
         mx, my = rng.randint(-30, 30), rng.randint(-30, 30)
-        here = _least_d2(pts, mx, my)
-        want = []
-        for dx, dy in STEPS:
-            d = _least_d2(pts, mx + dx, my + dy)
-            if d < here:
-                want.append((d, len(want), dx, dy))
-        assert _closer(pts, mx, my) == sorted(want)
-        assert _closer_h(pts, mx, my) == (here, sorted(want))
+        want = brute_plan(pts, mx, my)
+        assert _closer(pts, mx, my) == want[1]
+        assert _closer_h(pts, mx, my) == want
     assert _closer([(0, 0)], 0, 0) == []          # at home: no step is closer
+
+
+def test_a_plan_skips_only_points_that_cannot_be_nearest() -> None:
+    """_ranked reads the points _within (measured at one displacement)
+    has not ruled out for a plan up to `steps` steps each way from there,
+    whichever point _squares put first (here the nearest to another place,
+    copies of points among them): the ranking is the brute force's at every
+    displacement within reach, and also when the first point is far from
+    the nearest."""
+    import random
+
+    from firmware_logic.behaviours.thesis.coordinator import _ranked, _squares, _within
+    rng = random.Random(11)
+    for _ in range(300):
+        pts = [(rng.randint(-6, 6), rng.randint(-6, 6)) for _ in range(rng.randint(1, 9))]
+        pts += pts[:rng.randint(0, 2)]                  # copies
+        fx, fy = rng.randint(-30, 30), rng.randint(-30, 30)
+        sq = _squares(pts, fx, fy)
+        assert sorted((s, 2 * x, 2 * y) for x, y in pts for s in [x * x + y * y]) == \
+            sorted(q[:3] for q in sq)
+        ax, ay = rng.randint(-30, 30), rng.randint(-30, 30)
+        near = _within(sq, ax, ay)
+        for _ in range(10):
+            steps = rng.randint(0, 12)
+            mx = ax + rng.randint(-steps, steps)
+            my = ay + rng.randint(-steps, steps)
+            assert _ranked(sq, mx, my, near, steps) == brute_plan(pts, mx, my)
+
+
+def test_a_transport_plan_is_the_points_plan_wherever_the_object_goes() -> None:
+    """A coordinator's plan (_rank, which measures _within again when the
+    object has gone NEAR_STEPS steps) is the brute force's along a long
+    random walk of the object, before and after a touch joins."""
+    import random
+
+    from firmware_logic.behaviours.thesis.coordinator import STEPS, Touch
+    rng = random.Random(7)
+    for _ in range(40):
+        c = Coordinator(weight=100)
+        for node in range(1, rng.randint(2, 8)):
+            sx, sy = rng.randint(-4, 4), rng.randint(-2, 2)
+            c.touches.append(Touch(node, 1, sx, sy - 1, sx, sy, 100, 1))
+        remeasured = 0
+        for k in range(120):
+            if k % 30 == 0:
+                way = STEPS[rng.randrange(8)]            # a heading for 30 ticks
+            if rng.random() < 0.8:
+                c.moved_x += way[0]
+                c.moved_y += way[1]
+            if k == 60:
+                c.touches.append(Touch(99, 1, 5, 5, 5, 6, 100, 1))
+            h = c._held()
+            at = h[10][2:]
+            pts = [(t.sx, t.sy) for t in c.touches]
+            assert h[5] == pts
+            assert c._rank(h) == brute_plan(pts, c.moved_x - c.home_x, c.moved_y - c.home_y)
+            remeasured += h[10][2:] != at
+        assert remeasured >= 2                   # the walk went beyond NEAR_STEPS
 
 
 def test_arrival_skips_the_holders_pass_only_when_none_can_be_home() -> None:

@@ -23,6 +23,10 @@ from .recognising import Recognising
 
 RESEND_AFTER = 4   # ticks without progress before a command is sent again
 STALL_TICKS = 2000  # transport ticks without the object moving before the run stops
+# steps the object moves (each way) before a plan measures again which points
+# can be nearest home (`_within`): few enough that the points it ruled out
+# stay out, enough that measuring is rare
+NEAR_STEPS = 8
 
 # why a run stopped without delivering (Coordinator.stop_code; 0: it did not)
 NO_PATH = 1
@@ -30,7 +34,7 @@ STALLED = 2
 STOP_REASONS = ("", "no path home", "stalled")
 # host-side logic: portable, but allowed to allocate
 SUBSET_SETUP = ("Touch", "Coordinator", "way_home", "_free", "_nearest", "_closer", "_closer_h",
-                "_box_of", "_grow")
+                "_squares", "_within", "_ranked", "_box_of", "_grow")
 STEPS = ((-1, -1), (-1, 0), (0, -1), (1, -1), (-1, 1), (1, 0), (0, 1), (1, 1))
 
 
@@ -171,75 +175,166 @@ def _closer(pts, mx, my):
 
 
 def _closer_h(pts, mx, my):
-    """(`_least_d2(pts, mx, my)`, `_closer(pts, mx, my)`). One pass over the
-    points for all nine displacements: a plan measures each once (a path
-    rarely comes back), and nine `_least_d2` calls cost twice as much in
-    call and loop overhead; the first point seeds the minima so that the
-    loop compares only."""
-    if not pts:
+    """(`_least_d2(pts, mx, my)`, `_closer(pts, mx, my)`)."""
+    sq = _squares(pts, mx, my)
+    return _ranked(sq, mx, my, _within(sq, mx, my) if sq else [], 0)
+
+
+def _squares(pts, mx, my):
+    """The points as `_ranked` reads them, (x * x + y * y, 2x, 2y, n) each:
+    first the one nearest (-mx, -my), with n 0, then the others with n =
+    2(|x - x0| + |y - y0|) from that one (x0, y0)."""
+    sq = []
+    k = -1
+    best = 0
+    for x, y in pts:
+        s = x * x + y * y
+        e = s + 2 * (x * mx + y * my)        # |p + m|^2 less |m|^2
+        if k < 0 or e < best:
+            best = e
+            k = len(sq)
+        sq.append((s, x, y))
+    if k < 0:
+        return []
+    s, x0, y0 = sq[k]
+    out = [(s, x0 + x0, y0 + y0, 0)]
+    i = 0
+    for s, x, y in sq:
+        if i != k:
+            n = (x - x0 if x >= x0 else x0 - x) + (y - y0 if y >= y0 else y0 - y)
+            out.append((s, x + x, y + y, n + n))
+        i += 1
+    return out
+
+
+def _within(sq, mx, my):
+    """The points of `sq` (`_squares`') but the first as (r, s, 2x, 2y, n),
+    least r first: at every displacement within r steps each way of (mx,
+    my) the point is nowhere nearer than the first one after a step, so a
+    plan from there skips it unseen (r -1: it may be nearer now; the first
+    point's copies, n 0, never are and are left out). The point's e (see
+    `_ranked`) less the first's moves by at most n per step, and it is
+    nowhere nearer while that difference is n or more."""
+    out = []
+    s, tx, ty, n = sq[0]
+    es = s + tx * mx + ty * my
+    for s, tx, ty, n in sq:
+        if n:
+            d = s + tx * mx + ty * my - es - n
+            out.append((d // n if d >= 0 else -1, s, tx, ty, n))
+    out.sort()
+    return out
+
+
+def _ranked(sq, mx, my, near, steps):
+    """`_closer_h` of the points whose `_squares` are sq, displaced by (mx,
+    my); near: `_within(sq, ax, ay)` for a displacement (ax, ay) at most
+    `steps` steps each way from (mx, my).
+
+    When `near` rules every other point out, the first point p alone
+    decides: a step v takes it to |p|^2 + 2p.v + |v|^2. Else one pass: |q +
+    m + v|^2 = e + 2q.v + |m + v|^2 with e = |q|^2 + 2q.m, and the last term
+    is the same for every point q: the least e + 2q.v for the nine steps v
+    come by sums alone, and |m + v|^2 is added to the nine minima once. The
+    first point seeds them; of the others only those `near` has not ruled
+    out are read, and of those any whose e is the first's plus n or more is
+    skipped (2q.v differs by at most n between them: it is nowhere
+    nearer). In a transport the first point decides nearly every plan
+    alone."""
+    if not sq:
         return -1, []
-    it = iter(pts)
-    x, y = next(it)
-    x += mx
-    y += my
-    xx = x * x
-    yy = y * y
-    xm = xx - 2 * x + 1          # (x - 1) ** 2
-    xp = xx + 2 * x + 1
-    ym = yy - 2 * y + 1
-    yp = yy + 2 * y + 1
-    h = xx + yy
-    a0 = xm + ym
-    a1 = xm + yy
-    a2 = xx + ym
-    a3 = xp + ym
-    a4 = xm + yp
-    a5 = xp + yy
-    a6 = xx + yp
-    a7 = xp + yp
-    for x, y in it:
-        x += mx
-        y += my
-        xx = x * x
-        yy = y * y
-        xm = xx - 2 * x + 1
-        xp = xx + 2 * x + 1
-        ym = yy - 2 * y + 1
-        yp = yy + 2 * y + 1
-        d = xx + yy
-        if d < h:
-            h = d
-        d = xm + ym
-        if d < a0:
-            a0 = d
-        d = xm + yy
-        if d < a1:
-            a1 = d
-        d = xx + ym
-        if d < a2:
-            a2 = d
-        d = xp + ym
-        if d < a3:
-            a3 = d
-        d = xm + yp
-        if d < a4:
-            a4 = d
-        d = xp + yy
-        if d < a5:
-            a5 = d
-        d = xx + yp
-        if d < a6:
-            a6 = d
-        d = xp + yp
-        if d < a7:
-            a7 = d
-    ranked = []
-    k = 0
-    for d in (a0, a1, a2, a3, a4, a5, a6, a7):      # STEPS' order
-        if d < h:
-            s = STEPS[k]
-            ranked.append((d, len(ranked), s[0], s[1]))
-        k += 1
+    s, tx, ty, n = sq[0]
+    if not near or near[0][0] >= steps:
+        u = tx + mx + mx                 # 2p
+        w = ty + my + my
+        h = (u * u + w * w) >> 2
+        a = h - u + 1                    # x - 1
+        b = h + u + 1                    # x + 1
+        d0 = a - w + 1                   # STEPS' order
+        d1 = a
+        d2 = h - w + 1
+        d3 = b - w + 1
+        d4 = a + w + 1
+        d5 = b
+        d6 = h + w + 1
+        d7 = b + w + 1
+    else:
+        es = s + tx * mx + ty * my
+        a = es - tx
+        b = es + tx
+        h = es
+        a0 = a - ty
+        a1 = a
+        a2 = es - ty
+        a3 = b - ty
+        a4 = a + ty
+        a5 = b
+        a6 = es + ty
+        a7 = b + ty
+        for r, s, tx, ty, n in near:
+            if r >= steps:
+                break
+            e = s + tx * mx + ty * my
+            if e - es >= n:
+                continue
+            if e < h:
+                h = e
+            a = e - tx
+            b = e + tx
+            d = a - ty
+            if d < a0:
+                a0 = d
+            if a < a1:
+                a1 = a
+            d = e - ty
+            if d < a2:
+                a2 = d
+            d = b - ty
+            if d < a3:
+                a3 = d
+            d = a + ty
+            if d < a4:
+                a4 = d
+            if b < a5:
+                a5 = b
+            d = e + ty
+            if d < a6:
+                a6 = d
+            d = b + ty
+            if d < a7:
+                a7 = d
+        x = mx * mx              # |m + v|^2 from mx^2, (mx - 1)^2, (mx + 1)^2 ...
+        y = my * my
+        xm = x - mx - mx + 1
+        xp = x + mx + mx + 1
+        ym = y - my - my + 1
+        yp = y + my + my + 1
+        h += x + y
+        d0 = a0 + xm + ym
+        d1 = a1 + xm + y
+        d2 = a2 + x + ym
+        d3 = a3 + xp + ym
+        d4 = a4 + xm + yp
+        d5 = a5 + xp + y
+        d6 = a6 + x + yp
+        d7 = a7 + xp + yp
+    ranked = []                  # STEPS unrolled: a loop over them cost a quarter of a plan
+    if d0 < h:
+        ranked.append((d0, len(ranked), -1, -1))
+    if d1 < h:
+        ranked.append((d1, len(ranked), -1, 0))
+    if d2 < h:
+        ranked.append((d2, len(ranked), 0, -1))
+    if d3 < h:
+        ranked.append((d3, len(ranked), 1, -1))
+    if d4 < h:
+        ranked.append((d4, len(ranked), -1, 1))
+    if d5 < h:
+        ranked.append((d5, len(ranked), 1, 0))
+    if d6 < h:
+        ranked.append((d6, len(ranked), 0, 1))
+    if d7 < h:
+        ranked.append((d7, len(ranked), 1, 1))
     ranked.sort()
     return h, ranked
 
@@ -402,15 +497,16 @@ class Coordinator(Recognising, Roster):
             if node == self.leader and self.step > 0:
                 x = (f[1] + 128) >> 8
                 y = (f[2] + 128) >> 8
-                if x == self.leader_x and y == self.leader_y and f[4] == self.leader_done:
+                lx = self.leader_x
+                ly = self.leader_y
+                if x == lx and y == ly and f[4] == self.leader_done:
                     self.leader_heard = tuple(f)
                     return
                 # the leader moves with the object, at most one patch per
                 # step commanded since its last pose here (and the step it
                 # had reported may have moved it since): a jump is not it
                 k = (self.step - self.leader_done) % 255 + 1
-                if x - self.leader_x > k or self.leader_x - x > k or \
-                        y - self.leader_y > k or self.leader_y - y > k:
+                if x - lx > k or lx - x > k or y - ly > k or ly - y > k:
                     self._reject(LEADER_JUMP, node, f)
                     return
                 # the object moved (or a step is done): a later touch is
@@ -421,8 +517,8 @@ class Coordinator(Recognising, Roster):
                 self.leader_done = f[4]
                 self.leader_heard = tuple(f)
                 lead = self.leader_touch()
-                self.moved_x = self.leader_x - lead.rx
-                self.moved_y = self.leader_y - lead.ry
+                self.moved_x = x - lead.rx
+                self.moved_y = y - lead.ry
         elif kind == msg.HELLO:
             self._hello(node, f, tick)
         elif kind == msg.TOUCH:
@@ -544,12 +640,13 @@ class Coordinator(Recognising, Roster):
         """What a plan reads of the touches, in the object's frame (as before
         it moved), kept between plans: (touches, the last touch, their
         count, lost, body, the points that count for arrival (`_from_home`'s),
-        the live holders' points, the live holders (`carriers`) and the box
-        round `_footprint()` or None, and `_home_reached`'s bound: while the
+        the live holders' points, the live holders (`carriers`), the box
+        round `_footprint()` or None, `_home_reached`'s bound: while the
         least squared distance of a segment is at least this, no live holder
-        is within home_radius). A touch is appended when accepted and
-        removed when released, and `lost` and `body` are replaced whole when
-        they change, so the first five say whether it still holds."""
+        is within home_radius, and `_rank`'s [`_squares`, `_within`, at mx, my]
+        of the arrival points). A touch is appended when accepted and removed
+        when released, and `lost` and `body` are replaced whole when they
+        change, so the first five say whether it still holds."""
         h = self.held
         touches = self.touches
         last = touches[-1] if touches else None
@@ -586,10 +683,33 @@ class Coordinator(Recognising, Roster):
         q = 0
         while q * q < 2 * r2:
             q += 1
-        h = (touches, last, len(touches), lost, self.body, live if self.by_carrier else segs,
-             live, tuple(nodes), box, r2 + 2 * g * q + 2 * g * g)
+        pts = live if self.by_carrier else segs
+        mx = self.moved_x - self.home_x
+        my = self.moved_y - self.home_y
+        sq = _squares(pts, mx, my)
+        h = (touches, last, len(touches), lost, self.body, pts, live, tuple(nodes), box,
+             r2 + 2 * g * q + 2 * g * g, [sq, _within(sq, mx, my) if sq else [], mx, my])
         self.held = h
         return h
+
+    def _rank(self, h):
+        """`_closer_h` of the arrival points where they are now (relative to
+        home), from `_held()` h's `_within`, measured again once the object
+        is more than NEAR_STEPS steps each way from where it was measured:
+        further on, more of the points it rules out come back."""
+        c = h[10]
+        mx = self.moved_x - self.home_x
+        my = self.moved_y - self.home_y
+        d = mx - c[2] if mx >= c[2] else c[2] - mx
+        e = my - c[3] if my >= c[3] else c[3] - my
+        if e > d:
+            d = e
+        if d > NEAR_STEPS and c[0]:
+            c[1] = _within(c[0], mx, my)
+            c[2] = mx
+            c[3] = my
+            d = 0
+        return _ranked(c[0], mx, my, c[1], d)
 
     def decision(self, before, out):
         """The thesis names its decisions: converged, step, delivered, halt."""
@@ -656,6 +776,8 @@ class Coordinator(Recognising, Roster):
         """True when tick() without a new message would neither send nor change
         anything (a batch engine then skips the call): before convergence
         with power short of the weight, and after the HALT went out."""
+        if self.converged_tick >= 0 and not self.done():
+            return False             # a transport: asked after every tick (the rest says so too)
         if self.outbox or self.acks or self.waiting:
             return False
         if self.done():
@@ -694,16 +816,20 @@ class Coordinator(Recognising, Roster):
                 or self.done() or self.converged_tick < 0 or self.power < self.weight \
                 or self.last_move_tick < 0 or self.leader_done == self.step:
             return 0
-        return min(self.step_sent_tick + RESEND_AFTER, self.last_move_tick + self.stall_ticks)
+        t = self.step_sent_tick + RESEND_AFTER
+        s = self.last_move_tick + self.stall_ticks
+        return t if t < s else s
 
     def tick(self, tick):
         """Advance the centralised phase; return and clear the commands to send."""
         if self.waiting:
             self._touch_waiting(tick)
-        self._acks_out(self.outbox)
-        if self.lost_after and not self.done():
+        if self.acks:                    # a transport tick has none
+            self._acks_out(self.outbox)
+        done = self.done()               # liveness changes holders, not this
+        if self.lost_after and not done:
             self._liveness(tick)
-        if self.done():
+        if done:
             if not self.halted:
                 self.halted = 1
                 self._send(msg.HOST, msg.HALT, (0,))
@@ -742,7 +868,7 @@ class Coordinator(Recognising, Roster):
             if self.closed is None and not self.lost_cells and not self.bumps:
                 # the open arena's plan measures where the points are now
                 # too: arrival reads that instead of a pass of its own
-                plan = _closer_h(h[5], self.moved_x - self.home_x, self.moved_y - self.home_y)
+                plan = self._rank(h)
             if self._home_reached(h, -2 if plan is None else plan[0]):
                 self.delivered_tick = tick
                 self.halted = 1
@@ -885,7 +1011,7 @@ class Coordinator(Recognising, Roster):
         if h is None:
             h = self._held()
         if plan is None:
-            plan = _closer_h(h[5], self.moved_x - self.home_x, self.moved_y - self.home_y)
+            plan = self._rank(h)
         ranked = plan[1]
         if ranked and self.world_size is not None and not self._inside(h[8], 1) \
                 and self._walled(ranked):
@@ -957,8 +1083,9 @@ class Coordinator(Recognising, Roster):
         # a batch plans tens of thousands of steps
         f = (self.step, self.dx, self.dy)
         out = self.outbox
+        kind = msg.TRANSPORT
         for node in (self._held() if h is None else h)[7]:
-            out.append((node, msg.TRANSPORT, f))
+            out.append((node, kind, f))
 
     # -- liveness: holders that fall silent (lost_after > 0) ---------------------
 
