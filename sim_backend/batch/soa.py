@@ -43,7 +43,7 @@ import time
 import traceback
 from collections import defaultdict
 from contextlib import contextmanager
-from functools import partial
+from functools import cached_property, partial
 from itertools import chain
 from pathlib import Path
 from types import ModuleType
@@ -676,20 +676,33 @@ class SoaEngine:
             out = np.zeros(len(self.robot_objs), dtype=np.int64)
             self.compiled.first_call(self._states_fn, self._states_args + (out,), "states_of")
 
-    def _exchange_entries(self) -> None:
-        """The compiled halves of the exchange (body.py `sift`, `deliver`),
-        loaded or compiled by a first call that does nothing, with the
-        arrays each reads and writes."""
+    # the exchange's halves (body.py `sift`, `deliver`) run as Python until
+    # the first tick loads them compiled (`_exchange_entries`): an engine
+    # built and not stepped delivers as a stepped one does
+    _sift_fn: Callable[..., int] = staticmethod(B.sift)
+    _deliver_fn: Callable[..., int] = staticmethod(B.deliver)
+
+    @cached_property
+    def _sift_args(self) -> tuple:
+        """`sift`'s arrays: the outbox, the mutes (exchange.BatchMutes), the
+        kept messages' rows and the ended clauses' senders it writes."""
         mutes = self.mutes
         self._kept = np.zeros((len(self.out_i), 3 + B.FIELDS), dtype=np.int64)
         self._ended = np.zeros(len(self.runs) + 1, dtype=np.int64)
+        return (self.out_i, self.out_kind, self.out_f, B.FIELDS, mutes.muted, mutes.repeats,
+                mutes.same, mutes.same_n, mutes.run_of, self._kept, self._ended)
+
+    @cached_property
+    def _deliver_args(self) -> tuple:
+        """`deliver`'s arrays: the inbox rings."""
+        return (self.in_kind, self.in_nf, self.in_f, self.rb[B.IN_HEAD], self.rb[B.IN_TAIL],
+                INBOX)
+
+    def _exchange_entries(self) -> None:
+        """The exchange's halves compiled, loaded or compiled by a first
+        call that changes nothing."""
         self._sift_fn = self.compiled.entry("sift")[0]
-        self._sift_args = (self.out_i, self.out_kind, self.out_f, B.FIELDS, mutes.muted,
-                           mutes.repeats, mutes.same, mutes.same_n, mutes.run_of, self._kept,
-                           self._ended)
         self._deliver_fn = self.compiled.entry("deliver")[0]
-        self._deliver_args = (self.in_kind, self.in_nf, self.in_f, self.rb[B.IN_HEAD],
-                              self.rb[B.IN_TAIL], INBOX)
         none = np.zeros(3, dtype=np.int64)
         self.compiled.first_call(self._sift_fn, self._sift_args + (0,), "sift")
         self.compiled.first_call(self._deliver_fn, self._deliver_args + (none, none, 0),
