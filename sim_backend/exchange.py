@@ -94,7 +94,7 @@ class BatchMutes:
         # per run, its repeat clause's fields and how many (-1: no message's)
         self.same = np.zeros((len(coords), FIELDS), dtype=np.int64)
         self.same_n = np.full(len(coords), -1, dtype=np.int64)
-        self._rows = memoryview(self.same)      # an item written for a tenth of numpy's price
+        self._rows = self.same.data      # refuses a float numpy would truncate: _same
         for r, c in enumerate(coords):
             self.update(r, c)
 
