@@ -13,11 +13,15 @@ are sim_backend/coordinator.py's `Muted` and `Idling`.
 
 from __future__ import annotations
 
+import struct
 from typing import Any, Iterable, Sequence
 
+from sim_backend.batch.body import FIELDS
 from sim_backend.coordinator import Idling, Muted, has
 
 NEVER = 1 << 62       # a `wake` tick no run reaches
+# a repeat clause's fields as a row of int64 (BatchMutes._same), by their count
+_PACK = tuple(struct.Struct(f"={k}q") for k in range(FIELDS + 1))
 
 
 class Muting:
@@ -83,7 +87,6 @@ class BatchMutes:
     def __init__(self, coords: Sequence[Any], lo: Sequence[int], agents: Sequence[int],
                  run_of: Any) -> None:
         import numpy as np
-        from sim_backend.batch.body import FIELDS
         self.lo, self.agents, self.run_of = lo, agents, run_of
         self.mutes = [HEARS_ALL] * len(coords)
         # per sender robot, the kind its run's declaration drops from it,
@@ -94,7 +97,7 @@ class BatchMutes:
         # per run, its repeat clause's fields and how many (-1: no message's)
         self.same = np.zeros((len(coords), FIELDS), dtype=np.int64)
         self.same_n = np.full(len(coords), -1, dtype=np.int64)
-        self._rows = self.same.data      # refuses a float numpy would truncate: _same
+        self._bytes, self._ns = self.same.data.cast("B"), self.same_n.data
         for r, c in enumerate(coords):
             self.update(r, c)
 
@@ -123,19 +126,16 @@ class BatchMutes:
                 self.muted[lo + node - 1] = m.kind
 
     def _same(self, r: int, same: tuple) -> None:
-        """Run r's repeat fields into its row; fields no message carries
-        (too many, not integers, past int64: the memoryview refuses those as
-        numpy would not) are a row no message's equals."""
-        row = self._rows
+        """Run r's repeat fields into its row, packed in one call (struct
+        refuses what no message carries: a float numpy would truncate, a
+        value past int64, more fields than a message holds); refused, the
+        row is one no message's fields equal."""
         try:
-            if len(same) > self.same.shape[1]:
-                raise ValueError
-            for j, v in enumerate(same):
-                row[r, j] = v
-        except (TypeError, ValueError):
-            self.same_n[r] = -1
+            _PACK[len(same)].pack_into(self._bytes, r * self.same.strides[0], *same)
+        except (struct.error, IndexError):
+            self._ns[r] = -1
             return
-        self.same_n[r] = len(same)
+        self._ns[r] = len(same)
 
     def end(self, ended: Any) -> None:
         """The repeat clauses `sift` ended (ended[0] senders, ended[1:]),
