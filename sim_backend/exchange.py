@@ -16,12 +16,9 @@ from __future__ import annotations
 import struct
 from typing import Any, Iterable, Sequence
 
-from sim_backend.batch.body import FIELDS
 from sim_backend.coordinator import Idling, Muted, has
 
 NEVER = 1 << 62       # a `wake` tick no run reaches
-# a repeat clause's fields as a row of int64 (BatchMutes._same), by their count
-_PACK = tuple(struct.Struct(f"={k}q") for k in range(FIELDS + 1))
 
 
 class Muting:
@@ -87,6 +84,8 @@ class BatchMutes:
     def __init__(self, coords: Sequence[Any], lo: Sequence[int], agents: Sequence[int],
                  run_of: Any) -> None:
         import numpy as np
+        # here, not at import: the host process (bridge/host) loads no kernel
+        from sim_backend.batch.body import FIELDS
         self.lo, self.agents, self.run_of = lo, agents, run_of
         self.mutes = [HEARS_ALL] * len(coords)
         # per sender robot, the kind its run's declaration drops from it,
@@ -98,6 +97,8 @@ class BatchMutes:
         self.same = np.zeros((len(coords), FIELDS), dtype=np.int64)
         self.same_n = np.full(len(coords), -1, dtype=np.int64)
         self._bytes, self._ns = self.same.data.cast("B"), self.same_n.data
+        # a clause's fields as a row of int64, by their count
+        self._pack = tuple(struct.Struct(f"={k}q") for k in range(FIELDS + 1))
         for r, c in enumerate(coords):
             self.update(r, c)
 
@@ -131,7 +132,7 @@ class BatchMutes:
         value past int64, more fields than a message holds); refused, the
         row is one no message's fields equal."""
         try:
-            _PACK[len(same)].pack_into(self._bytes, r * self.same.strides[0], *same)
+            self._pack[len(same)].pack_into(self._bytes, r * self.same.strides[0], *same)
         except (struct.error, IndexError):
             self._ns[r] = -1
             return
