@@ -13,6 +13,7 @@ are sim_backend/coordinator.py's `Muted` and `Idling`.
 
 from __future__ import annotations
 
+import struct
 from typing import Any, Iterable, Sequence
 
 from sim_backend.coordinator import Idling, Muted, has
@@ -76,18 +77,28 @@ class BatchMutes:
     """The muted() declarations of a batch's coordinators (one per run, robots
     lo[r] .. lo[r] + agents[r] - 1 of the batch nodes 1..agents[r]) held as
     arrays, so a batch engine drops the messages they mute in bulk, before
-    decoding any (`keep`), by the rule `Muting.drops` follows one by one;
-    `update(r, c)` after each tick() of run r's coordinator c."""
+    decoding any, by the rule `Muting.drops` follows one by one: body.py's
+    `sift` over these arrays (compiled by the batch engine; `keep` runs it
+    as Python); `update(r, c)` after each tick() of run r's coordinator c."""
 
     def __init__(self, coords: Sequence[Any], lo: Sequence[int], agents: Sequence[int],
                  run_of: Any) -> None:
         import numpy as np
+        # here, not at import: the host process (bridge/host) loads no kernel
+        from sim_backend.batch.body import FIELDS
         self.lo, self.agents, self.run_of = lo, agents, run_of
         self.mutes = [HEARS_ALL] * len(coords)
         # per sender robot, the kind its run's declaration drops from it,
-        # and the kind of its repeat clause (-1: none, no message's kind)
+        # and the kind of its repeat clause (-1: none, no message's kind),
+        # set exactly while that run's Muting has one (`same`)
         self.muted = np.full(len(run_of), -1, dtype=np.int64)
         self.repeats = np.full(len(run_of), -1, dtype=np.int64)
+        # per run, its repeat clause's fields and how many (-1: no message's)
+        self.same = np.zeros((len(coords), FIELDS), dtype=np.int64)
+        self.same_n = np.full(len(coords), -1, dtype=np.int64)
+        self._bytes, self._ns = self.same.data.cast("B"), self.same_n.data
+        # a clause's fields as a row of int64, by their count
+        self._pack = tuple(struct.Struct(f"={k}q") for k in range(FIELDS + 1))
         for r, c in enumerate(coords):
             self.update(r, c)
 
@@ -98,6 +109,8 @@ class BatchMutes:
             return
         self.mutes[r] = m
         lo, n = self.lo[r], self.agents[r]
+        if m.same is not None:
+            self._same(r, m.same)
         # a new repeat clause of the same sender and kind (each transport
         # step's): its mark stands
         if not (prev.same is not None and m.same is not None and prev.node == m.node
@@ -113,23 +126,40 @@ class BatchMutes:
             if 1 <= node <= n:
                 self.muted[lo + node - 1] = m.kind
 
+    def _same(self, r: int, same: tuple) -> None:
+        """Run r's repeat fields into its row, packed in one call (struct
+        refuses what no message carries: a float numpy would truncate, a
+        value past int64, more fields than a message holds); refused, the
+        row is one no message's fields equal."""
+        try:
+            self._pack[len(same)].pack_into(self._bytes, r * self.same.strides[0], *same)
+        except (struct.error, IndexError):
+            self._ns[r] = -1
+            return
+        self._ns[r] = len(same)
+
+    def end(self, ended: Any) -> None:
+        """The repeat clauses `sift` ended (ended[0] senders, ended[1:]),
+        ended in their runs' declarations too (as Muting.drops ends one)."""
+        for i in ended[1:1 + int(ended[0])].tolist():
+            self.mutes[int(self.run_of[i])].same = None
+
     def keep(self, robot: Any, kind: Any, fields: Any) -> Any:
         """Which messages (sender robot, kind, fields: arrays, one row of
         fields each, in the order sent) reach their coordinators."""
         import numpy as np
-        keep = self.muted[robot] != kind
-        rep = np.flatnonzero(self.repeats[robot] == kind)
-        if len(rep):
-            # a few a tick (one sender a run): each by the rule itself
-            run_of = self.run_of
-            for j, i, f in zip(rep.tolist(), robot[rep].tolist(), fields[rep].tolist()):
-                m = self.mutes[run_of[i]]
-                if m.same is None:           # ended by an earlier message
-                    self.repeats[i] = -1
-                    continue
-                if m.drops(m.node, m.kind, f[:len(m.same)]):
-                    keep[j] = False
-        return keep
+        from sim_backend.batch.body import sift
+        n, width = len(robot), fields.shape[1]
+        kept = np.zeros((n, 3 + width), dtype=np.int64)
+        ended = np.zeros(len(self.run_of) + 1, dtype=np.int64)
+        # a clause longer than a message's fields: no message repeats it
+        same_n = np.where(self.same_n > width, -1, self.same_n)
+        k = sift(robot, kind, fields, width, self.muted, self.repeats, self.same, same_n,
+                 self.run_of, kept, ended, n)
+        self.end(ended)
+        out = np.zeros(n, dtype=bool)
+        out[kept[:k, 0]] = True
+        return out
 
 
 def quiet(c: Any) -> bool:

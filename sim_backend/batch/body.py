@@ -246,3 +246,80 @@ def states_of(robots, out):
     """Every robot's FSM state, for traces."""
     for i in range(len(robots)):
         out[i] = robots[i].state
+
+
+def sift(out_i, out_kind, out_f, width, muted, repeats, same, same_n, run, kept, ended, n):
+    """The first n messages of the outbox (sender robot, kind, `width`
+    fields each) that reach their coordinators, by the rule of
+    sim_backend/exchange.py's Muting.drops, in the order sent: into kept's
+    rows (message number, sender, kind, fields); returns how many. A
+    message of the kind `muted` marks for its sender is dropped; one of the
+    kind of its sender's repeat clause (`repeats`) is dropped while its
+    first same_n[r] fields are its run r's `same` (same_n -1: none are),
+    and otherwise kept, ending the clause: the sender goes into `ended`
+    (ended[0] counts them) for the host's declaration to end it too."""
+    k = 0
+    e = 0
+    for j in range(n):
+        i = out_i[j]
+        kind = out_kind[j]
+        if muted[i] == kind:
+            continue
+        if repeats[i] == kind:
+            r = run[i]
+            m = same_n[r]
+            hit = 1 if m >= 0 else 0
+            c = 0
+            while hit == 1 and c < m:
+                if out_f[j, c] != same[r, c]:
+                    hit = 0
+                c += 1
+            if hit == 1:
+                continue
+            repeats[i] = -1
+            e += 1
+            ended[e] = i
+        kept[k, 0] = j
+        kept[k, 1] = i
+        kept[k, 2] = kind
+        for c in range(width):
+            kept[k, 3 + c] = out_f[j, c]
+        k += 1
+    ended[0] = e
+    return k
+
+
+def deliver(in_kind, in_nf, in_f, in_head, in_tail, inbox, todo, table, m):
+    """Commands into the robots' inbox rings: m spans of todo (first robot,
+    robots, row of `table`: kind, field count, FIELDS fields), each robot's
+    in the order given. Nothing is written when one would find its robot's
+    ring full: returns that robot, else -1."""
+    w = 2 + FIELDS
+    bad = -1
+    j = 0
+    while j < m and bad < 0:
+        first = todo[3 * j]
+        for i in range(first, first + todo[3 * j + 1]):
+            if bad < 0 and in_tail[i] - in_head[i] >= inbox:
+                bad = i
+            in_tail[i] += 1
+        j += 1
+    for s in range(j):       # the count's own increments, undone
+        first = todo[3 * s]
+        for i in range(first, first + todo[3 * s + 1]):
+            in_tail[i] -= 1
+    if bad >= 0:
+        return bad
+    for s in range(m):
+        first = todo[3 * s]
+        row = todo[3 * s + 2] * w
+        kind = table[row]
+        nf = table[row + 1]
+        for i in range(first, first + todo[3 * s + 1]):
+            slot = in_tail[i] % inbox
+            in_kind[i, slot] = kind
+            in_nf[i, slot] = nf
+            for c in range(FIELDS):
+                in_f[i, slot, c] = table[row + 2 + c]
+            in_tail[i] += 1
+    return -1

@@ -43,7 +43,7 @@ import time
 import traceback
 from collections import defaultdict
 from contextlib import contextmanager
-from functools import partial
+from functools import cached_property, partial
 from itertools import chain
 from pathlib import Path
 from types import ModuleType
@@ -364,7 +364,10 @@ def _compile_batch(robots: list[Any], body: Any) -> tuple[T.Layout, Compiled, di
     rcls = type(robots[0])
     body_cls = type(body)
     entries = {"tick_all": (B.tick_all, (T.ListOf(rcls), T.Inst(body_cls), T.SCALAR)),
-               "states_of": (B.states_of, (T.ListOf(rcls), T.SCALAR))}
+               "states_of": (B.states_of, (T.ListOf(rcls), T.SCALAR)),
+               # the host's exchange: each a few numpy calls' work in one call
+               "sift": (B.sift, (T.SCALAR,) * 12),
+               "deliver": (B.deliver, (T.SCALAR,) * 9)}
     source, names = generated(layout, entries)
     key = hashlib.sha256(source.encode()).hexdigest()
     comp = _LOADED.get(key)
@@ -671,9 +674,42 @@ class SoaEngine:
         """The first tick: the calls that load the step from the disk cache,
         or compile it."""
         self.compiled.first_call(self._tick_fn, self._tick_args + (0, t), "tick_all")
+        self._exchange_entries()
         if self.record:
             out = np.zeros(len(self.robot_objs), dtype=np.int64)
             self.compiled.first_call(self._states_fn, self._states_args + (out,), "states_of")
+
+    # the exchange's halves (body.py `sift`, `deliver`) run as Python until
+    # the first tick loads them compiled (`_exchange_entries`): an engine
+    # built and not stepped delivers as a stepped one does
+    _sift_fn: Callable[..., int] = staticmethod(B.sift)
+    _deliver_fn: Callable[..., int] = staticmethod(B.deliver)
+
+    @cached_property
+    def _sift_args(self) -> tuple:
+        """`sift`'s arrays: the outbox, the mutes (exchange.BatchMutes), the
+        kept messages' rows and the ended clauses' senders it writes."""
+        mutes = self.mutes
+        self._kept = np.zeros((len(self.out_i), 3 + B.FIELDS), dtype=np.int64)
+        self._ended = np.zeros(len(self.runs) + 1, dtype=np.int64)
+        return (self.out_i, self.out_kind, self.out_f, B.FIELDS, mutes.muted, mutes.repeats,
+                mutes.same, mutes.same_n, mutes.run_of, self._kept, self._ended)
+
+    @cached_property
+    def _deliver_args(self) -> tuple:
+        """`deliver`'s arrays: the inbox rings."""
+        return (self.in_kind, self.in_nf, self.in_f, self.rb[B.IN_HEAD], self.rb[B.IN_TAIL],
+                INBOX)
+
+    def _exchange_entries(self) -> None:
+        """The exchange's halves compiled, loaded or compiled by a first
+        call that changes nothing."""
+        self._sift_fn = self.compiled.entry("sift")[0]
+        self._deliver_fn = self.compiled.entry("deliver")[0]
+        none = np.zeros(3, dtype=np.int64)
+        self.compiled.first_call(self._sift_fn, self._sift_args + (0,), "sift")
+        self.compiled.first_call(self._deliver_fn, self._deliver_args + (none, none, 0),
+                                 "deliver")
 
     # -- one tick ---------------------------------------------------------------------------
 
@@ -717,16 +753,17 @@ class SoaEngine:
         ups: dict[int, list[tuple[int, int, tuple]]] = {}
         mutes = self.mutes
         if n:
+            k = self._sift_fn(*self._sift_args, n)
+            if self._ended[0]:
+                mutes.end(self._ended)
             run_of, node_of, nfields = self.run_of, self.node_of, self.nfields
-            ii, kk = self.out_i[:n], self.out_kind[:n]
-            kept = np.flatnonzero(mutes.keep(ii, kk, self.out_f[:n]))
-            for i, kind, f in zip(ii[kept].tolist(), kk[kept].tolist(),
-                                  self.out_f[kept].tolist()):
+            for row in self._kept[:k].tolist():
+                i, kind = row[1], row[2]
                 r = run_of[i]
                 up = ups.get(r)
                 if up is None:
                     up = ups[r] = []
-                up.append((node_of[i], kind, tuple(f[:nfields[kind]])))
+                up.append((node_of[i], kind, tuple(row[3:3 + nfields[kind]])))
         woken = self.wake
         due = t >= self._soonest
         asked = set(np.flatnonzero(woken <= t).tolist()) if due else set()
@@ -759,23 +796,23 @@ class SoaEngine:
 
     def _deliver(self, sends: Sequence[tuple[int, Iterable[tuple[int, int, tuple]]]]) -> None:
         """Commands (run, [(node, kind, fields), ...]) into the robots'
-        inbox rings, each robot's in the order given: gathered, then one
-        fancy write per array. A tick delivers tens of commands (a
-        transport step's to each holder, one fields object for all) to
-        thousands (a HALT to every robot of a run, the first tick's ACK to
-        every robot): each distinct (kind, fields) is checked and padded to
-        a whole row once and a message is its robot and that row's number,
-        so the loop over messages only appends (the robot reads a row's
-        first `in_nf` fields only, body.py `recv`)."""
-        to: list[int] = []
-        which: list[int] = []
+        inbox rings, each robot's in the order given, by one compiled call
+        (body.py `deliver`) over spans of robots (first, count, row): a
+        command is one robot's span, a HALT to HOST its run's. A tick
+        delivers tens of commands (a transport step's to each holder, one
+        fields object for all) to thousands (a HALT to every robot of a
+        run, the first tick's ACK to every robot): each distinct (kind,
+        fields) is checked and padded to a whole row once and a message
+        names that row's number, so the loop over messages only appends
+        (the robot reads a row's first `in_nf` fields only, body.py `recv`)."""
+        todo: list[int] = []
         rows: dict[tuple[int, tuple], int] = {}   # (kind, fields) -> row number
-        table: list[tuple] = []                    # (kind, nf, *padded fields)
+        table: list[int] = []                      # rows of kind, nf, padded fields
         pad = _PAD
         lo_of, agents_of = self.lo, self.agents
         host = msg.HOST                  # 0: never a robot's node
         last_f, last_kind, k = None, -1, 0
-        to_robot, to_row = to.append, which.append
+        span, row_of = todo.extend, table.extend
         for r, out in sends:
             lo, agents = lo_of[r], agents_of[r]
             base = lo - 1                # node n is robot base + n
@@ -795,53 +832,25 @@ class SoaEngine:
                         if nf > B.FIELDS:
                             raise EngineError(f"run {r}: the coordinator sent {nf} fields, "
                                               f"more than a message holds ({B.FIELDS})")
-                        row = rows[key] = len(table)
-                        table.append((kind, nf) + tuple(f) + pad[nf])
+                        row = rows[key] = len(rows)
+                        row_of((kind, nf))
+                        row_of(f)
+                        row_of(pad[nf])
                     k = row
                 if 1 <= node <= agents:
-                    to_robot(base + node)
-                    to_row(k)
+                    span((base + node, 1, k))
                 elif node == host:
-                    to.extend(range(lo, lo + agents))
-                    which.extend([k] * agents)
+                    span((lo, agents, k))
                 else:
                     raise EngineError(f"run {r}: the coordinator addressed node {node}, "
                                       f"which is not one of its {agents} robots")
-        if not to:
+        if not todo:
             return
-        head, tail = self.rb[B.IN_HEAD], self.rb[B.IN_TAIL]
-        idx = np.array(to, dtype=np.int64)
-        pos = tail[idx]
-        once = len(set(to)) == len(to)
-        if not once:
-            # a robot's second command this tick goes after its first (a
-            # holder's ACK and TRANSPORT: most ticks of a batch), counted by
-            # array, not by a loop over every message
-            order = np.argsort(idx, kind="stable")
-            srt = idx[order]
-            new = np.empty(len(srt), dtype=bool)
-            new[0] = True
-            np.not_equal(srt[1:], srt[:-1], out=new[1:])
-            first = np.flatnonzero(new)
-            nth = np.empty_like(idx)
-            nth[order] = np.arange(len(srt)) - first[np.cumsum(new) - 1]
-            pos += nth
-        unread = pos - head[idx]
-        if unread.max() >= INBOX:
-            i = to[int(np.argmax(unread >= INBOX))]
+        i = self._deliver_fn(*self._deliver_args, np.array(todo, dtype=np.int64),
+                             np.array(table, dtype=np.int64), len(todo) // 3)
+        if i >= 0:
             r = self.run_of[i]
             raise EngineError(f"run {r}: robot {i - self.lo[r] + 1} has {INBOX} unread messages")
-        slot = pos % INBOX
-        got = np.array(table, dtype=np.int64)
-        if len(table) > 1:
-            got = got[which]
-        self.in_kind[idx, slot] = got[:, 0]
-        self.in_nf[idx, slot] = got[:, 1]
-        self.in_f[idx, slot] = got[:, 2:]
-        if once:
-            tail[idx] += 1
-        else:
-            tail[srt[first]] += np.diff(first, append=len(srt))
 
     # -- run ends -----------------------------------------------------------------------------
 
