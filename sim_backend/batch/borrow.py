@@ -16,6 +16,7 @@ the step allocates nothing.
 from typing import Any
 
 from llvmlite import ir
+from numba import njit
 from numba.core import cgutils, types
 from numba.core.compiler import Compiler
 from numba.extending import intrinsic
@@ -121,3 +122,14 @@ def clear(typingctx, ary, lo, hi):
             cgutils.memset(builder, ptr, size, 0)
         return context.get_dummy_value()
     return types.none(ary, lo, hi), codegen
+
+
+@njit(cache=True, forceinline=True)
+def fits(v: int) -> int:
+    """`v`, a value stored into an int32 table cell that the transform did
+    not prove to fit (transform.TABLE, FunctionTransform.proven), checked:
+    outside int32 it is an OverflowError, never a value wrapped round."""
+    if v < -2147483648 or v > 2147483647:
+        raise OverflowError("a value outside int32 stored into an int field "
+                            "(the batch engine's tables: sim_backend/batch/transform.py, TABLE)")
+    return v
