@@ -19,14 +19,8 @@ DONE = 3
 class _Toy:
     def __init__(self, param: int) -> None:
         self.param = param
-        self.state = 0
-        self.back = 0
         self.flag = False
-        self.count = 0
-        self.big = 0
-        self.turn = 0
-        self.pair = 0
-        self.other = 0
+        self.state = self.back = self.count = self.big = self.turn = self.pair = self.other = 0
 
     def step(self, x: int) -> None:
         self.state = DONE if x else 2      # module constant or literal: proved
