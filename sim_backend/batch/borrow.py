@@ -45,7 +45,7 @@ class NoAlias(Compiler):
     """numba's pipeline with every pointer argument `noalias`: an entry
     function's arrays are apart (transform.state_arrays checks it), so LLVM
     may keep a value it loaded from one array in a register across stores
-    to the others. Without it every store to any int64 table (a robot's
+    to the others. Without it every store to any table (a robot's
     heading, its random stream) made the step load again the robot's index,
     its run and the run's fields (w, n, base, rules, ...) behind every HAL
     call (docs/performance.md)."""

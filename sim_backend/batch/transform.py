@@ -5,10 +5,10 @@ jitclass instances are reference-counted on every method call and attribute
 read, and cannot be cached on disk); this module rewrites the same
 unmodified source instead:
 
-- every class becomes one array per field over all its instances
-  (ints -> int64[n], bools -> bool[n], lists of ints -> int64[n, len],
-  instances of other classes -> int64[n] indices into that class's arrays,
-  numpy arrays of a class with one instance -> the array itself); the field
+- every class becomes arrays over all its instances: its ints, bools and
+  instances of other classes (their indices into that class's arrays) one
+  int32[n, fields] table (TABLE), lists of ints -> int64[n, len], numpy
+  arrays of a class with one instance -> the array itself; the field
   types are read off the live CPython instances, which the CPython
   constructors build (so `__init__` is never transformed);
 - every method reached from the entry points becomes a plain function
