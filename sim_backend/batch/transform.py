@@ -90,7 +90,7 @@ SCALAR = "scalar"                    # anything the generated code passes throug
 # fixedpoint.py and rng.py): on a 32-bit board a wider one is a heap object
 # (MicroPython's small int ends there), which the step's 0-heap rule forbids,
 # so int32 holds every value a behaviour may keep, in half the bytes of int64 (the
-# thesis robot's row: 172 bytes, three lines a turn instead of six). The rule
+# thesis robot's row: 172 bytes, three or four lines, not six or seven). The rule
 # is enforced, not assumed: a start value outside int32 is refused at the
 # build (state_arrays), and a store the transform does not prove to fit
 # (`proven`) is checked when it runs (borrow.fits), a typed error, never a
