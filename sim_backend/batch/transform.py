@@ -541,8 +541,8 @@ class FunctionTransform:
         if isinstance(st, ast.AugAssign):
             target = self.store(st.target, SCALAR, st)
             value = self.scalar(st.value)
-            now = ast.BinOp(self.scalar(st.target), st.op, value)
-            if self.checked(target, now, None) is not now:       # a table cell
+            if self.cell(target):                # `t = fits(t op value)`: checked
+                now = ast.BinOp(self.scalar(st.target), st.op, value)
                 return ast.Assign(targets=[target], value=self.checked(target, now, None))
             return ast.AugAssign(target=target, op=st.op, value=value)
         if isinstance(st, ast.If):
@@ -676,13 +676,17 @@ class FunctionTransform:
             return all(self.proven(v) for v in e.values)
         return False
 
+    def cell(self, target: ast.expr) -> bool:
+        """Whether a generated store target is a cell of a class's table."""
+        return isinstance(target, ast.Subscript) and isinstance(target.value, ast.Attribute) \
+            and any(target.value.attr == ints_name(c) for c in self.p.layout.classes.values())
+
     def checked(self, target: ast.expr, value: ast.expr, source: ast.expr | None) -> ast.expr:
         """`value` to store into `target`: itself, or borrow.fits(value) (a
         typed error for a value outside TABLE) when the target is a table
         cell and its `source` is not proven to fit (None: not one
         expression)."""
-        if not (isinstance(target, ast.Subscript) and isinstance(target.value, ast.Attribute)
-                and target.value.attr.endswith("__ints")):
+        if not self.cell(target):
             return value
         if source is not None and self.proven(source):
             return value
