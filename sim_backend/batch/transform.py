@@ -99,7 +99,7 @@ TABLE = np.int32
 TABLE_LO, TABLE_HI = int(np.iinfo(TABLE).min), int(np.iinfo(TABLE).max)
 
 
-def fits(v: Any) -> bool:
+def in_table(v: Any) -> bool:
     return isinstance(v, int) and TABLE_LO <= v <= TABLE_HI      # a bool is an int
 
 
@@ -655,21 +655,21 @@ class FunctionTransform:
         of an object (a table cell: every store into one fits, proved or
         checked)."""
         if isinstance(e, ast.Constant):
-            return fits(e.value)
+            return in_table(e.value)
         if isinstance(e, ast.Name):
-            return e.id not in self.locals and e.id in self.glob and fits(self.glob[e.id])
+            return e.id not in self.locals and e.id in self.glob and in_table(self.glob[e.id])
         if isinstance(e, ast.Attribute):
             _, kind = self.expr(e.value)
             if isinstance(kind, Inst):
                 f = self.p.layout.classes[kind.cls].fields.get(e.attr)
                 return f is not None and f[0] in ("int", "bool", "inst")
             return isinstance(kind, tuple) and kind[0] == "module" and \
-                fits(getattr(kind[1], e.attr, None))
+                in_table(getattr(kind[1], e.attr, None))
         if isinstance(e, ast.Compare) or (isinstance(e, ast.UnaryOp) and isinstance(e.op, ast.Not)):
             return True
         if isinstance(e, ast.BinOp) and isinstance(e.op, ast.Mod):    # 0..m-1: Python's sign rule
             m = e.right.value if isinstance(e.right, ast.Constant) else None
-            return isinstance(m, int) and 0 < m and fits(m - 1)
+            return isinstance(m, int) and 0 < m and in_table(m - 1)
         if isinstance(e, ast.IfExp):
             return self.proven(e.body) and self.proven(e.orelse)
         if isinstance(e, ast.BoolOp):
