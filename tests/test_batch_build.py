@@ -154,7 +154,8 @@ def test_a_batch_laid_out_at_once_refuses_what_one_by_one_refuses(change, field)
 
 def test_state_arrays_table_holds_every_int_and_bool_field_of_every_instance():
     robots = _robots(4)
-    robots[5].heading = 2 ** 62          # far past what a column of small ints holds
+    robots[5].heading = 2 ** 31 - 1      # the int32 table's edge (transform.TABLE)
+    robots[6].heading = -2 ** 31
     lay = T.Layout()
     lay.add_all(robots)
     arrays = _arrays(lay)
@@ -167,3 +168,12 @@ def test_state_arrays_table_holds_every_int_and_bool_field_of_every_instance():
             elif f[0] == "inst":
                 assert [row[cl.columns[attr]] for row in table] == \
                     [lay.index[id(getattr(o, attr))][1] for o in cl.instances]
+
+
+def test_state_arrays_refuse_a_value_past_the_int32_table_by_name():
+    robots = _robots(4)
+    robots[5].heading = 2 ** 62          # a board's int holds 31 bits; no wrapping here
+    lay = T.Layout()
+    lay.add_all(robots)
+    with pytest.raises(CompileError, match=r"Robot\.heading = 4611686018427387904: outside"):
+        _arrays(lay)

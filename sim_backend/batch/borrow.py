@@ -16,6 +16,7 @@ the step allocates nothing.
 from typing import Any
 
 from llvmlite import ir
+from numba import njit
 from numba.core import cgutils, types
 from numba.core.compiler import Compiler
 from numba.extending import intrinsic
@@ -44,7 +45,7 @@ class NoAlias(Compiler):
     """numba's pipeline with every pointer argument `noalias`: an entry
     function's arrays are apart (transform.state_arrays checks it), so LLVM
     may keep a value it loaded from one array in a register across stores
-    to the others. Without it every store to any int64 table (a robot's
+    to the others. Without it every store to any table (a robot's
     heading, its random stream) made the step load again the robot's index,
     its run and the run's fields (w, n, base, rules, ...) behind every HAL
     call (docs/performance.md)."""
@@ -121,3 +122,14 @@ def clear(typingctx, ary, lo, hi):
             cgutils.memset(builder, ptr, size, 0)
         return context.get_dummy_value()
     return types.none(ary, lo, hi), codegen
+
+
+@njit(cache=True, forceinline=True)
+def fits(v: int) -> int:
+    """`v`, a value stored into an int32 table cell that the transform did
+    not prove to fit (transform.TABLE, FunctionTransform.proven), checked:
+    outside int32 it is an OverflowError, never a value wrapped round."""
+    if v < -2147483648 or v > 2147483647:
+        raise OverflowError("a value outside int32 stored into an int field "
+                            "(the batch engine's tables: sim_backend/batch/transform.py, TABLE)")
+    return v

@@ -5,10 +5,10 @@ jitclass instances are reference-counted on every method call and attribute
 read, and cannot be cached on disk); this module rewrites the same
 unmodified source instead:
 
-- every class becomes one array per field over all its instances
-  (ints -> int64[n], bools -> bool[n], lists of ints -> int64[n, len],
-  instances of other classes -> int64[n] indices into that class's arrays,
-  numpy arrays of a class with one instance -> the array itself); the field
+- every class becomes arrays over all its instances: its ints, bools and
+  instances of other classes (their indices into that class's arrays) one
+  int32[n, fields] table (TABLE), lists of ints -> int64[n, len], numpy
+  arrays of a class with one instance -> the array itself; the field
   types are read off the live CPython instances, which the CPython
   constructors build (so `__init__` is never transformed);
 - every method reached from the entry points becomes a plain function
@@ -50,7 +50,7 @@ from sim_backend.errors import CompileError
 
 STATE = "_soa"                      # the state placeholder of every function
 # part of the generated text, so a new borrow or inlining rule is a new cache entry
-CODEGEN = "borrowed noalias entries, per-robot path inlined, prefetch"
+CODEGEN = "borrowed noalias entries, per-robot path inlined, prefetch, int32 tables"
 BUILTINS = {"range", "len", "abs", "min", "max", "int", "bool"}
 CONSTANT_TYPES = (bool, int, float, str, type(None))
 # plain functions the generated code calls as borrow.py's numba intrinsic of
@@ -85,6 +85,23 @@ class Row:
 
 SCALAR = "scalar"                    # anything the generated code passes through
 
+# The element of every class's table of int, bool and object fields. A
+# firmware-subset int lives in 31 bits (|x| < 2**30, firmware_logic/
+# fixedpoint.py and rng.py): on a 32-bit board a wider one is a heap object
+# (MicroPython's small int ends there), which the step's 0-heap rule forbids,
+# so int32 holds every value a behaviour may keep, in half the bytes of int64 (the
+# thesis robot's row: 172 bytes, three or four lines, not six or seven). The rule
+# is enforced, not assumed: a start value outside int32 is refused at the
+# build (state_arrays), and a store the transform does not prove to fit
+# (`proven`) is checked when it runs (borrow.fits), a typed error, never a
+# value wrapped round. List fields (message buffers the host fills) stay int64.
+TABLE = np.int32
+TABLE_LO, TABLE_HI = int(np.iinfo(TABLE).min), int(np.iinfo(TABLE).max)
+
+
+def in_table(v: Any) -> bool:
+    return isinstance(v, int) and TABLE_LO <= v <= TABLE_HI      # a bool is an int
+
 
 # -- the layout: classes and their fields ------------------------------------------
 
@@ -101,7 +118,7 @@ class ClassLayout:
 
     def finish(self) -> None:
         """Where each field lives: ints, bools and object indices in one
-        int64[n, columns] table (one instance's fields side by side); an array field that is row k of a bigger array
+        TABLE[n, columns] table (one instance's fields side by side); an array field that is row k of a bigger array
         as (that array, k), so a function takes the few base arrays, not
         dozens of rows."""
         self.columns.clear()
@@ -523,7 +540,11 @@ class FunctionTransform:
             return self.assign(st.targets[0], st.value, st)
         if isinstance(st, ast.AugAssign):
             target = self.store(st.target, SCALAR, st)
-            return ast.AugAssign(target=target, op=st.op, value=self.scalar(st.value))
+            value = self.scalar(st.value)
+            if self.cell(target):                # `t = fits(t op value)`: checked
+                now = ast.BinOp(self.scalar(st.target), st.op, value)
+                return ast.Assign(targets=[target], value=self.checked(target, now, None))
+            return ast.AugAssign(target=target, op=st.op, value=value)
         if isinstance(st, ast.If):
             return ast.If(test=self.scalar(st.test), body=self.block(st.body),
                           orelse=self.block(st.orelse))
@@ -557,6 +578,7 @@ class FunctionTransform:
                 raise _err(self.fn, st, "unpacking anything but a tuple display")
             vals = [self.scalar(v) for v in value.elts]
             tgts: list[ast.expr] = [self.store(t, SCALAR, st) for t in target.elts]
+            vals = [self.checked(t, v, src) for t, v, src in zip(tgts, vals, value.elts)]
             return ast.Assign(targets=[ast.Tuple(tgts, ast.Store())],
                               value=ast.Tuple(vals, ast.Load()))
         v, kind = self.expr(value)
@@ -564,7 +586,8 @@ class FunctionTransform:
             v, kind = ast.Subscript(self._row_arr(kind), kind.index, ast.Load()), SCALAR
         if isinstance(kind, ListOf):
             raise _err(self.fn, st, "a list of objects stored in a variable")
-        return ast.Assign(targets=[self.store(target, kind, st)], value=v)
+        t = self.store(target, kind, st)
+        return ast.Assign(targets=[t], value=self.checked(t, v, value))
 
     def store(self, target: ast.expr, kind: Any, st: ast.AST
               ) -> ast.Name | ast.Attribute | ast.Subscript:
@@ -624,6 +647,50 @@ class FunctionTransform:
 
     def _row_arr(self, row: Row) -> ast.expr:
         return self.state(row.arr)
+
+    def proven(self, e: ast.expr) -> bool:
+        """Whether every value of source expression `e` fits TABLE: an int
+        literal or module constant that does, a comparison or `not`, a
+        remainder by a positive literal, a conditional or `and`/`or` of such, or an int, bool or object field
+        of an object (a table cell: every store into one fits, proved or
+        checked)."""
+        if isinstance(e, ast.Constant):
+            return in_table(e.value)
+        if isinstance(e, ast.Name):
+            return e.id not in self.locals and e.id in self.glob and in_table(self.glob[e.id])
+        if isinstance(e, ast.Attribute):
+            _, kind = self.expr(e.value)
+            if isinstance(kind, Inst):
+                f = self.p.layout.classes[kind.cls].fields.get(e.attr)
+                return f is not None and f[0] in ("int", "bool", "inst")
+            return isinstance(kind, tuple) and kind[0] == "module" and \
+                in_table(getattr(kind[1], e.attr, None))
+        if isinstance(e, ast.Compare) or (isinstance(e, ast.UnaryOp) and isinstance(e.op, ast.Not)):
+            return True
+        if isinstance(e, ast.BinOp) and isinstance(e.op, ast.Mod):    # 0..m-1: Python's sign rule
+            m = e.right.value if isinstance(e.right, ast.Constant) else None
+            return isinstance(m, int) and 0 < m and in_table(m - 1)
+        if isinstance(e, ast.IfExp):
+            return self.proven(e.body) and self.proven(e.orelse)
+        if isinstance(e, ast.BoolOp):
+            return all(self.proven(v) for v in e.values)
+        return False
+
+    def cell(self, target: ast.expr) -> bool:
+        """Whether a generated store target is a cell of a class's table."""
+        return isinstance(target, ast.Subscript) and isinstance(target.value, ast.Attribute) \
+            and any(target.value.attr == ints_name(c) for c in self.p.layout.classes.values())
+
+    def checked(self, target: ast.expr, value: ast.expr, source: ast.expr | None) -> ast.expr:
+        """`value` to store into `target`: itself, or borrow.fits(value) (a
+        typed error for a value outside TABLE) when the target is a table
+        cell and its `source` is not proven to fit (None: not one
+        expression)."""
+        if not self.cell(target):
+            return value
+        if source is not None and self.proven(source):
+            return value
+        return ast.Call(ast.Name("fits", ast.Load()), [value], [])
 
     def scalar(self, e: ast.expr, what: str = "an object used as a value") -> ast.expr:
         v, kind = self.expr(e)
@@ -889,11 +956,13 @@ def generate_with_inputs(layout: Layout, entries: dict[str, tuple[FunctionType, 
     lines = ['"""Generated by sim_backend/batch/transform.py from the firmware source; '
              'do not edit."""',
              "from numba import njit",
-             f"from sim_backend.batch.borrow import NoAlias, borrow, clear, prefetch  # {CODEGEN}",
+             f"from sim_backend.batch.borrow import NoAlias, borrow, clear, fits, prefetch  "
+             f"# {CODEGEN}",
              ""]
     for cl in layout.classes.values():
         cols = ", ".join(f"{a}={k}" for a, k in cl.columns.items())
-        lines.append(f"# {ints_name(cl)}[i, k] holds {cl.cls.__qualname__}.{{{cols}}}")
+        lines.append(f"# {ints_name(cl)}[i, k] ({np.dtype(TABLE).name}) holds "
+                     f"{cl.cls.__qualname__}.{{{cols}}}")
         for attr, (j, k) in cl.views.items():
             lines.append(f"# {cl.cls.__qualname__}.{attr} is {base_name(cl, j)}[{k}]")
     lines.append("")
@@ -1069,7 +1138,7 @@ def state_arrays(layout: Layout) -> dict[str, Any]:
     for cl in layout.classes.values():
         n = len(cl.instances)
         out[count_name(cl)] = n
-        ints = np.zeros((n, max(1, len(cl.columns))), dtype=np.int64)
+        ints = np.zeros((n, max(1, len(cl.columns))), dtype=TABLE)
         out[ints_name(cl)] = ints
         for j, b in enumerate(cl.bases):
             out[base_name(cl, j)] = b
@@ -1079,6 +1148,11 @@ def state_arrays(layout: Layout) -> dict[str, Any]:
             if attr in cl.columns:
                 if f[0] == "inst":
                     vals = [layout.index[id(v)][1] for v in vals]
+                if vals and not (TABLE_LO <= min(vals) and max(vals) <= TABLE_HI):
+                    bad = next(v for v in vals if not TABLE_LO <= v <= TABLE_HI)
+                    raise CompileError(f"{cl.cls.__name__}.{attr} = {bad}: outside the "
+                                       f"{np.dtype(TABLE).name} the batch engine keeps an int "
+                                       "field in (a firmware int lives in 31 bits)")
                 ints[:, cl.columns[attr]] = vals
             elif f[0] == "row":
                 a = np.zeros((n, f[1]), dtype=np.int64)
