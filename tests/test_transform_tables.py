@@ -2,7 +2,8 @@
 bool and object field of a class is a cell of one int32 table; a store the
 transform proves to fit is a plain store, any other is checked when it runs
 (borrow.fits), and a start value outside int32 is refused at the build: a
-typed error either way, never a value wrapped round. Nothing here compiles:
+typed error either way, never a value wrapped round. Nothing here compiles
+but the last test, which steps the thesis batch (the suite's shared step):
 the rule is read off the layout and the generated text, and the check runs
 as Python."""
 
@@ -105,3 +106,20 @@ def test_fields_come_back_from_the_int32_table():
     toy = cl.instances[1]
     assert (toy.param, toy.state, toy.flag, toy.count) == (5, 2, True, 2 ** 31 - 1)
     assert type(toy.count) is int and cl.instances[0].flag is False
+
+
+def test_a_stepped_value_past_int32_stops_the_batch_with_a_typed_one_line_error():
+    # the thesis robot counts its ticks (`ticks += 1`, a checked store): one
+    # robot's count set at the int32 edge overflows at the next tick, and the
+    # batch refuses it by tick instead of wrapping it round
+    from sim_backend.batch.soa import SoaEngine
+    from sim_backend.errors import EngineError
+    from sim_backend.scenario import validate
+    eng = SoaEngine([(validate({"agents": 3, "objectWeight": 2}), 1)])
+    eng.step()
+    cl = next(c for c in eng.layout.classes.values() if "ticks" in c.columns)
+    table = eng.arrays[T.ints_name(cl)]
+    table[0, cl.columns["ticks"]] = 2 ** 31 - 1
+    with pytest.raises(EngineError, match=r"^tick 2: a behaviour's field left") as e:
+        eng.step()
+    assert "\n" not in str(e.value)

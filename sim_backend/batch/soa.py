@@ -720,13 +720,21 @@ class SoaEngine:
     def _step(self) -> None:
         self.tick += 1
         t = self.tick
-        if not self._step_once_compiled:
-            c0 = time.perf_counter()
-            self._first_tick(t)
-            SoaEngine.compile_seconds += time.perf_counter() - c0
-            self._step_once_compiled = True
-        else:
-            self._tick(t)
+        try:
+            if not self._step_once_compiled:
+                c0 = time.perf_counter()
+                self._first_tick(t)
+                SoaEngine.compile_seconds += time.perf_counter() - c0
+                self._step_once_compiled = True
+            else:
+                self._tick(t)
+        except OverflowError as e:
+            # borrow.fits: a behaviour's int left the int32 the tables hold
+            # (a firmware int lives in 31 bits); the compiled step cannot
+            # say which field, the reference engine runs the same code
+            raise EngineError(f"tick {t}: a behaviour's field left the firmware int range "
+                              f"({e}): an int the firmware subset does not hold (|x| < 2**30 on a "
+                              "32-bit board)") from None
         if self.out_n[1]:
             raise EngineError(f"tick {t}: a robot sent more than {SENDS_PER_ROBOT} messages "
                               "in one tick (the batch engine's outbox is full)")
