@@ -68,6 +68,12 @@ INBOX = 16            # messages a robot may have waiting (the host sends a few 
 SENDS_PER_ROBOT = 8   # messages a robot may send in one tick
 PREFIX = "_touchswarm_soa_"
 # zeros that fill a command's fields to a whole row of the inbox, by its field count
+# a finished run's World: its grids (kernel.GRID_FIELDS rows, attribute
+# names), robot rows and where its share of the batch's arrays lies
+_WORLD_GRIDS = ((B.OBJ, "obj"), (B.OWNER, "owner"), (B.FIELD, "field"), (B.OCC, "occ"),
+                (B.STAMP, "stamp"))
+_ROBOT_ROWS = np.array([B.XS, B.YS, B.HELD])
+_BOUNDS = np.array([B.LO, B.HI, B.C0, B.C1])
 _PAD = tuple((0,) * (B.FIELDS - n) for n in range(B.FIELDS + 1))
 
 
@@ -866,20 +872,20 @@ class SoaEngine:
         robots are first read, its robots back into their CPython objects,
         as the reference engine leaves them. Late is the same: a finished
         run is never ticked again (an instance its robots shared with a live
-        run's would be read as it is then; no behaviour's robots share one)."""
+        run's would be read as it is then; no behaviour's robots share one).
+        Each row is read as a slice of its own type: a grid's list costs per
+        cell (nine tenths of this), and widening it first, or taking the
+        runs that ended in one tick in one fancy index, costs more."""
         sc, seed = self.runs[r]
         w = self.worlds[r]
-        lo, hi = int(self.rt[B.LO, r]), int(self.rt[B.HI, r])
+        lo, hi, c0, c1 = self.rt[_BOUNDS, r].tolist()
         objs = self.robot_objs[lo:hi]
         base, size = r * self.stride, w.n * w.n
-        for row, name in ((B.OBJ, "obj"), (B.OWNER, "owner"), (B.FIELD, "field"),
-                          (B.OCC, "occ"), (B.STAMP, "stamp")):
+        for row, name in _WORLD_GRIDS:
+            # in place: the World's Grid holds these lists
             getattr(w, name)[:] = self.grids[row][base:base + size].tolist()
-        w.xs[:] = self.rb[B.XS, lo:hi].tolist()
-        w.ys[:] = self.rb[B.YS, lo:hi].tolist()
-        w.held[:] = self.rb[B.HELD, lo:hi].tolist()
-        c0, c1 = int(self.rt[B.C0, r]), int(self.rt[B.C1, r])
-        w.object_cells = list(zip(self.cells[0, c0:c1].tolist(), self.cells[1, c0:c1].tolist()))
+        w.xs[:], w.ys[:], w.held[:] = self.rb[_ROBOT_ROWS, lo:hi].tolist()
+        w.object_cells = list(zip(*self.cells[:2, c0:c1].tolist()))
         traj, states = [], []
         for xs, ys, st in self.frames[:t]:
             traj.append((xs[lo:hi].tolist(), ys[lo:hi].tolist()))
