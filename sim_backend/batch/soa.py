@@ -586,7 +586,11 @@ class SoaEngine:
     _soonest = 0                     # no wake tick is before it (_exchange)
 
     def __init__(self, runs: Sequence[tuple[Scenario, int]], record_trajectories: bool = False,
-                 until: str = "delivered") -> None:
+                 until: str = "delivered", grids: bool = True) -> None:
+        """`grids`: a finished run's World gets its grids back (obj, owner,
+        field, occ, stamp); without, they stay as the run began, which only
+        a caller that reads none of them may ask (run_batch: a summary reads
+        the robots' places and the object's cells, no grid)."""
         if until not in UNTIL:
             raise ValueError(f"until: expected one of {UNTIL}, got {until!r}")
         self.runs = list(runs)
@@ -598,6 +602,7 @@ class SoaEngine:
         self.behaviour = registry.load(names.pop()).activate()   # its message kinds in use
         self.until = until
         self.record = record_trajectories
+        self.grids_back = grids
         self.tick = 0
         self.nfields = _nfields()
         t0 = time.perf_counter()
@@ -881,7 +886,7 @@ class SoaEngine:
         lo, hi, c0, c1 = self.rt[_BOUNDS, r].tolist()
         objs = self.robot_objs[lo:hi]
         base, size = r * self.stride, w.n * w.n
-        for row, name in _WORLD_GRIDS:
+        for row, name in _WORLD_GRIDS if self.grids_back else ():
             # in place: the World's Grid holds these lists
             getattr(w, name)[:] = self.grids[row][base:base + size].tolist()
         w.xs[:], w.ys[:], w.held[:] = self.rb[_ROBOT_ROWS, lo:hi].tolist()
@@ -922,9 +927,11 @@ def _pairs(scenarios: Scenario | Sequence[Scenario], seeds: Iterable[int]
 
 def run_batch_results(scenarios: Scenario | Sequence[Scenario], seeds: Iterable[int],
                       record_trajectories: bool = False, until: str = "delivered",
-                      progress: Callable[[int], None] | None = None) -> list[RunResult]:
+                      progress: Callable[[int], None] | None = None,
+                      grids: bool = True) -> list[RunResult]:
     """RunResults in input order: one scenario for every seed, or one scenario
-    per seed; runs of different behaviours go in one batch each."""
+    per seed; runs of different behaviours go in one batch each (`grids`:
+    SoaEngine's)."""
     pairs = _pairs(scenarios, seeds)
     groups: dict[str, list[int]] = defaultdict(list)
     for j, (sc, _) in enumerate(pairs):
@@ -933,7 +940,7 @@ def run_batch_results(scenarios: Scenario | Sequence[Scenario], seeds: Iterable[
     done = 0
     for idx in groups.values():
         eng = SoaEngine([pairs[j] for j in idx], record_trajectories=record_trajectories,
-                   until=until)
+                        until=until, grids=grids)
         base = done
         res = eng.run(None if progress is None else (lambda k: progress(base + k)))
         for j, rr in zip(idx, res):
@@ -950,8 +957,10 @@ def run_batch(scenarios: Scenario | Sequence[Scenario], seeds: Iterable[int],
     With trajectories=True returns (summaries, trajectories), each trajectory a
     list per tick of (xs, ys) as Engine(record_trajectories=True) records it.
     """
+    # the results go once summarised: their worlds' grids, nine tenths of a
+    # finished run's conversion, are not read (a summary reads no grid)
     res = run_batch_results(scenarios, seeds, record_trajectories=trajectories, until=until,
-                            progress=progress)
+                            progress=progress, grids=False)
     sums = [r.summary() for r in res]
     if trajectories:
         return sums, [r.trajectories for r in res]
