@@ -90,6 +90,9 @@ class RunResult:
     # an engine that keeps them in arrays (soa) spends most of a big run's
     # end there, and a summary reads none of them
     fill: Callable[[], None] | None = field(default=None, repr=False, compare=False)
+    # the measures the behaviour declares (declared_measures of its spec),
+    # when the engine that ran it says; else the summary loads the behaviour
+    declared: frozenset[str] | None = field(default=None, repr=False, compare=False)
 
     @property
     def robots(self) -> list[Any]:
@@ -146,7 +149,9 @@ class RunResult:
 
     def summary(self) -> dict:
         c = self.coordinator
-        declared = _declared(registry.load(self.scenario.behaviour).spec)
+        declared = self.declared
+        if declared is None:
+            declared = declared_measures(registry.load(self.scenario.behaviour).spec)
         return {
             "scenario": self.scenario.name,
             "seed": self.seed,
@@ -197,7 +202,7 @@ class RunResult:
 
 
 @functools.lru_cache(maxsize=64)
-def _declared(spec: Any) -> frozenset[str]:
+def declared_measures(spec: Any) -> frozenset[str]:
     """The measures a behaviour's spec declares (spec.MEASURES' names): read
     once per loaded spec, not once per summary."""
     return frozenset(name for name, _ in spec.MEASURES)

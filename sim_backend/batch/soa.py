@@ -56,7 +56,7 @@ from sim_backend import registry
 from sim_backend import kernel
 from sim_backend.batch import body as B
 from sim_backend.batch import transform as T
-from sim_backend.engine import UNTIL, RunResult, run_ended
+from sim_backend.engine import UNTIL, RunResult, declared_measures, run_ended
 from sim_backend.errors import EngineError
 from sim_backend.exchange import HEARS_ALL, NEVER, BatchMutes, exchange, wake
 from sim_backend.scenario import Scenario
@@ -600,6 +600,7 @@ class SoaEngine:
         if len(names) != 1:
             raise EngineError(f"a batch runs one behaviour, got {sorted(map(str, names))}")
         self.behaviour = registry.load(names.pop()).activate()   # its message kinds in use
+        self.declared = declared_measures(self.behaviour.spec)
         self.until = until
         self.record = record_trajectories
         self.grids_back = grids
@@ -896,7 +897,8 @@ class SoaEngine:
             traj.append((xs[lo:hi].tolist(), ys[lo:hi].tolist()))
             states.append(st[lo:hi].tolist())
         res = RunResult(sc, seed, t, w, self.coords[r], objs, traj, conv_steps=self.conv_steps[r],
-                        fill=partial(T.unpack, self.layout, self.arrays, objs))
+                        fill=partial(T.unpack, self.layout, self.arrays, objs),
+                        declared=self.declared)
         res.states = states
         self.results[r] = res
 
