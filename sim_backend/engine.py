@@ -16,6 +16,7 @@ Tick semantics (docs/tick-semantics.md):
 
 from __future__ import annotations
 
+import functools
 import sys
 from collections import deque
 from dataclasses import dataclass, field
@@ -89,6 +90,9 @@ class RunResult:
     # an engine that keeps them in arrays (soa) spends most of a big run's
     # end there, and a summary reads none of them
     fill: Callable[[], None] | None = field(default=None, repr=False, compare=False)
+    # the measures the behaviour declares (declared_measures of its spec),
+    # when the engine that ran it says; else the summary loads the behaviour
+    declared: frozenset[str] | None = field(default=None, repr=False, compare=False)
 
     @property
     def robots(self) -> list[Any]:
@@ -145,7 +149,9 @@ class RunResult:
 
     def summary(self) -> dict:
         c = self.coordinator
-        declared = {name for name, _ in registry.load(self.scenario.behaviour).spec.MEASURES}
+        declared = self.declared
+        if declared is None:
+            declared = declared_measures(registry.load(self.scenario.behaviour).spec)
         return {
             "scenario": self.scenario.name,
             "seed": self.seed,
@@ -188,9 +194,18 @@ class RunResult:
         """The coordinator's measures that need the truth it is not told (the
         target's cells): its truth_measures(cells), when it has them."""
         c = self.coordinator
-        if not has(c, TruthMeasuring) or not self.scenario.pieces():
+        if not has(c, TruthMeasuring) or not self.world.start_cells:
             return {}
-        return c.truth_measures(set(self.scenario.pieces()[0].placed(self.world.obj_x, self.world.obj_y)))
+        # the target's cells as the world placed them at the start (the
+        # scenario's first piece at obj_x, obj_y; none without a piece)
+        return c.truth_measures(set(self.world.start_cells))
+
+
+@functools.lru_cache(maxsize=64)
+def declared_measures(spec: Any) -> frozenset[str]:
+    """The measures a behaviour's spec declares (spec.MEASURES' names): read
+    once per loaded spec, not once per summary."""
+    return frozenset(name for name, _ in spec.MEASURES)
 
 
 UNTIL = ("delivered", "converged")

@@ -13,9 +13,10 @@ import pytest
 
 from sim_backend import registry
 from sim_backend import objects
-from sim_backend.batch.soa import SoaEngine, run_batch
+from sim_backend.batch.soa import SoaEngine, run_batch, run_batch_results
 from sim_backend.errors import EngineError
 from sim_backend.scenario import validate
+from sim_backend.world import World
 from tests.harness import (arena_scenarios, assert_same, count_pushes, mixed_scenarios,
                            reference, wrap_scenarios)
 
@@ -86,6 +87,27 @@ def test_summaries_of_run_batch_keep_input_order_across_behaviours():
     assert [s["seed"] for s in sums] == [3, 3, 4]
     assert "largest" in sums[1] and "largest" not in sums[0]
     assert sums[0] == reference(t, 3).summary()
+
+
+def test_run_batch_summarises_without_the_grids_back():
+    """run_batch leaves a finished run's grids as the run began (a summary
+    reads none of them): its summaries are those of results whose worlds got
+    their grids back, with obstacles, decoys, drawn objects, a dynamic field,
+    another behaviour and runs ending at different ticks."""
+    scs, seeds = arena_scenarios()
+    more, more_seeds = mixed_scenarios()
+    scs, seeds = scs + more, seeds + more_seeds
+    kept = run_batch_results(scs, seeds)
+    assert run_batch(scs, seeds) == [r.summary() for r in kept]
+    # what the flag leaves out: the grids as they began, where the runs
+    # changed them
+    sc = validate({"maxTicks": 400})
+    bare = SoaEngine([(sc, 1)], grids=False).run()[0].world
+    full = SoaEngine([(sc, 1)]).run()[0].world
+    start = World(sc, 1)
+    assert (bare.field, bare.stamp, bare.occ) == (start.field, start.stamp, start.occ)
+    assert full.stamp != start.stamp
+    assert (bare.xs, bare.ys, bare.object_cells) == (full.xs, full.ys, full.object_cells)
 
 
 def test_bad_batches_get_a_named_error():

@@ -56,7 +56,7 @@ from sim_backend import registry
 from sim_backend import kernel
 from sim_backend.batch import body as B
 from sim_backend.batch import transform as T
-from sim_backend.engine import UNTIL, RunResult, run_ended
+from sim_backend.engine import UNTIL, RunResult, declared_measures, run_ended
 from sim_backend.errors import EngineError
 from sim_backend.exchange import HEARS_ALL, NEVER, BatchMutes, exchange, wake
 from sim_backend.scenario import Scenario
@@ -68,6 +68,12 @@ INBOX = 16            # messages a robot may have waiting (the host sends a few 
 SENDS_PER_ROBOT = 8   # messages a robot may send in one tick
 PREFIX = "_touchswarm_soa_"
 # zeros that fill a command's fields to a whole row of the inbox, by its field count
+# a finished run's World: its grids (kernel.GRID_FIELDS rows, attribute
+# names), robot rows and where its share of the batch's arrays lies
+_WORLD_GRIDS = ((B.OBJ, "obj"), (B.OWNER, "owner"), (B.FIELD, "field"), (B.OCC, "occ"),
+                (B.STAMP, "stamp"))
+_ROBOT_ROWS = np.array([B.XS, B.YS, B.HELD])
+_BOUNDS = np.array([B.LO, B.HI, B.C0, B.C1])
 _PAD = tuple((0,) * (B.FIELDS - n) for n in range(B.FIELDS + 1))
 
 
@@ -583,7 +589,11 @@ class SoaEngine:
     _soonest = 0                     # no wake tick is before it (_exchange)
 
     def __init__(self, runs: Sequence[tuple[Scenario, int]], record_trajectories: bool = False,
-                 until: str = "delivered") -> None:
+                 until: str = "delivered", grids: bool = True) -> None:
+        """`grids`: a finished run's World gets its grids back (obj, owner,
+        field, occ, stamp); without, they stay as the run began, which only
+        a caller that reads none of them may ask (run_batch: a summary reads
+        the robots' places and the object's cells, no grid)."""
         if until not in UNTIL:
             raise ValueError(f"until: expected one of {UNTIL}, got {until!r}")
         self.runs = list(runs)
@@ -593,8 +603,10 @@ class SoaEngine:
         if len(names) != 1:
             raise EngineError(f"a batch runs one behaviour, got {sorted(map(str, names))}")
         self.behaviour = registry.load(names.pop()).activate()   # its message kinds in use
+        self.declared = declared_measures(self.behaviour.spec)
         self.until = until
         self.record = record_trajectories
+        self.grids_back = grids
         self.tick = 0
         self.nfields = _nfields()
         t0 = time.perf_counter()
@@ -883,26 +895,27 @@ class SoaEngine:
         robots are first read, its robots back into their CPython objects,
         as the reference engine leaves them. Late is the same: a finished
         run is never ticked again (an instance its robots shared with a live
-        run's would be read as it is then; no behaviour's robots share one)."""
+        run's would be read as it is then; no behaviour's robots share one).
+        Each row is read as a slice of its own type: a grid's list costs per
+        cell (nine tenths of this), and widening it first, or taking the
+        runs that ended in one tick in one fancy index, costs more."""
         sc, seed = self.runs[r]
         w = self.worlds[r]
-        lo, hi = int(self.rt[B.LO, r]), int(self.rt[B.HI, r])
+        lo, hi, c0, c1 = self.rt[_BOUNDS, r].tolist()
         objs = self.robot_objs[lo:hi]
         base, size = r * self.stride, w.n * w.n
-        for row, name in ((B.OBJ, "obj"), (B.OWNER, "owner"), (B.FIELD, "field"),
-                          (B.OCC, "occ"), (B.STAMP, "stamp")):
+        for row, name in _WORLD_GRIDS if self.grids_back else ():
+            # in place: the World's Grid holds these lists
             getattr(w, name)[:] = self.grids[row][base:base + size].tolist()
-        w.xs[:] = self.rb[B.XS, lo:hi].tolist()
-        w.ys[:] = self.rb[B.YS, lo:hi].tolist()
-        w.held[:] = self.rb[B.HELD, lo:hi].tolist()
-        c0, c1 = int(self.rt[B.C0, r]), int(self.rt[B.C1, r])
-        w.object_cells = list(zip(self.cells[0, c0:c1].tolist(), self.cells[1, c0:c1].tolist()))
+        w.xs[:], w.ys[:], w.held[:] = self.rb[_ROBOT_ROWS, lo:hi].tolist()
+        w.object_cells = list(zip(*self.cells[:2, c0:c1].tolist()))
         traj, states = [], []
         for xs, ys, st in self.frames[:t]:
             traj.append((xs[lo:hi].tolist(), ys[lo:hi].tolist()))
             states.append(st[lo:hi].tolist())
         res = RunResult(sc, seed, t, w, self.coords[r], objs, traj, conv_steps=self.conv_steps[r],
-                        fill=partial(T.unpack, self.layout, self.arrays, objs))
+                        fill=partial(T.unpack, self.layout, self.arrays, objs),
+                        declared=self.declared)
         res.states = states
         self.results[r] = res
 
@@ -933,9 +946,11 @@ def _pairs(scenarios: Scenario | Sequence[Scenario], seeds: Iterable[int]
 
 def run_batch_results(scenarios: Scenario | Sequence[Scenario], seeds: Iterable[int],
                       record_trajectories: bool = False, until: str = "delivered",
-                      progress: Callable[[int], None] | None = None) -> list[RunResult]:
+                      progress: Callable[[int], None] | None = None,
+                      grids: bool = True) -> list[RunResult]:
     """RunResults in input order: one scenario for every seed, or one scenario
-    per seed; runs of different behaviours go in one batch each."""
+    per seed; runs of different behaviours go in one batch each (`grids`:
+    SoaEngine's)."""
     pairs = _pairs(scenarios, seeds)
     groups: dict[str, list[int]] = defaultdict(list)
     for j, (sc, _) in enumerate(pairs):
@@ -944,7 +959,7 @@ def run_batch_results(scenarios: Scenario | Sequence[Scenario], seeds: Iterable[
     done = 0
     for idx in groups.values():
         eng = SoaEngine([pairs[j] for j in idx], record_trajectories=record_trajectories,
-                   until=until)
+                        until=until, grids=grids)
         base = done
         res = eng.run(None if progress is None else (lambda k: progress(base + k)))
         for j, rr in zip(idx, res):
@@ -961,8 +976,10 @@ def run_batch(scenarios: Scenario | Sequence[Scenario], seeds: Iterable[int],
     With trajectories=True returns (summaries, trajectories), each trajectory a
     list per tick of (xs, ys) as Engine(record_trajectories=True) records it.
     """
+    # the results go once summarised: their worlds' grids, nine tenths of a
+    # finished run's conversion, are not read (a summary reads no grid)
     res = run_batch_results(scenarios, seeds, record_trajectories=trajectories, until=until,
-                            progress=progress)
+                            progress=progress, grids=False)
     sums = [r.summary() for r in res]
     if trajectories:
         return sums, [r.trajectories for r in res]
