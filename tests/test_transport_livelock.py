@@ -183,3 +183,41 @@ def test_a_touch_refused_at_the_ticks_end_is_journalled_as_evidence(tmp_path) ->
         h.step()
         assert c.rejected == {CLAIMED: 1} and 3 not in c.by_node
         assert j.rejected() == [(3, msg.TOUCH, h.tick, CLAIMED, late)]   # judged now
+
+
+def test_a_resumed_host_releases_again_a_refused_touch_its_robot_sends_again(tmp_path) -> None:
+    # the RELEASE to a refused touch is not journalled (a refusal is evidence,
+    # never replayed): nothing is lost by that, because the refused touch is
+    # never ACKed, so its robot sends it again and a resumed host refuses it
+    # and tells it to let go again
+    from bridge.host.journal import Journal
+    from bridge.host.process import HostProcess
+    from tests.test_journal import FakeTransport
+    p = tmp_path / "j.sqlite"
+    late = (1, 5, 3, 5, 4, 100)            # robot 2's segment once the object moved (-1, -1)
+    tr = FakeTransport()
+    with Journal(p) as j:
+        h = HostProcess(tr, weight=200, journal=j)
+        h.handle([(n, msg.HELLO, (1, 100, 1)) for n in (1, 2, 3)])
+        h.step()
+        h.handle([(1, msg.TOUCH, (1, 5, 4, 5, 5, 100)), (2, msg.TOUCH, (1, 6, 4, 6, 5, 100))])
+        h.step()
+        h.step()
+        step = h.coord.step
+        h.handle([(3, msg.TOUCH, late), (1, msg.HEARTBEAT, (4, 4 * 256, 3 * 256, 0, step))])
+        h.step()
+        assert (3, spec.RELEASE, (5, 4, 5, 4)) in tr.sent
+        assert (3, msg.ACK, (1,)) not in tr.sent
+        assert [r.kind for r in j.reports()].count(spec.RELEASE) == 0
+    tr2 = FakeTransport()
+    with Journal(p) as j:
+        h2 = HostProcess(tr2, weight=200, journal=j)
+        assert h2.resume(j) == 2
+        c = h2.coord
+        assert c.converged_tick >= 0 and 3 not in c.by_node
+        # the leader's pose as before the kill, then robot 3's retransmission
+        h2.handle([(1, msg.HEARTBEAT, (4, 4 * 256, 3 * 256, 0, c.step)), (3, msg.TOUCH, late)])
+        h2.step()
+        assert 3 not in c.by_node and c.power == 200
+        assert (3, spec.RELEASE, (5, 4, 5, 4)) in tr2.sent
+        assert (3, msg.ACK, (1,)) not in tr2.sent
