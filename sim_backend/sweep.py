@@ -1045,7 +1045,7 @@ class CsvAppender:
         # the text of the header and of each append, with the append's rows:
         # rows that came back out of run order are put in order from these
         # (reorder), not formatted again
-        self.texts: list[str] = []
+        self.header = ""
         self.blocks: list[tuple[Sequence[dict], str]] = []
         self.append_to = resume and path.exists() and path.stat().st_size > 0
         if self.append_to:
@@ -1068,8 +1068,8 @@ class CsvAppender:
             self.writer = csv.writer(self.buf, lineterminator="\n")
             if not self.append_to:
                 self.writer.writerow(self.names)
-                self.texts.append(self._taken())
-                self.f.write(self.texts[0])
+                self.header = self._taken()
+                self.f.write(self.header)
         self.writer.writerows(_lines(rows, self.names))
         text = self._taken()
         self.f.write(text)
@@ -1110,7 +1110,7 @@ class CsvAppender:
             order.append(block[1])
             i += len(block[0])
         self.close()
-        _replace(self.path, lambda f: f.writelines(self.texts + order))
+        _replace(self.path, lambda f: f.writelines([self.header] + order))
         return True
 
     def close(self) -> None:

@@ -21,6 +21,8 @@ from numba.core import cgutils, types
 from numba.core.compiler import Compiler
 from numba.extending import intrinsic
 
+from sim_backend.batch.transform import TABLE_HI, TABLE_LO
+
 
 @intrinsic
 def borrow(typingctx, value):
@@ -129,7 +131,7 @@ def fits(v: int) -> int:
     """`v`, a value stored into an int32 table cell that the transform did
     not prove to fit (transform.TABLE, FunctionTransform.proven), checked:
     outside int32 it is an OverflowError, never a value wrapped round."""
-    if v < -2147483648 or v > 2147483647:
+    if v < TABLE_LO or v > TABLE_HI:
         raise OverflowError("a value outside int32 stored into an int field "
                             "(the batch engine's tables: sim_backend/batch/transform.py, TABLE)")
     return v

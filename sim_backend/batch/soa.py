@@ -67,13 +67,13 @@ log = logging.getLogger(__name__)
 INBOX = 16            # messages a robot may have waiting (the host sends a few per tick)
 SENDS_PER_ROBOT = 8   # messages a robot may send in one tick
 PREFIX = "_touchswarm_soa_"
-# zeros that fill a command's fields to a whole row of the inbox, by its field count
-# a finished run's World: its grids (kernel.GRID_FIELDS rows, attribute
-# names), robot rows and where its share of the batch's arrays lies
-_WORLD_GRIDS = ((B.OBJ, "obj"), (B.OWNER, "owner"), (B.FIELD, "field"), (B.OCC, "occ"),
-                (B.STAMP, "stamp"))
+# a finished run's World: its grids (row k of the batch's grids is the
+# World's attribute kernel.GRID_FIELDS[k]), robot rows and where its share
+# of the batch's arrays lies
+_WORLD_GRIDS = tuple(enumerate(kernel.GRID_FIELDS))
 _ROBOT_ROWS = np.array([B.XS, B.YS, B.HELD])
 _BOUNDS = np.array([B.LO, B.HI, B.C0, B.C1])
+# zeros that fill a command's fields to a whole row of the inbox, by its field count
 _PAD = tuple((0,) * (B.FIELDS - n) for n in range(B.FIELDS + 1))
 
 
@@ -986,29 +986,13 @@ def run_batch(scenarios: Scenario | Sequence[Scenario], seeds: Iterable[int],
     return sums
 
 
-# the engines cold() built last, by behaviour, each with the scenario it
-# was built from: warm() on the same scenarios (a sweep's parent asks
-# cold, then warm) steps them instead of building them again
-_UNSTEPPED: dict[str, tuple[Any, "SoaEngine"]] = {}
-
-
-def _first_engines(scenarios: Iterable[Any], keep: bool = False) -> dict[str, "SoaEngine"]:
+def _first_engines(scenarios: Iterable[Any]) -> dict[str, "SoaEngine"]:
     """One one-run, one-tick engine per behaviour of `scenarios` (built, not
-    stepped: its transform is generated and written, nothing compiles);
-    one cold() kept for the same scenario is taken instead of a new one, and
-    with `keep` these are kept for the next call."""
+    stepped: its transform is generated and written, nothing compiles)."""
     first: dict[str, Any] = {}
     for sc in scenarios:
         first.setdefault(str(sc.behaviour), sc)
-    out = {}
-    for name, sc in first.items():
-        kept = _UNSTEPPED.pop(name, None)
-        out[name] = kept[1] if kept is not None and kept[0] is sc else \
-            SoaEngine([(sc.replace(maxTicks=1), 1)])
-    if keep:
-        _UNSTEPPED.clear()
-        _UNSTEPPED.update((name, (first[name], eng)) for name, eng in out.items())
-    return out
+    return {name: SoaEngine([(sc.replace(maxTicks=1), 1)]) for name, sc in first.items()}
 
 
 def cold(scenarios: Iterable[Any]) -> dict[str, Path]:
@@ -1016,7 +1000,7 @@ def cold(scenarios: Iterable[Any]) -> dict[str, Path]:
     yet, each with its cache folder; nothing compiles (about 0.2 s of
     transform per behaviour)."""
     return {name: eng.compiled.path.parent
-            for name, eng in _first_engines(scenarios, keep=True).items()
+            for name, eng in _first_engines(scenarios).items()
             if not eng.compiled.on_disk("tick_all")}
 
 

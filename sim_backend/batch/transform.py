@@ -957,7 +957,7 @@ def generate_with_inputs(layout: Layout, entries: dict[str, tuple[FunctionType, 
              'do not edit."""',
              "from numba import njit",
              f"from sim_backend.batch.borrow import NoAlias, borrow, clear, fits, prefetch  "
-             f"# {CODEGEN}",
+             f"# {CODEGEN}; borrow.py {_borrow_hash()[:16]}",
              ""]
     for cl in layout.classes.values():
         cols = ", ".join(f"{a}={k}" for a, k in cl.columns.items())
@@ -1034,6 +1034,17 @@ def _file_hash(path: str) -> str | None:
 
 
 _SELF: list[str] = []
+_BORROW: list[str] = []
+
+
+def _borrow_hash() -> str:
+    """borrow.py's content hash, part of every generated text: numba compiles
+    its intrinsics and checks into the text's functions, and a numba cache
+    is only checked against its own file, so a change there must be a new
+    text (and cache folder) too."""
+    if not _BORROW:
+        _BORROW.append(_file_hash(os.path.join(os.path.dirname(__file__), "borrow.py")) or "")
+    return _BORROW[0]
 
 
 def _kind_key(kind: Any) -> str:
@@ -1063,7 +1074,7 @@ def shape(layout: Layout, entries: dict[str, tuple[FunctionType, tuple]]) -> str
     overwrite the other's and transform again."""
     if not _SELF:
         _SELF.append(_file_hash(__file__) or "")
-    parts = [_SELF[0], CODEGEN, repr(sys.version_info[:2]),
+    parts = [_SELF[0], _borrow_hash(), CODEGEN, repr(sys.version_info[:2]),
              os.environ.get("TOUCHSWARM_SOA_INLINE", "1")]
     for cl in layout.classes.values():
         cl.finish()
@@ -1148,8 +1159,8 @@ def state_arrays(layout: Layout) -> dict[str, Any]:
             if attr in cl.columns:
                 if f[0] == "inst":
                     vals = [layout.index[id(v)][1] for v in vals]
-                if vals and not (TABLE_LO <= min(vals) and max(vals) <= TABLE_HI):
-                    bad = next(v for v in vals if not TABLE_LO <= v <= TABLE_HI)
+                if vals and not (in_table(min(vals)) and in_table(max(vals))):
+                    bad = next(v for v in vals if not in_table(v))
                     raise CompileError(f"{cl.cls.__name__}.{attr} = {bad}: outside the "
                                        f"{np.dtype(TABLE).name} the batch engine keeps an int "
                                        "field in (a firmware int lives in 31 bits)")
