@@ -198,11 +198,13 @@ def outline(cells: Iterable[Cell]) -> set[Cell]:
     """The touched cells' outline, perception.outline_cells (a new set):
     computed once per process for each set of cells, as a run's summary
     asks for it twice (shape_iou from the coordinator's segments, the
-    recognition's hull from the evidence's touches)."""
+    recognition's hull from the evidence's touches); a batch's summaries
+    ask a chunk's recognitions first (soa.run_batch), so the cache holds
+    more than a chunk (sweep.MAX_CHUNK) of runs."""
     return set(_outline(frozenset(cells)))
 
 
-@functools.lru_cache(maxsize=64)
+@functools.lru_cache(maxsize=1024)
 def _outline(cells: frozenset[Cell]) -> frozenset[Cell]:
     return frozenset(perception.outline_cells(cells))
 

@@ -31,6 +31,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass, field
+from typing import Iterator, Sequence
 
 import numpy as np
 
@@ -67,17 +68,6 @@ class Recognition:
         return self.best is not None and self.p >= threshold
 
 
-def _logsumexp(a: list[float]) -> float:
-    # the max in Python, the exps and their sum in numpy as ever: the same
-    # float, one numpy reduction fewer (a posterior takes nine of these)
-    if not a:
-        return -math.inf
-    m = max(a)
-    if m == -math.inf:
-        return m
-    return m + math.log(float(np.exp(np.subtract(a, m)).sum()))
-
-
 def touchable(cells: set[Cell]) -> int:
     """Cells of a shape with a 4-neighbour outside it."""
     n = 0
@@ -109,96 +99,231 @@ def priors(library: Library, p_open: float) -> dict[str, float]:
 def recognise(ev: Evidence, library: Library, eps_touch: float = EPS_TOUCH,
               eps_free: float = EPS_FREE, p_open: float = P_OPEN) -> Recognition:
     """The posterior over the library's shapes and UNKNOWN given the evidence."""
+    return recognise_all([ev], library, eps_touch, eps_free, p_open)[0]
+
+
+def recognise_all(evs: Sequence[Evidence], library: Library, eps_touch: float = EPS_TOUCH,
+                  eps_free: float = EPS_FREE, p_open: float = P_OPEN) -> list[Recognition]:
+    """recognise(ev, library) of every evidence, the same floats, with the
+    numpy calls on small arrays made once for all of them (a sweep's
+    chunk of runs: those calls, not their arithmetic, cost most of a
+    recognition). Each row of a batched call is one evidence's own array
+    of the same length, reduced along its own row, as recognise's was."""
     if not 0.0 < eps_touch < 1.0 or not 0.0 < eps_free < 1.0:
         raise ValueError(f"eps_touch {eps_touch}, eps_free {eps_free}: expected in (0, 1)")
     prior = priors(library, p_open)
-    names = library.names
-    if not ev.touched:
-        return Recognition(dict(prior))
-    w, n = ev.w, ev.n
-    area = n * n
-    n_obj = len(ev.touched)
-    xs = [c[0] for c in ev.touched]
-    ys = [c[1] for c in ev.touched]
-    xmin, xmax, ymin, ymax = min(xs), max(xs), min(ys), max(ys)
-    log_false = math.log(eps_touch / area)
-    log_true = math.log(1.0 - eps_touch)
-    # for every origin near the touches and every pose: touched cells on the
-    # pose's touchable cells, free cells on its cells (integer counts as
-    # one exact product of 0/1 matrices; beyond the arena unknown)
-    mh, mw, _, _ = library.masks()
-    x0, y0 = max(-w, xmin - mw + 1), max(-w, ymin - mh + 1)
-    rw, rh = xmax - x0 + 1, ymax - y0 + 1
-    part = ev.grid[y0 + w:y0 + w + rh + mh - 1, x0 + w:x0 + w + rw + mw - 1]
-    pad = np.zeros((rh + mh - 1, rw + mw - 1), dtype=part.dtype)
-    pad[:part.shape[0], :part.shape[1]] = part
-    # every origin's window (a strided view: sliding_window_view's checks
-    # cost more than the product on a sweep's small boxes)
-    win = np.ndarray((rh, rw, mh, mw), pad.dtype, pad, 0, pad.strides * 2).reshape(rh * rw, mh * mw)
-    ordered, fits, place, far, table, boxes = _table(library.key, n, eps_touch, eps_free, n_obj)
-    # both counts of every origin and pose as the index of their entry in
-    # the flat table (0/1 sums are exact integers in floats; two products,
-    # not one of both: one twice the size is past OpenBLAS's threading
-    # threshold, 30x slower on a loaded machine; in float32 when every
-    # index is below 2^24, where its sums are as exact: half the product)
-    w_touch, w_cells, offset = _index_weights(library.key, table.shape)
-    at = ((win == OBJECT).astype(w_touch.dtype) @ w_touch
-          + (win == FREE).astype(w_touch.dtype) @ w_cells + offset)
-    ll_all = table.reshape(-1).take(at.astype(np.intp)).T.reshape(-1, rh, rw)   # (poses, rh, rw)
-    # every pose's placements that overlap the touches' box: origins (patch
-    # coordinates) that depend on the pose only through its box, so the poses
-    # of one box are summed at once (each row's exp and sum as the pose's
-    # alone would be: the table is finite, its max is read at the argmax the
-    # MAP needs anyway)
-    near: dict[int, tuple[float, float, Cell, int]] = {}
-    for (bw, bh), cols, columns, rows in boxes:
-        ox0, ox1 = max(-w, xmin - bw + 1), min(w - bw + 1, xmax)
-        oy0, oy1 = max(-w, ymin - bh + 1), min(w - bh + 1, ymax)
-        if ox0 > ox1 or oy0 > oy1:
-            continue
-        hx, hy = ox1 - ox0 + 1, oy1 - oy0 + 1
-        ll = ll_all[cols, oy0 - y0:oy0 - y0 + hy, ox0 - x0:ox0 - x0 + hx].reshape(len(rows), -1)
+    todo = [_Posterior(ev, library, eps_touch, eps_free) for ev in evs if ev.touched]
+    if todo:
+        _near_all(todo, library)
+        # the shapes' sums and UNKNOWN's, then their normalisation
+        lses = _logsumexp_all([a for r in todo for a in r.terms(prior)])
+        k = 0
+        for r in todo:
+            k = r.shape_logs(prior, lses, k)
+        totals = _logsumexp_all([list(r.per_shape.values()) for r in todo])
+    out: list[Recognition] = []
+    k = 0
+    for ev in evs:
+        if not ev.touched:
+            out.append(Recognition(dict(prior)))
+        else:
+            out.append(todo[k].result(totals[k]))
+            k += 1
+    return out
+
+
+class _Posterior:
+    """One evidence's recognition, in the stages recognise_all runs for a
+    batch at once."""
+
+    def __init__(self, ev: Evidence, library: Library, eps_touch: float,
+                 eps_free: float) -> None:
+        self.ev = ev
+        w, n = ev.w, ev.n
+        self.n_obj = n_obj = len(ev.touched)
+        xs = [c[0] for c in ev.touched]
+        ys = [c[1] for c in ev.touched]
+        self.box = xmin, xmax, ymin, ymax = min(xs), max(xs), min(ys), max(ys)
+        self.log_false = math.log(eps_touch / (n * n))
+        self.log_true = math.log(1.0 - eps_touch)
+        # for every origin near the touches and every pose: touched cells on the
+        # pose's touchable cells, free cells on its cells (integer counts as
+        # one exact product of 0/1 matrices; beyond the arena unknown)
+        mh, mw, _, _ = library.masks()
+        self.x0, self.y0 = x0, y0 = max(-w, xmin - mw + 1), max(-w, ymin - mh + 1)
+        self.rw, self.rh = rw, rh = xmax - x0 + 1, ymax - y0 + 1
+        part = ev.grid[y0 + w:y0 + w + rh + mh - 1, x0 + w:x0 + w + rw + mw - 1]
+        pad = np.zeros((rh + mh - 1, rw + mw - 1), dtype=part.dtype)
+        pad[:part.shape[0], :part.shape[1]] = part
+        # every origin's window (a strided view: sliding_window_view's checks
+        # cost more than the product on a sweep's small boxes)
+        self.win = np.ndarray((rh, rw, mh, mw), pad.dtype, pad, 0,
+                              pad.strides * 2).reshape(rh * rw, mh * mw)
+        (self.ordered, self.fits, self.place, self.far, self.table,
+         self.boxes) = _table(library.key, n, eps_touch, eps_free, n_obj)
+        self.near: dict[int, tuple[float, float, Cell, int]] = {}
+
+    def placements(self, at: np.ndarray) -> None:
+        """Every pose's log-likelihood at every origin, from the flat
+        table indices `at` of this evidence's windows."""
+        self.ll_all = self.table.reshape(-1).take(at.astype(np.intp)).T.reshape(
+            -1, self.rh, self.rw)                                      # (poses, rh, rw)
+
+    def near_boxes(self) -> Iterator[tuple[tuple[int, int, int], np.ndarray, tuple]]:
+        """Every pose's placements that overlap the touches' box, one array
+        per pose box: origins (patch coordinates) that depend on the pose
+        only through its box, so the poses of one box are summed at once.
+        Yields (what the rows' length depends on, the rows, what `reduced`
+        needs back)."""
+        w = self.ev.w
+        xmin, xmax, ymin, ymax = self.box
+        x0, y0 = self.x0, self.y0
+        for b, ((bw, bh), cols, columns, rows) in enumerate(self.boxes):
+            ox0, ox1 = max(-w, xmin - bw + 1), min(w - bw + 1, xmax)
+            oy0, oy1 = max(-w, ymin - bh + 1), min(w - bh + 1, ymax)
+            if ox0 > ox1 or oy0 > oy1:
+                continue
+            hx, hy = ox1 - ox0 + 1, oy1 - oy0 + 1
+            ll = self.ll_all[cols, oy0 - y0:oy0 - y0 + hy, ox0 - x0:ox0 - x0 + hx]
+            yield (b, hx, hy), ll.reshape(len(rows), -1), (columns, ox0, oy0, hx, hy)
+
+    def reduced(self, key: tuple, j: list[int], top: list[float], sums: list[float]) -> None:
+        """A box's rows reduced: each row's argmax, max and sum of exp(row - max)."""
+        columns, ox0, oy0, hx, hy = key
+        for column, jj, tt, ss in zip(columns, j, top, sums):
+            self.near[column] = (tt + math.log(ss), tt, (ox0 + jj % hx, oy0 + jj // hx), hx * hy)
+
+    def terms(self, prior: dict[str, float]) -> list[list[float]]:
+        """The lists whose logsumexp shape_logs needs: each shape's terms
+        (the placements near the touches, the rest in closed form), then,
+        with the open set, UNKNOWN's two."""
+        names = [name for name in prior if name != UNKNOWN]
+        near, fits, far, place = self.near, self.fits, self.far, self.place
+        n_obj, log_false = self.n_obj, self.log_false
+        best_of: dict[str, tuple] = {name: (-math.inf, None, (0, 0)) for name in names}
+        terms: dict[str, list[float]] = {name: [] for name in names}
+        for column, (name, pose) in enumerate(self.ordered):
+            if fits[column] <= 0:
+                continue
+            inside = 0
+            if column in near:
+                lse, top1, origin1, inside = near[column]
+                terms[name].append(lse)
+                if top1 > best_of[name][0]:
+                    best_of[name] = (top1, pose, origin1)
+            rest = fits[column] - inside
+            if rest == fits[column]:
+                terms[name].append(far[column])
+            elif rest > 0:   # placements away from every touch: all touches false
+                terms[name].append(place[column] + math.log(rest) + n_obj * log_false)
+        self.best_of = best_of
+        self.named = [name for name in names if terms[name]]
+        out = [terms[name] for name in self.named]
+        self.outline: set[Cell] = set()
+        if UNKNOWN in prior:
+            ev = self.ev
+            self.outline = ev.hull_estimate()
+            # the sum over every shape not in the library, bounded below by two
+            # of its terms: the outline itself and the leanest shape the
+            # touches allow (their cells joined into one piece)
+            out.append([_free_form(cs, ev.n, n_obj, self.log_true)
+                        for cs in (self.outline, ev.joined())])
+        return out
+
+    def shape_logs(self, prior: dict[str, float], lses: list[float], k: int) -> int:
+        """Each hypothesis's log posterior (unnormalised) from the
+        logsumexps of terms() at lses[k:]; returns the index past them."""
+        self.per_shape: dict[str, float] = {}
+        for name in prior:
+            if name == UNKNOWN:
+                continue
+            if name in self.named:
+                self.per_shape[name] = lses[k] + math.log(prior[name])
+                k += 1
+            else:
+                self.per_shape[name] = -math.inf
+        if UNKNOWN in prior:
+            self.per_shape[UNKNOWN] = math.log(prior[UNKNOWN]) + lses[k]
+            k += 1
+        return k
+
+    def result(self, total: float) -> Recognition:
+        post = {k: math.exp(v - total) for k, v in self.per_shape.items()}
+        top = max(post, key=post.__getitem__)
+        if top == UNKNOWN:
+            return Recognition(post, top, post[top], self.outline, None, (0, 0))
+        _, pose, origin = self.best_of[top]      # the MAP placement of the most probable shape
+        cells = pose.placed(*origin) if pose is not None else set()
+        return Recognition(post, top, post[top], cells, pose, origin)
+
+
+def _near_all(todo: Sequence[_Posterior], library: Library) -> None:
+    """Every evidence's placements near its touches, the rows of one length
+    (of every evidence) reduced in one call."""
+    w_touch, w_cells, offset = _index_weights(library.key, todo[0].table.shape)
+    groups: dict[tuple[int, int, int], list[tuple[_Posterior, np.ndarray, tuple]]] = {}
+    for r in todo:
+        # both counts of every origin and pose as the index of their entry in
+        # the flat table (0/1 sums are exact integers in floats; two products,
+        # not one of both: one twice the size is past OpenBLAS's threading
+        # threshold, 30x slower on a loaded machine; in float32 when every
+        # index is below 2^24, where its sums are as exact: half the product).
+        # One evidence's at a time: a batch's in one product is slower, its
+        # operands out of the cache
+        win = r.win
+        r.placements((win == OBJECT).astype(w_touch.dtype) @ w_touch
+                     + (win == FREE).astype(w_touch.dtype) @ w_cells + offset)
+        for key, ll, back in r.near_boxes():
+            groups.setdefault(key, []).append((r, ll, back))
+    for got in groups.values():
+        ll = got[0][1] if len(got) == 1 else np.concatenate([g[1] for g in got])
+        # each row's exp and sum as the pose's alone would be: the table is
+        # finite, its max is read at the argmax the MAP needs anyway
         j = ll.argmax(axis=1)
-        top = ll[rows, j]
+        top = ll[_rows(len(ll)), j]
         sums = np.exp(ll - top[:, None]).sum(axis=1)
-        for column, jj, tt, ss in zip(columns, j.tolist(), top.tolist(), sums.tolist()):
-            near[column] = (tt + math.log(ss), tt, (ox0 + jj % hx, oy0 + jj // hx), hx * hy)
-    per_shape: dict[str, float] = {}
-    best_of: dict[str, tuple] = {name: (-math.inf, None, (0, 0)) for name in names}
-    terms: dict[str, list[float]] = {name: [] for name in names}
-    for column, (name, pose) in enumerate(ordered):
-        if fits[column] <= 0:
+        jl, tl, sl = j.tolist(), top.tolist(), sums.tolist()
+        lo = 0
+        for r, part, back in got:
+            hi = lo + len(part)
+            r.reduced(back, jl[lo:hi], tl[lo:hi], sl[lo:hi])
+            lo = hi
+
+
+@functools.lru_cache(maxsize=256)
+def _rows(n: int) -> np.ndarray:
+    """0..n-1, to index each row once (read-only, shared: made per box it cost
+    a tenth of a recognition)."""
+    out = np.arange(n)
+    out.flags.writeable = False
+    return out
+
+
+def _logsumexp_all(lists: Sequence[list[float]]) -> list[float]:
+    """log(sum(exp(a))) of every list a (-inf for none), the lists of one
+    length in one call: the max in Python, the exps and their sums in
+    numpy, one row per list (each row's sum is that list's alone)."""
+    out = [0.0] * len(lists)
+    by_len: dict[int, list[int]] = {}
+    for i, a in enumerate(lists):
+        by_len.setdefault(len(a), []).append(i)
+    for size, idx in by_len.items():
+        ms = [max(lists[i]) if size else -math.inf for i in idx]
+        live = [k for k, m in enumerate(ms) if m != -math.inf]
+        for k, top in enumerate(ms):
+            out[idx[k]] = top
+        if not live:
             continue
-        inside = 0
-        if column in near:
-            lse, top1, origin1, inside = near[column]
-            terms[name].append(lse)
-            if top1 > best_of[name][0]:
-                best_of[name] = (top1, pose, origin1)
-        rest = fits[column] - inside
-        if rest == fits[column]:
-            terms[name].append(far[column])
-        elif rest > 0:   # placements away from every touch: all touches false
-            terms[name].append(place[column] + math.log(rest) + n_obj * log_false)
-    for name in names:
-        per_shape[name] = (_logsumexp(terms[name]) + math.log(prior[name])
-                           if terms[name] else -math.inf)
-    outline: set[Cell] = set()
-    if UNKNOWN in prior:
-        outline = ev.hull_estimate()
-        # the sum over every shape not in the library, bounded below by two
-        # of its terms: the outline itself and the leanest shape the
-        # touches allow (their cells joined into one piece)
-        per_shape[UNKNOWN] = math.log(prior[UNKNOWN]) + _logsumexp(
-            [_free_form(cs, n, n_obj, log_true) for cs in (outline, ev.joined())])
-    total = _logsumexp(list(per_shape.values()))
-    post = {k: math.exp(v - total) for k, v in per_shape.items()}
-    top = max(post, key=post.__getitem__)
-    if top == UNKNOWN:
-        return Recognition(post, top, post[top], outline, None, (0, 0))
-    _, pose, origin = best_of[top]      # the MAP placement of the most probable shape
-    cells = pose.placed(*origin) if pose is not None else set()
-    return Recognition(post, top, post[top], cells, pose, origin)
+        if len(live) == 1:         # one list (a run's recognition): no rows to stack
+            k = live[0]
+            sums = [float(np.exp(np.subtract(lists[idx[k]], ms[k])).sum())]
+        else:
+            rows = np.array([lists[idx[k]] for k in live], dtype=np.float64)
+            tops = np.array([ms[k] for k in live], dtype=np.float64)
+            sums = np.exp(np.subtract(rows, tops[:, None])).sum(axis=1).tolist()
+        for k, s in zip(live, sums):
+            out[idx[k]] = ms[k] + math.log(s)
+    return out
 
 
 @functools.lru_cache(maxsize=256)

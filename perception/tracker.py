@@ -14,12 +14,12 @@ the truth per tick. It adds trace columns (COLUMNS) and summary fields
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, Sequence
 
 from firmware_logic import fixedpoint as fx
 from perception import INFO, detail
 from perception.evidence import Evidence, iou
-from perception.recognise import THRESHOLD, Recognition, estimate, recognise
+from perception.recognise import THRESHOLD, Recognition, estimate, recognise, recognise_all
 from perception.shapes import Library
 
 
@@ -251,27 +251,47 @@ def end_fields(result: Any) -> dict[str, Any]:
     touches and the cells the robots stand on at the end (the per-tick free
     evidence of a watched run is not kept). {} for a behaviour that
     perceives no object."""
-    c = result.coordinator
-    if not perceives(c) or not result.world.start_cells:
-        return {}
-    truth = set(result.world.start_cells)
-    if getattr(c, "decider", None) is not None:
-        est, name, p, _ = decision_verdict(c)
-        return {"estimate_iou": iou(est, truth), "recognised": name, "p": p}
-    w = result.world
-    ev = Evidence(result.scenario.worldSize)
-    for t in c.touches:
-        ev.touch(t.sx, t.sy)
-    if not ev.touched:
-        return {"estimate_iou": 0.0, "recognised": None, "p": 0.0}
-    mx = w.object_cells[0][0] - w.start_cells[0][0]
-    my = w.object_cells[0][1] - w.start_cells[0][1]
-    for x, y in zip(w.xs, w.ys):
-        ev.free(fx.patch(x) - mx, fx.patch(y) - my)
-    rec = recognise(ev, Library.of(result.scenario))
-    sure = rec.recognised(THRESHOLD)
-    return {"estimate_iou": iou(estimate(ev, rec), truth),
-            "recognised": rec.best if sure else None, "p": round(rec.p, 6)}
+    return end_fields_all([result])[0]
+
+
+def end_fields_all(results: Sequence[Any]) -> list[dict[str, Any]]:
+    """end_fields of every result, the posteriors of those that share a
+    library in one recognise_all (a sweep's chunk: the same floats, a
+    fraction of the numpy calls)."""
+    out: list[dict[str, Any]] = []
+    todo: dict[int, list[tuple[int, Evidence, set]]] = {}     # id(library): runs
+    libraries: dict[int, Library] = {}
+    for i, result in enumerate(results):
+        c = result.coordinator
+        out.append({})
+        if not perceives(c) or not result.world.start_cells:
+            continue
+        truth = set(result.world.start_cells)
+        if getattr(c, "decider", None) is not None:
+            est, name, p, _ = decision_verdict(c)
+            out[i] = {"estimate_iou": iou(est, truth), "recognised": name, "p": p}
+            continue
+        w = result.world
+        ev = Evidence(result.scenario.worldSize)
+        for t in c.touches:
+            ev.touch(t.sx, t.sy)
+        if not ev.touched:
+            out[i] = {"estimate_iou": 0.0, "recognised": None, "p": 0.0}
+            continue
+        mx = w.object_cells[0][0] - w.start_cells[0][0]
+        my = w.object_cells[0][1] - w.start_cells[0][1]
+        for x, y in zip(w.xs, w.ys):
+            ev.free(fx.patch(x) - mx, fx.patch(y) - my)
+        library = Library.of(result.scenario)
+        libraries[id(library)] = library
+        todo.setdefault(id(library), []).append((i, ev, truth))
+    for key, runs in todo.items():
+        recs = recognise_all([ev for _, ev, _ in runs], libraries[key])
+        for (i, ev, truth), rec in zip(runs, recs):
+            sure = rec.recognised(THRESHOLD)
+            out[i] = {"estimate_iou": iou(estimate(ev, rec), truth),
+                      "recognised": rec.best if sure else None, "p": round(rec.p, 6)}
+    return out
 
 
 def attach(engine: Any, **kw: Any) -> Perceiver | None:

@@ -93,6 +93,9 @@ class RunResult:
     # the measures the behaviour declares (declared_measures of its spec),
     # when the engine that ran it says; else the summary loads the behaviour
     declared: frozenset[str] | None = field(default=None, repr=False, compare=False)
+    # perception's end fields (perception/tracker.py end_fields), when the
+    # engine made a batch's at once (soa.run_batch); else the summary makes them
+    end: dict[str, Any] | None = field(default=None, repr=False, compare=False)
 
     @property
     def robots(self) -> list[Any]:
@@ -186,8 +189,10 @@ class RunResult:
         (perception/tracker.py end_fields)."""
         out = {k: v for inst in self.instruments for k, v in inst.summary().items()}
         if "estimate_iou" not in out:
-            from perception.tracker import end_fields
-            out.update(end_fields(self))
+            if self.end is None:
+                from perception.tracker import end_fields
+                self.end = end_fields(self)
+            out.update(self.end)
         return out
 
     def truth_measures(self) -> dict:
