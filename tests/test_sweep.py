@@ -291,3 +291,32 @@ def test_the_console_script_exits_with_the_commands_status_and_whole_output(
         assert (tmp_path / "sweep.csv").read_text().count("\n") == 3
     else:
         assert out[-2:] == ["handler ran", "teardown ran"]
+
+
+def test_a_soa_chunk_runs_with_the_collector_off_and_leaves_it_as_it_was(monkeypatch):
+    """run_chunk's soa chunk: no collector pass inside (its runs make no
+    garbage cycle), the collector's state as before after, the summaries
+    those of the same runs with it on."""
+    import gc
+
+    from sim_backend.batch import soa
+    warm_step()
+    base = sweep.base_dict(None, OVR)
+    jobs = [(base, dict(pt.params), s) for pt in sweep.grid_points(GRID)[:1] for s in SEEDS]
+    seen = []
+    real = soa.run_batch
+
+    def spy(*a, **kw):
+        seen.append(gc.isenabled())
+        return real(*a, **kw)
+    with_gc = real(sweep._scenarios(jobs), SEEDS, until="delivered")
+    monkeypatch.setattr(soa, "run_batch", spy)
+    assert gc.isenabled()
+    assert sweep.run_chunk(jobs, "soa") == with_gc
+    assert gc.isenabled() and seen == [False]
+    gc.disable()
+    try:
+        sweep.run_chunk(jobs, "soa")
+        assert not gc.isenabled()
+    finally:
+        gc.enable()
