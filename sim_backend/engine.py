@@ -189,10 +189,11 @@ class RunResult:
         (perception/tracker.py end_fields)."""
         out = {k: v for inst in self.instruments for k, v in inst.summary().items()}
         if "estimate_iou" not in out:
-            if self.end is None:
+            if self.end is not None:
+                out.update(self.end)
+            else:
                 from perception.tracker import end_fields
-                self.end = end_fields(self)
-            out.update(self.end)
+                out.update(end_fields(self))
         return out
 
     def truth_measures(self) -> dict:
