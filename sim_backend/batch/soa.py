@@ -981,7 +981,7 @@ def run_batch(scenarios: Scenario | Sequence[Scenario], seeds: Iterable[int],
     res = run_batch_results(scenarios, seeds, record_trajectories=trajectories, until=until,
                             progress=progress, grids=False)
     # perception's end fields of the batch at once: its recognitions share
-    # numpy calls (two fifths of a sweep's summaries, one by one)
+    # numpy calls (two thirds of a sweep's summaries went to them one by one)
     from perception.tracker import end_fields_all
     bare = [r for r in res if not r.instruments]
     for r, end in zip(bare, end_fields_all(bare)):
