@@ -442,31 +442,33 @@ def generated(layout: T.Layout, entries: dict[str, tuple[Any, tuple]]
 _STEPPING: list[int] = [0]      # steps running now, each with the heap frozen
 
 
-@contextmanager
-def _frozen_heap() -> Iterator[None]:
+def _frozen_heap() -> bool:
     """A batch's heap as the collector sees it while a tick steps: what is
     alive (its robots, worlds, coordinators: tens of thousands of objects,
     most alive until the batch ends) is moved out of the collector's
     generations for the step (`gc.freeze`, no pass over it) and back after
-    it (`gc.unfreeze`, when no step in another thread still runs). Both are
-    list splices, so the price is the same per step as per batch. Without it
-    the first passes after a 20 x 500 batch's build went over all of it:
-    0.17-0.24 s of the collector's in a batch's 1.2-1.6 s of steps,
+    it (`_thaw`: `gc.unfreeze`, when no step in another thread still runs).
+    Both are list splices, so the price is the same per step as per batch.
+    Without it the first passes after a 20 x 500 batch's build went over all
+    of it: 0.17-0.24 s of the collector's in a batch's 1.2-1.6 s of steps,
     0.04-0.05 s with it. Only while a step runs, not for the batch's life:
     an engine dropped unfinished inside a reference cycle (a callback that
     holds it) would stay frozen, never collected, and hold every later
-    batch's heap frozen with it."""
+    batch's heap frozen with it. Returns whether it froze (the collector
+    is on); a pair of calls, not a context manager, whose generator cost a
+    1,000-robot step a few per cent."""
     if not gc.isenabled():
-        yield
-        return
+        return False
     gc.freeze()
     _STEPPING[0] += 1
-    try:
-        yield
-    finally:
-        _STEPPING[0] -= 1
-        if not _STEPPING[0]:
-            gc.unfreeze()
+    return True
+
+
+def _thaw() -> None:
+    """The end of a step `_frozen_heap` froze."""
+    _STEPPING[0] -= 1
+    if not _STEPPING[0]:
+        gc.unfreeze()
 
 
 def _aged() -> None:
@@ -726,8 +728,13 @@ class SoaEngine:
     # -- one tick ---------------------------------------------------------------------------
 
     def step(self) -> None:
-        with _frozen_heap():
+        if not _frozen_heap():
             self._step()
+            return
+        try:
+            self._step()
+        finally:
+            _thaw()
 
     def _step(self) -> None:
         self.tick += 1
