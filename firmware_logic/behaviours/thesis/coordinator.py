@@ -681,12 +681,23 @@ class Coordinator(Recognising, Roster):
         nodes = []
         g = 0                        # the farthest a live holder stands from its segment, per axis
         for t in touches:
-            segs.append((t.sx, t.sy))
-            if t.node not in lost:
-                live.append((t.rx, t.ry))
-                if t.node not in nodes:
-                    nodes.append(t.node)
-                g = max(g, abs(t.rx - t.sx), abs(t.ry - t.sy))
+            sx = t.sx
+            sy = t.sy
+            segs.append((sx, sy))
+            node = t.node
+            if node not in lost:
+                rx = t.rx
+                ry = t.ry
+                live.append((rx, ry))
+                if node not in nodes:
+                    nodes.append(node)
+                # max and abs without their calls: a rebuild per touch accepted
+                d = rx - sx if rx >= sx else sx - rx
+                if d > g:
+                    g = d
+                d = ry - sy if ry >= sy else sy - ry
+                if d > g:
+                    g = d
         if self.cells is not None:
             box = self.cells_box
         else:
