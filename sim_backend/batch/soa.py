@@ -73,6 +73,8 @@ PREFIX = "_touchswarm_soa_"
 _WORLD_GRIDS = tuple(enumerate(kernel.GRID_FIELDS))
 _ROBOT_ROWS = np.array([B.XS, B.YS, B.HELD])
 _BOUNDS = np.array([B.LO, B.HI, B.C0, B.C1])
+# batches of at most this many runs read their wake ticks as a list (_exchange)
+_FEW_RUNS = 16
 # zeros that fill a command's fields to a whole row of the inbox, by its field count
 _PAD = tuple((0,) * (B.FIELDS - n) for n in range(B.FIELDS + 1))
 
@@ -793,11 +795,19 @@ class SoaEngine:
                 up.append((node_of[i], kind, tuple(row[3:3 + nfields[kind]])))
         woken = self.wake
         due = t >= self._soonest
-        asked = set(np.flatnonzero(woken <= t).tolist()) if due else set()
+        # numpy's calls cost a few microseconds each whatever the length: a
+        # batch of few runs (a 1,000-robot run, due on each transport tick)
+        # reads its wake ticks as a list
+        few = due and len(woken) <= _FEW_RUNS
+        if not due:
+            asked = set()
+        elif few:
+            asked = {r for r, w in enumerate(woken.tolist()) if w <= t}
+        else:
+            asked = set(np.flatnonzero(woken <= t).tolist())
         soonest = NEVER if due else self._soonest
         coords, conv = self.coords, self.conv_steps
         converged = self.until == "converged"
-        steps = self.rt[B.STEPS]
         update = mutes.update
         ended: list[int] = []
         sends = []
@@ -820,11 +830,14 @@ class SoaEngine:
                 soonest = w
             update(r, c)
             if conv[r] < 0 and c.converged_tick >= 0:
-                conv[r] = int(steps[r])
+                conv[r] = int(self.rt[B.STEPS, r])
             if c.done() or (converged and c.converged_tick >= 0):
                 ended.append(r)
         # a step that read the wake ticks knows their least exactly
-        self._soonest = int(woken.min()) if due else soonest
+        if few:
+            self._soonest = min(woken.tolist())
+        else:
+            self._soonest = int(woken.min()) if due else soonest
         if sends:
             self._deliver(sends)
         return ended
