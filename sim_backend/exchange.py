@@ -97,6 +97,8 @@ class BatchMutes:
         self.same = np.zeros((len(coords), FIELDS), dtype=np.int64)
         self.same_n = np.full(len(coords), -1, dtype=np.int64)
         self._bytes, self._ns = self.same.data.cast("B"), self.same_n.data
+        self._row = self.same.strides[0]
+        self._runs = [int(x) for x in run_of]   # `end`'s, without a numpy scalar each
         # a clause's fields as a row of int64, by their count
         self._pack = tuple(struct.Struct(f"={k}q") for k in range(FIELDS + 1))
         for r, c in enumerate(coords):
@@ -132,7 +134,7 @@ class BatchMutes:
         value past int64, more fields than a message holds); refused, the
         row is one no message's fields equal."""
         try:
-            self._pack[len(same)].pack_into(self._bytes, r * self.same.strides[0], *same)
+            self._pack[len(same)].pack_into(self._bytes, r * self._row, *same)
         except (struct.error, IndexError):
             self._ns[r] = -1
             return
@@ -141,8 +143,9 @@ class BatchMutes:
     def end(self, ended: Any) -> None:
         """The repeat clauses `sift` ended (ended[0] senders, ended[1:]),
         ended in their runs' declarations too (as Muting.drops ends one)."""
+        mutes, runs = self.mutes, self._runs
         for i in ended[1:1 + int(ended[0])].tolist():
-            self.mutes[int(self.run_of[i])].same = None
+            mutes[runs[i]].same = None
 
     def keep(self, robot: Any, kind: Any, fields: Any) -> Any:
         """Which messages (sender robot, kind, fields: arrays, one row of
@@ -173,7 +176,8 @@ def wake(c: Any) -> int:
     """The first tick at which c must be asked to tick() though it heard
     nothing: NEVER while it is quiet(), else its idle_until() (0: every
     tick; a coordinator without `idle_until` is asked every tick)."""
-    if quiet(c):
+    q = getattr(c, "quiet", None)        # quiet(c), its call saved (a batch asks per event)
+    if q is not None and q():
         return NEVER
     return int(c.idle_until()) if has(c, Idling) else 0
 

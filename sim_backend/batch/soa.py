@@ -56,9 +56,9 @@ from sim_backend import registry
 from sim_backend import kernel
 from sim_backend.batch import body as B
 from sim_backend.batch import transform as T
-from sim_backend.engine import UNTIL, RunResult, declared_measures, run_ended
+from sim_backend.engine import UNTIL, RunResult, declared_measures
 from sim_backend.errors import EngineError
-from sim_backend.exchange import HEARS_ALL, NEVER, BatchMutes, exchange, wake
+from sim_backend.exchange import NEVER, BatchMutes, wake
 from sim_backend.scenario import Scenario
 from sim_backend.world import World
 
@@ -73,6 +73,8 @@ PREFIX = "_touchswarm_soa_"
 _WORLD_GRIDS = tuple(enumerate(kernel.GRID_FIELDS))
 _ROBOT_ROWS = np.array([B.XS, B.YS, B.HELD])
 _BOUNDS = np.array([B.LO, B.HI, B.C0, B.C1])
+# batches of at most this many runs read their wake ticks as a list (_exchange)
+_FEW_RUNS = 16
 # zeros that fill a command's fields to a whole row of the inbox, by its field count
 _PAD = tuple((0,) * (B.FIELDS - n) for n in range(B.FIELDS + 1))
 
@@ -442,31 +444,33 @@ def generated(layout: T.Layout, entries: dict[str, tuple[Any, tuple]]
 _STEPPING: list[int] = [0]      # steps running now, each with the heap frozen
 
 
-@contextmanager
-def _frozen_heap() -> Iterator[None]:
+def _frozen_heap() -> bool:
     """A batch's heap as the collector sees it while a tick steps: what is
     alive (its robots, worlds, coordinators: tens of thousands of objects,
     most alive until the batch ends) is moved out of the collector's
     generations for the step (`gc.freeze`, no pass over it) and back after
-    it (`gc.unfreeze`, when no step in another thread still runs). Both are
-    list splices, so the price is the same per step as per batch. Without it
-    the first passes after a 20 x 500 batch's build went over all of it:
-    0.17-0.24 s of the collector's in a batch's 1.2-1.6 s of steps,
+    it (`_thaw`: `gc.unfreeze`, when no step in another thread still runs).
+    Both are list splices, so the price is the same per step as per batch.
+    Without it the first passes after a 20 x 500 batch's build went over all
+    of it: 0.17-0.24 s of the collector's in a batch's 1.2-1.6 s of steps,
     0.04-0.05 s with it. Only while a step runs, not for the batch's life:
     an engine dropped unfinished inside a reference cycle (a callback that
     holds it) would stay frozen, never collected, and hold every later
-    batch's heap frozen with it."""
+    batch's heap frozen with it. Returns whether it froze (the collector
+    is on); a pair of calls, not a context manager, whose generator cost a
+    1,000-robot step a few per cent."""
     if not gc.isenabled():
-        yield
-        return
+        return False
     gc.freeze()
     _STEPPING[0] += 1
-    try:
-        yield
-    finally:
-        _STEPPING[0] -= 1
-        if not _STEPPING[0]:
-            gc.unfreeze()
+    return True
+
+
+def _thaw() -> None:
+    """The end of a step `_frozen_heap` froze."""
+    _STEPPING[0] -= 1
+    if not _STEPPING[0]:
+        gc.unfreeze()
 
 
 def _aged() -> None:
@@ -726,8 +730,13 @@ class SoaEngine:
     # -- one tick ---------------------------------------------------------------------------
 
     def step(self) -> None:
-        with _frozen_heap():
+        if not _frozen_heap():
             self._step()
+            return
+        try:
+            self._step()
+        finally:
+            _thaw()
 
     def _step(self) -> None:
         self.tick += 1
@@ -786,30 +795,49 @@ class SoaEngine:
                 up.append((node_of[i], kind, tuple(row[3:3 + nfields[kind]])))
         woken = self.wake
         due = t >= self._soonest
-        asked = set(np.flatnonzero(woken <= t).tolist()) if due else set()
+        # numpy's calls cost a few microseconds each whatever the length: a
+        # batch of few runs (a 1,000-robot run, due on each transport tick)
+        # reads its wake ticks as a list
+        few = due and len(woken) <= _FEW_RUNS
+        if not due:
+            asked = set()
+        elif few:
+            asked = {r for r, w in enumerate(woken.tolist()) if w <= t}
+        else:
+            asked = set(np.flatnonzero(woken <= t).tolist())
         soonest = NEVER if due else self._soonest
-        coords, conv, until = self.coords, self.conv_steps, self.until
-        steps = self.rt[B.STEPS]
+        coords, conv = self.coords, self.conv_steps
+        converged = self.until == "converged"
         update = mutes.update
         ended: list[int] = []
         sends = []
+        # exchange(c, up, t, asked, HEARS_ALL) and run_ended inlined: `sift`
+        # dropped the muted messages, and a run here heard one or was asked,
+        # so each is ticked (a call per coordinator per tick saved)
         for r in sorted(asked.union(ups)) if asked else sorted(ups):
             c = coords[r]
-            out = exchange(c, ups.get(r, ()), t, r in asked, HEARS_ALL)
-            if out is None:
-                continue
+            up = ups.get(r)
+            if up is not None:
+                on_message = c.on_message
+                for node, kind, fields in up:
+                    on_message(node, kind, fields, t)
+            out = c.tick(t)
             if out:
                 sends.append((r, out))
-            w = woken[r] = wake(c)
+            w = wake(c)
+            woken[r] = w
             if w < soonest:
                 soonest = w
             update(r, c)
             if conv[r] < 0 and c.converged_tick >= 0:
-                conv[r] = int(steps[r])
-            if run_ended(c, until):
+                conv[r] = int(self.rt[B.STEPS, r])
+            if c.done() or (converged and c.converged_tick >= 0):
                 ended.append(r)
         # a step that read the wake ticks knows their least exactly
-        self._soonest = int(woken.min()) if due else soonest
+        if few:
+            self._soonest = min(woken.tolist())
+        else:
+            self._soonest = int(woken.min()) if due else soonest
         if sends:
             self._deliver(sends)
         return ended
