@@ -394,10 +394,11 @@ def start_turn(g, rb, run, r, i):
     rb.mv_on[i] = 0
     rb.claim[i] = -1
     rb.beacon_set[i] = -1
-    rb.draws[i] = 0
-    if run.faulty[r] == 1 and run.tick[r] == rb.die[i]:
-        rb.beacon_set[i] = 0
-        release(g, rb, run, r, i)
+    if run.faulty[r] == 1:                  # only a faulty run draws (fault_draw)
+        rb.draws[i] = 0
+        if run.tick[r] == rb.die[i]:
+            rb.beacon_set[i] = 0
+            release(g, rb, run, r, i)
 
 
 def release(g, rb, run, r, i):
@@ -556,9 +557,10 @@ def beacons(g, rb, run, r):
     Q8 position. A beacon turned off takes its field with it (our addition).
     Pins come before the new fields, as go's ask precedes its Signal."""
     last = -1
-    for i in range(run.lo[r], run.hi[r]):
-        if rb.beacon_set[i] >= 1 and rb.beacon_on[i] == 0:
-            last = i
+    if run.sigmode[r] == LAST_FINDER:       # ON_PATCH never reads it
+        for i in range(run.lo[r], run.hi[r]):
+            if rb.beacon_set[i] >= 1 and rb.beacon_on[i] == 0:
+                last = i
     beacons_last(g, rb, run, r, last)
 
 
@@ -947,8 +949,7 @@ def go_iteration(robots, hal, g, rb, run, r):
             prefetch(rb.mv_h, a)
             prefetch(rb.mv_step, a)
             prefetch(rb.claim, a)
-            prefetch(rb.beacon_set, a)
-            prefetch(rb.beacon_on, a)
+            prefetch(rb.beacon_set, a)       # (beacon_on: read only after a beacon call)
             a = order[j + WARM_CELL]
             prefetch_held(robots, a)
             warm_patches(g, run, r, xs[a], ys[a])
