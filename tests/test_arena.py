@@ -258,6 +258,29 @@ def test_a_robot_hemmed_in_by_the_crowd_is_pushed_along_it():
     assert min(w.stamp) >= -1                   # the search left no mark behind
 
 
+def test_the_push_along_the_crowd_finds_each_robot_a_scan_of_all_would(monkeypatch):
+    """kernel._robot_at looks only at make_way's rb.near (the robots round
+    the group's way); at every patch the push asks about it names the robot
+    a scan of the run's every robot names, and robot 6, far off at
+    (10, 10), is not among them."""
+    from firmware_logic import fixedpoint as fx
+    from sim_backend import kernel
+    real = kernel._robot_at
+    asked = []
+
+    def checked(rb, run, r, px, py):
+        every = next((-1 if rb.held[i] >= 0 else i for i in range(run.lo[r], run.hi[r])
+                      if (fx.patch(rb.xs[i]), fx.patch(rb.ys[i])) == (px, py)), -1)
+        near = list(rb.near[run.lo[r]:run.hi[r]]) + [-1]
+        asked.append((real(rb, run, r, px, py), every, 5 in near[:near.index(-1)]))
+        return asked[-1][0]
+    monkeypatch.setattr(kernel, "_robot_at", checked)
+    w = _carry_scene("yield", (4, -1), (3, -2), more=((4, -2), (5, -2), (10, 10)))
+    assert (fx.patch(w.xs[1]), fx.patch(w.ys[1])) == (3, -2)     # pushed, as above
+    assert asked and all(got == every for got, every, _ in asked)
+    assert not any(far for _, _, far in asked)
+
+
 def test_the_dynamic_field_moves_with_its_carrier():
     peak = {}
     for field in ("static", "dynamic"):
