@@ -56,9 +56,9 @@ from sim_backend import registry
 from sim_backend import kernel
 from sim_backend.batch import body as B
 from sim_backend.batch import transform as T
-from sim_backend.engine import UNTIL, RunResult, declared_measures
+from sim_backend.engine import UNTIL, RunResult, declared_measures, run_ended
 from sim_backend.errors import EngineError
-from sim_backend.exchange import NEVER, BatchMutes, wake
+from sim_backend.exchange import HEARS_ALL, NEVER, BatchMutes, exchange, wake
 from sim_backend.scenario import Scenario
 from sim_backend.world import World
 
@@ -806,22 +806,15 @@ class SoaEngine:
         else:
             asked = set(np.flatnonzero(woken <= t).tolist())
         soonest = NEVER if due else self._soonest
-        coords, conv = self.coords, self.conv_steps
-        converged = self.until == "converged"
+        coords, conv, until = self.coords, self.conv_steps, self.until
         update = mutes.update
         ended: list[int] = []
         sends = []
-        # exchange(c, up, t, asked, HEARS_ALL) and run_ended inlined: `sift`
-        # dropped the muted messages, and a run here heard one or was asked,
-        # so each is ticked (a call per coordinator per tick saved)
+        # `sift` dropped the muted messages (HEARS_ALL here), and a run here
+        # heard one or was asked, so each is ticked
         for r in sorted(asked.union(ups)) if asked else sorted(ups):
             c = coords[r]
-            up = ups.get(r)
-            if up is not None:
-                on_message = c.on_message
-                for node, kind, fields in up:
-                    on_message(node, kind, fields, t)
-            out = c.tick(t)
+            out = exchange(c, ups.get(r, ()), t, True, HEARS_ALL)
             if out:
                 sends.append((r, out))
             w = wake(c)
@@ -831,7 +824,7 @@ class SoaEngine:
             update(r, c)
             if conv[r] < 0 and c.converged_tick >= 0:
                 conv[r] = int(self.rt[B.STEPS, r])
-            if c.done() or (converged and c.converged_tick >= 0):
+            if run_ended(c, until):
                 ended.append(r)
         # a step that read the wake ticks knows their least exactly
         if few:

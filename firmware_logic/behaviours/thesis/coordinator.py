@@ -34,7 +34,7 @@ STALLED = 2
 STOP_REASONS = ("", "no path home", "stalled")
 # host-side logic: portable, but allowed to allocate
 SUBSET_SETUP = ("Touch", "Coordinator", "way_home", "_free", "_nearest", "_closer", "_closer_h",
-                "_squares", "_within", "_ranked", "_box_of", "_grow", "_grown")
+                "_squares", "_within", "_ranked", "_box_of", "_grown")
 STEPS = ((-1, -1), (-1, 0), (0, -1), (1, -1), (-1, 1), (1, 0), (0, 1), (1, 1))
 
 
@@ -341,21 +341,20 @@ def _ranked(sq, mx, my, near, steps):
 
 def _box_of(pts):
     """(x0, x1, y0, y1) round the points, or None when there are none."""
-    box = None
-    if pts is not None:
-        for x, y in pts:
-            box = _grow(box, x, y)
-    return box
+    return None if pts is None else _grown(None, pts)
 
 
 def _grown(box, pts):
-    """`box` grown to hold every point of `pts` (a call per point cost a
-    rebuild of `_held` a fifth of its time)."""
+    """`box` (None: no box yet) grown to hold every point of `pts`, in one
+    pass (a call per point cost a rebuild of `_held` a fifth of its time);
+    None when both are empty."""
     if box is None:
-        x0 = x1 = pts[0][0]
-        y0 = y1 = pts[0][1]
-    else:
-        x0, x1, y0, y1 = box
+        for x, y in pts:
+            box = (x, x, y, y)
+            break
+        else:
+            return None
+    x0, x1, y0, y1 = box
     for x, y in pts:
         if x < x0:
             x0 = x
@@ -365,18 +364,9 @@ def _grown(box, pts):
             y0 = y
         elif y > y1:
             y1 = y
-    if box is not None and box[0] == x0 and box[1] == x1 and box[2] == y0 and box[3] == y1:
+    if box[0] == x0 and box[1] == x1 and box[2] == y0 and box[3] == y1:
         return box
     return x0, x1, y0, y1
-
-
-def _grow(box, x, y):
-    """`box` grown to hold (x, y) (None: no box yet)."""
-    if box is None:
-        return x, x, y, y
-    if x >= box[0] and x <= box[1] and y >= box[2] and y <= box[3]:
-        return box
-    return min(box[0], x), max(box[1], x), min(box[2], y), max(box[3], y)
 
 
 class Touch:
@@ -701,12 +691,8 @@ class Coordinator(Recognising, Roster):
         if self.cells is not None:
             box = self.cells_box
         else:
-            box = _box_of(self.body)
-            if self.body is None:
-                for x, y in segs:
-                    box = _grow(box, x, y)
-        if live:
-            box = _grown(box, live)
+            box = _grown(None, segs) if self.body is None else _box_of(self.body)
+        box = _grown(box, live)
         # a holder stands within g * sqrt(2) of its own segment, so none is
         # within sqrt(r2) while every segment is at least sqrt(r2) +
         # g * sqrt(2) away: r2 + 2 * g * sqrt(2 * r2) + 2 * g * g, with
